@@ -1,0 +1,56 @@
+//! Reading sequences: which files, in which order, and each file's contents.
+
+mod binvox;
+mod gltf;
+mod obj;
+mod ply;
+mod sequence;
+
+pub use binvox::{read_binvox, write_binvox};
+pub use sequence::{discover_frames, glob_match, is_supported, sort_natural, EXTENSIONS};
+
+use crate::error::{Error, Result};
+use crate::mesh::TriangleMesh;
+use crate::voxel::{GridSpec, Occupancy};
+use std::path::Path;
+
+/// What one frame file holds.
+#[derive(Clone, Debug)]
+pub enum FrameData {
+    Mesh(TriangleMesh),
+    /// A `.binvox` frame: voxelisation is skipped.
+    Voxels(GridSpec, Occupancy),
+}
+
+fn extension(path: &Path) -> String {
+    path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
+}
+
+/// Reads one frame, choosing the format by extension.
+pub fn read_frame(path: &Path) -> Result<FrameData> {
+    let ext = extension(path);
+    if !is_supported(path) {
+        return Err(Error::UnsupportedFormat { path: path.to_path_buf() });
+    }
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if bytes.is_empty() {
+        return Err(Error::parse(path, None, "the file is empty"));
+    }
+    // The parsers are ours or well fuzzed, but a panic on hostile input must
+    // still become an error that names the file.
+    let parsed = std::panic::catch_unwind(|| match ext.as_str() {
+        "obj" => obj::read_obj(path, &bytes).map(FrameData::Mesh),
+        "ply" => ply::read_ply(path, &bytes).map(FrameData::Mesh),
+        "gltf" | "glb" => gltf::read_gltf(path, &bytes).map(FrameData::Mesh),
+        _ => read_binvox(path, &bytes).map(|(g, o)| FrameData::Voxels(g, o)),
+    });
+    parsed.unwrap_or_else(|_| Err(Error::parse(path, None, "the reader failed on malformed content")))
+}
+
+/// Reads one mesh frame; a voxel file is an error here.
+pub fn read_mesh(path: &Path) -> Result<TriangleMesh> {
+    match read_frame(path)? {
+        FrameData::Mesh(m) => Ok(m),
+        FrameData::Voxels(..) => Err(Error::mesh(path, "a voxel grid where a mesh is needed")),
+    }
+}

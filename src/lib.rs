@@ -1,0 +1,18 @@
+//! voltrack: time-varying meshes to dynamic meshes by as-rigid-as-possible
+//! volume tracking with temporally global optimisation.
+//!
+//! The pipeline, one module per stage: [`io`] reads a sequence, [`voxel`]
+//! puts every frame on one grid.
+
+pub mod error;
+pub mod export;
+pub mod fixtures;
+pub mod io;
+pub mod math;
+pub mod mesh;
+pub mod progress;
+pub mod voxel;
+
+pub use error::{Error, Result};
+pub use mesh::{Aabb, TriangleMesh};
+pub use progress::{Progress, Stage};

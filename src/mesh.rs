@@ -1,0 +1,116 @@
+//! The triangle mesh every reader produces.
+
+use crate::error::{Error, Result};
+use crate::math::{Point3, Real, Vector3};
+use std::path::{Path, PathBuf};
+
+/// One frame's surface: triangles over a shared vertex list.
+///
+/// Attributes other than positions are optional and are carried only so the
+/// first frame can be exported as loaded (UVs, normals, texture).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriangleMesh {
+    pub positions: Vec<Point3>,
+    /// Counter-clockwise seen from outside, indices into `positions`.
+    pub triangles: Vec<[u32; 3]>,
+    /// Per-vertex texture coordinates (glTF convention: v down), if present.
+    pub uvs: Option<Vec<[f32; 2]>>,
+    /// Per-vertex normals, if present in the file.
+    pub normals: Option<Vec<[f32; 3]>>,
+    /// Base colour texture of the first material, if the file names one.
+    pub texture: Option<PathBuf>,
+}
+
+/// Axis-aligned bounding box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    pub min: Point3,
+    pub max: Point3,
+}
+
+impl Aabb {
+    pub fn empty() -> Self {
+        Aabb { min: Point3::from([Real::INFINITY; 3]), max: Point3::from([Real::NEG_INFINITY; 3]) }
+    }
+    pub fn from_points<'a>(points: impl IntoIterator<Item = &'a Point3>) -> Self {
+        let mut b = Aabb::empty();
+        for p in points {
+            b.grow(p);
+        }
+        b
+    }
+    pub fn grow(&mut self, p: &Point3) {
+        self.min = self.min.inf(p);
+        self.max = self.max.sup(p);
+    }
+    pub fn union(&self, other: &Aabb) -> Aabb {
+        Aabb { min: self.min.inf(&other.min), max: self.max.sup(&other.max) }
+    }
+    pub fn is_empty(&self) -> bool {
+        (0..3).any(|k| self.min[k] > self.max[k])
+    }
+    pub fn extent(&self) -> Vector3 {
+        self.max - self.min
+    }
+    pub fn longest_side(&self) -> Real {
+        self.extent().max()
+    }
+    pub fn diagonal(&self) -> Real {
+        self.extent().norm()
+    }
+}
+
+impl TriangleMesh {
+    pub fn bounding_box(&self) -> Aabb {
+        Aabb::from_points(&self.positions)
+    }
+
+    /// Checks what every stage relies on: at least one triangle, finite
+    /// coordinates, indices in range. `path` names the file in the error.
+    pub fn validate(&self, path: &Path) -> Result<()> {
+        if self.triangles.is_empty() {
+            return Err(Error::mesh(path, "the mesh has no triangles"));
+        }
+        if let Some(i) = self.positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(Error::mesh(path, format!("vertex {} has a non-finite coordinate", i + 1)));
+        }
+        let n = self.positions.len();
+        if let Some(t) = self.triangles.iter().position(|t| t.iter().any(|&i| i as usize >= n)) {
+            return Err(Error::mesh(
+                path,
+                format!("triangle {} refers to a vertex beyond the {n} defined", t + 1),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Signed volume enclosed (exact for closed, consistently oriented meshes).
+    pub fn signed_volume(&self) -> Real {
+        self.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| self.positions[i as usize].coords);
+                a.dot(&b.cross(&c)) / 6.0
+            })
+            .sum()
+    }
+
+    /// Per-vertex area-weighted normals.
+    pub fn vertex_normals(&self) -> Vec<Vector3> {
+        let mut n = vec![Vector3::zeros(); self.positions.len()];
+        for t in &self.triangles {
+            let [a, b, c] = t.map(|i| self.positions[i as usize]);
+            let fnorm = (b - a).cross(&(c - a));
+            for &i in t {
+                n[i as usize] += fnorm;
+            }
+        }
+        for v in &mut n {
+            let l = v.norm();
+            if l > 0.0 {
+                *v /= l;
+            }
+        }
+        n
+    }
+}

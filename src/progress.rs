@@ -1,0 +1,72 @@
+//! Progress reporting: the library never prints; it calls back, and the CLI
+//! turns the calls into progress bars (or nothing when piped).
+
+/// A pipeline stage, for progress reports and timings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Stage {
+    Read,
+    Voxelize,
+    Track,
+    Refine,
+    Deform,
+    Export,
+}
+
+impl Stage {
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Read => "read",
+            Stage::Voxelize => "voxelize",
+            Stage::Track => "track",
+            Stage::Refine => "refine",
+            Stage::Deform => "deform",
+            Stage::Export => "export",
+        }
+    }
+}
+
+/// Receives `(stage, done, total)` as work advances; `done == total` ends a stage.
+pub trait ProgressSink: Sync {
+    fn report(&self, stage: Stage, done: usize, total: usize);
+}
+
+impl<F: Fn(Stage, usize, usize) + Sync> ProgressSink for F {
+    fn report(&self, stage: Stage, done: usize, total: usize) {
+        self(stage, done, total)
+    }
+}
+
+/// An optional progress callback, cheap to pass around.
+#[derive(Clone, Copy, Default)]
+pub struct Progress<'a>(pub Option<&'a dyn ProgressSink>);
+
+impl<'a> Progress<'a> {
+    pub fn none() -> Self {
+        Progress(None)
+    }
+    pub fn report(&self, stage: Stage, done: usize, total: usize) {
+        if let Some(sink) = self.0 {
+            sink.report(stage, done, total);
+        }
+    }
+}
+
+/// Counts completed items across rayon threads and reports each one.
+pub struct Counter<'a> {
+    progress: Progress<'a>,
+    stage: Stage,
+    total: usize,
+    done: std::sync::atomic::AtomicUsize,
+}
+
+impl<'a> Counter<'a> {
+    pub fn new(progress: Progress<'a>, stage: Stage, total: usize) -> Self {
+        progress.report(stage, 0, total);
+        Counter { progress, stage, total, done: 0.into() }
+    }
+    pub fn tick(&self) {
+        let d = self.done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        self.progress.report(self.stage, d, self.total);
+    }
+}

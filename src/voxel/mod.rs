@@ -1,0 +1,11 @@
+//! Stage 1: every frame on one common voxel grid (method.md §1).
+
+mod grid;
+mod voxelize;
+mod winding;
+
+pub use grid::{GridSpec, Occupancy, GRID_MARGIN, MAX_RESOLUTION};
+pub use voxelize::voxelize;
+pub use winding::winding_number;
+mod sequence;
+pub use sequence::{voxelize_sequence, VoxelParams, VoxelSequence};

@@ -1,0 +1,161 @@
+//! The voxelisation stage: a whole sequence on one grid.
+
+use super::{voxelize, GridSpec, Occupancy};
+use crate::error::{Error, Result};
+use crate::io::{read_frame, FrameData};
+use crate::mesh::{Aabb, TriangleMesh};
+use crate::progress::{Counter, Progress, Stage};
+use rayon::prelude::*;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Options of the voxelisation stage.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct VoxelParams {
+    /// Voxels along the longest side of the sequence's bounding box.
+    /// Default 256; range 2..=1596. Ignored for `.binvox` input.
+    pub resolution: usize,
+    /// Largest accepted ratio between two frames' bounding-box diagonals;
+    /// beyond it the frames are taken to be in different units. Default 100.
+    pub max_extent_ratio: f64,
+}
+
+impl Default for VoxelParams {
+    fn default() -> Self {
+        VoxelParams { resolution: 256, max_extent_ratio: 100.0 }
+    }
+}
+
+/// Every frame's occupancy on the sequence's grid.
+#[derive(Clone, Debug)]
+pub struct VoxelSequence {
+    pub grid: GridSpec,
+    pub frames: Vec<Occupancy>,
+    pub paths: Vec<PathBuf>,
+    /// Bounding box of all frames (of the grid, for voxel input).
+    pub bounds: Aabb,
+    /// The first frame's mesh, kept for the deformation stage (None for voxel input).
+    pub first_mesh: Option<TriangleMesh>,
+    /// Wall-clock seconds spent reading and voxelising.
+    pub read_seconds: f64,
+    pub voxelize_seconds: f64,
+}
+
+/// Reads and voxelises every frame on one grid.
+pub fn voxelize_sequence(paths: &[PathBuf], params: &VoxelParams, progress: Progress) -> Result<VoxelSequence> {
+    if paths.len() < 2 {
+        return Err(Error::InvalidInput(match paths.first() {
+            Some(p) => format!("{}: a sequence needs at least 2 frames, got only this one", p.display()),
+            None => "a sequence needs at least 2 frames, got none".into(),
+        }));
+    }
+    let start = Instant::now();
+    let counter = Counter::new(progress, Stage::Read, paths.len());
+    let mut data: Vec<FrameData> = paths
+        .par_iter()
+        .map(|p| {
+            let d = read_frame(p);
+            counter.tick();
+            d
+        })
+        .collect::<Result<_>>()?;
+    let read_seconds = start.elapsed().as_secs_f64();
+
+    let meshes = data.iter().filter(|d| matches!(d, FrameData::Mesh(_))).count();
+    if meshes != 0 && meshes != data.len() {
+        return Err(Error::InvalidInput("the sequence mixes meshes and voxel grids".into()));
+    }
+    if meshes == 0 {
+        return voxel_input(paths, data, read_seconds);
+    }
+    let boxes: Vec<Aabb> = data
+        .iter()
+        .map(|d| match d {
+            FrameData::Mesh(m) => m.bounding_box(),
+            FrameData::Voxels(..) => unreachable!(),
+        })
+        .collect();
+    check_extents(paths, &boxes, params.max_extent_ratio)?;
+    let bounds = boxes.iter().fold(Aabb::empty(), |a, b| a.union(b));
+    let grid = GridSpec::for_bounds(&bounds, params.resolution)?;
+
+    let start = Instant::now();
+    let counter = Counter::new(progress, Stage::Voxelize, paths.len());
+    let frames: Vec<Occupancy> = data
+        .par_iter()
+        .zip(paths.par_iter())
+        .map(|(d, path)| {
+            let FrameData::Mesh(mesh) = d else { unreachable!() };
+            let occ = voxelize(mesh, &grid);
+            counter.tick();
+            if occ.is_empty() {
+                return Err(Error::mesh(
+                    path,
+                    "encloses no voxel at this resolution (an open sheet, or too thin); raise --resolution or close the surface",
+                ));
+            }
+            Ok(occ)
+        })
+        .collect::<Result<_>>()?;
+    let voxelize_seconds = start.elapsed().as_secs_f64();
+    let first_mesh = match data.swap_remove(0) {
+        FrameData::Mesh(m) => Some(m),
+        FrameData::Voxels(..) => None,
+    };
+    Ok(VoxelSequence { grid, frames, paths: paths.to_vec(), bounds, first_mesh, read_seconds, voxelize_seconds })
+}
+
+fn voxel_input(paths: &[PathBuf], data: Vec<FrameData>, read_seconds: f64) -> Result<VoxelSequence> {
+    let mut grid = None;
+    let mut frames = Vec::with_capacity(data.len());
+    for (d, path) in data.into_iter().zip(paths) {
+        let FrameData::Voxels(g, occ) = d else { unreachable!() };
+        match grid {
+            None => grid = Some(g),
+            Some(first) if first != g => {
+                return Err(Error::InvalidInput(format!(
+                    "{}: its grid (dims {:?}, origin {:?}, voxel {}) differs from the first frame's (dims {:?}, origin {:?}, voxel {})",
+                    path.display(), g.dims, g.origin.coords.as_slice(), g.voxel_size,
+                    first.dims, first.origin.coords.as_slice(), first.voxel_size
+                )))
+            }
+            Some(_) => {}
+        }
+        if occ.is_empty() {
+            return Err(Error::mesh(path, "no occupied voxel"));
+        }
+        frames.push(occ);
+    }
+    let grid = grid.expect("at least two frames");
+    Ok(VoxelSequence {
+        grid,
+        frames,
+        paths: paths.to_vec(),
+        bounds: grid.bounds(),
+        first_mesh: None,
+        read_seconds,
+        voxelize_seconds: 0.0,
+    })
+}
+
+/// Frames in different units (mm next to m) would share one grid badly.
+fn check_extents(paths: &[PathBuf], boxes: &[Aabb], max_ratio: f64) -> Result<()> {
+    let diag: Vec<f64> = boxes.iter().map(Aabb::diagonal).collect();
+    let (imin, imax) = (0..diag.len()).fold((0, 0), |(a, b), i| {
+        (if diag[i] < diag[a] { i } else { a }, if diag[i] > diag[b] { i } else { b })
+    });
+    if diag[imin] <= 0.0 {
+        return Err(Error::mesh(&paths[imin], "all vertices coincide (zero extent)"));
+    }
+    let ratio = diag[imax] / diag[imin];
+    if ratio > max_ratio {
+        return Err(Error::InvalidInput(format!(
+            "{} is {ratio:.0} times larger than {} (bounding-box diagonals {:.4} and {:.4}); are the frames in different units?",
+            paths[imax].display(),
+            paths[imin].display(),
+            diag[imax],
+            diag[imin]
+        )));
+    }
+    Ok(())
+}
