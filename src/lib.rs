@@ -4,13 +4,16 @@
 //! The pipeline, one module per stage: [`io`] reads a sequence, [`voxel`]
 //! puts every frame on one grid.
 
+pub mod deform;
 pub mod error;
 pub mod export;
 pub mod fixtures;
 pub mod io;
 pub mod math;
 pub mod mesh;
+pub mod metrics;
 pub mod progress;
+pub mod track;
 pub mod voxel;
 
 pub use error::{Error, Result};

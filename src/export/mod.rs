@@ -1,8 +1,11 @@
 //! Writing results (glTF, OBJ, PLY, binvox, EXR). Every writer goes through [`write_atomic`], so a failure
 //! never leaves a half-written file behind.
 
+pub mod basis;
+pub mod exr;
 pub mod gltf;
 pub mod obj;
+pub mod pc2;
 pub mod ply;
 
 use crate::error::{Error, Result};

@@ -1,6 +1,7 @@
 //! Reading sequences: which files, in which order, and each file's contents.
 
 mod binvox;
+pub mod exr;
 mod gltf;
 mod obj;
 mod ply;

@@ -1,0 +1,1 @@
+//! OpenEXR output: center trajectories and vertex-animation textures.

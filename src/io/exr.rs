@@ -1,0 +1,1 @@
+//! Reading center trajectories back from OpenEXR.

@@ -1,0 +1,1 @@
+//! Quality measures of a tracking result (method.md §6, §8).

@@ -1,0 +1,61 @@
+//! Center positions over all frames: the tracker's result.
+
+use crate::math::Point3;
+
+/// Positions of `centers` volume elements in each of `frames` frames, stored
+/// frame-major (`positions[f * centers + i]` is center i in frame f).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Trajectories {
+    pub frames: usize,
+    pub centers: usize,
+    pub positions: Vec<Point3>,
+}
+
+impl Trajectories {
+    pub fn new(frames: usize, centers: usize) -> Self {
+        Trajectories { frames, centers, positions: vec![Point3::origin(); frames * centers] }
+    }
+
+    /// Builds from one `Vec` of center positions per frame (all the same length).
+    pub fn from_frames(frames: Vec<Vec<Point3>>) -> Self {
+        let centers = frames.first().map_or(0, Vec::len);
+        assert!(frames.iter().all(|f| f.len() == centers), "every frame needs the same number of centers");
+        Trajectories { frames: frames.len(), centers, positions: frames.into_iter().flatten().collect() }
+    }
+
+    #[inline]
+    pub fn get(&self, frame: usize, center: usize) -> Point3 {
+        self.positions[frame * self.centers + center]
+    }
+
+    #[inline]
+    pub fn set(&mut self, frame: usize, center: usize, p: Point3) {
+        self.positions[frame * self.centers + center] = p;
+    }
+
+    /// All centers in one frame.
+    pub fn frame(&self, frame: usize) -> &[Point3] {
+        &self.positions[frame * self.centers..(frame + 1) * self.centers]
+    }
+
+    pub fn frame_mut(&mut self, frame: usize) -> &mut [Point3] {
+        &mut self.positions[frame * self.centers..(frame + 1) * self.centers]
+    }
+
+    /// One center's path through all frames.
+    pub fn trajectory(&self, center: usize) -> impl Iterator<Item = Point3> + '_ {
+        (0..self.frames).map(move |f| self.get(f, center))
+    }
+
+    /// A copy without the given centers (indices into this set), keeping order.
+    pub fn without(&self, removed: &[usize]) -> Trajectories {
+        let keep: Vec<usize> = (0..self.centers).filter(|i| !removed.contains(i)).collect();
+        let mut out = Trajectories::new(self.frames, keep.len());
+        for f in 0..self.frames {
+            for (k, &i) in keep.iter().enumerate() {
+                out.set(f, k, self.get(f, i));
+            }
+        }
+        out
+    }
+}
