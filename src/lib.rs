@@ -11,6 +11,7 @@ pub mod fixtures;
 pub mod io;
 pub mod math;
 pub mod mesh;
+pub mod params;
 pub mod metrics;
 pub mod progress;
 pub mod track;

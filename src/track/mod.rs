@@ -1,6 +1,16 @@
 //! Stages 2-3: seeding centers in the first frame and tracking them forward
-//! (method.md §2-§5).
+//! (method.md §2-§5). One file per algorithm: `lloyd` (frame 0), `assign`
+//! (Voronoi cells), `rigid` (weighted Kabsch), `affinity` (who moves with
+//! whom), `forward` (the frame loop).
 
+pub mod affinity;
+pub mod assign;
+mod forward;
+pub mod lloyd;
+pub mod rigid;
+mod rng;
 mod trajectories;
 
+pub use forward::{cell_moments, predict, track, FrameTiming, TrackResult};
+pub use rigid::{fit_rigid, Rigid};
 pub use trajectories::Trajectories;

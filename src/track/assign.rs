@@ -1,0 +1,315 @@
+//! Voronoi assignment of occupied voxels to their nearest center, and the
+//! per-cell sums the tracker needs.
+//!
+//! Centers move little between iterations, which two exact shortcuts exploit:
+//! - Hamerly's bounds: each voxel keeps an upper bound on the distance to its
+//!   center and a lower bound on the distance to any other; moving centers
+//!   loosen them by how far they moved, and while upper < lower the owner
+//!   cannot have changed, so the voxel is skipped.
+//! - Candidate lists: a voxel that must be searched tries its previous center
+//!   o and o's K nearest centers. The best of those is provably the nearest
+//!   when d_b < r_K(o) - |v - o| (r_K(o): distance from o to its K-th nearest
+//!   center; any center outside the list is at least that far from v by the
+//!   triangle inequality). Otherwise a k-d tree answers.
+//! Ties are broken by the lower center index, so the result does not depend
+//! on the number of threads. Both shortcuts are tested against a linear scan.
+
+use crate::math::{Point3, Real};
+use crate::voxel::GridSpec;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rayon::prelude::*;
+use std::num::NonZeroUsize;
+use std::sync::OnceLock;
+
+/// No hint for this voxel.
+pub const NO_OWNER: u32 = u32::MAX;
+
+/// Candidate-list length K.
+const CANDIDATES: usize = 16;
+
+/// Voxels per parallel work unit.
+const CHUNK: usize = 8192;
+
+/// Nearest-center queries over one set of center positions.
+pub struct CenterIndex {
+    tree: ImmutableKdTree<Real, 3>,
+    points: Vec<[Real; 3]>,
+    /// Each center's candidate list, built on first use: most voxels never
+    /// need one once the centers have settled.
+    knn: Vec<OnceLock<Candidates>>,
+    k: usize,
+}
+
+/// The `k` nearest centers of a center (itself first), and the distance to
+/// the k-th (infinite when the list holds every center).
+struct Candidates {
+    list: Box<[u32]>,
+    reach: Real,
+}
+
+impl CenterIndex {
+    pub fn new(centers: &[Point3]) -> Self {
+        let points: Vec<[Real; 3]> = centers.iter().map(|p| [p.x, p.y, p.z]).collect();
+        let tree = ImmutableKdTree::new_from_slice(&points).expect("building a k-d tree over finite centers");
+        let n = points.len();
+        CenterIndex { tree, points, knn: (0..n).map(|_| OnceLock::new()).collect(), k: CANDIDATES.min(n) }
+    }
+
+    fn candidates(&self, i: u32) -> &Candidates {
+        self.knn[i as usize].get_or_init(|| {
+            let mut found: Vec<(Real, u32)> = self
+                .tree
+                .query(&self.points[i as usize])
+                .nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(self.k).unwrap())
+                .execute()
+                .into_iter()
+                .map(|r| (r.distance, r.item))
+                .collect();
+            found.sort_by(|a, b| a.0.total_cmp(&b.0).then((a.1 != i).cmp(&(b.1 != i))).then(a.1.cmp(&b.1)));
+            let reach = if self.k == self.points.len() { Real::INFINITY } else { found.last().map_or(0.0, |r| r.0.sqrt()) };
+            Candidates { list: found.into_iter().map(|r| r.1).collect(), reach }
+        })
+    }
+
+    #[inline]
+    fn dist2(&self, i: u32, v: &[Real; 3]) -> Real {
+        let c = &self.points[i as usize];
+        (c[0] - v[0]).powi(2) + (c[1] - v[1]).powi(2) + (c[2] - v[2]).powi(2)
+    }
+
+    /// Nearest center by linear scan: the reference the fast paths are tested against.
+    pub fn nearest_brute_force(&self, v: &[Real; 3]) -> u32 {
+        let mut best = (Real::INFINITY, 0u32);
+        for i in 0..self.points.len() as u32 {
+            let d = self.dist2(i, v);
+            if d < best.0 {
+                best = (d, i);
+            }
+        }
+        best.1
+    }
+
+    /// Nearest center from the k-d tree, ties to the lower index.
+    pub fn nearest_tree(&self, v: &[Real; 3]) -> u32 {
+        let r = self.tree.query(v).nearest_one::<SquaredEuclidean<Real>>().execute();
+        // The tree may return any of several equidistant centers; settle ties.
+        let mut best = (r.distance, r.item);
+        for &c in self.candidates(r.item).list.iter() {
+            let d = self.dist2(c, v);
+            if d < best.0 || (d == best.0 && c < best.1) {
+                best = (d, c);
+            }
+        }
+        best.1
+    }
+
+    /// Nearest center and a lower bound on the distance to every other
+    /// center, starting from the hint `o` (a center index, or NO_OWNER).
+    #[inline]
+    fn nearest2(&self, v: &[Real; 3], hint: u32) -> (u32, Real, Real) {
+        if hint != NO_OWNER && (hint as usize) < self.points.len() {
+            let (mut best, mut second) = ((Real::INFINITY, 0u32), Real::INFINITY);
+            let cand = self.candidates(hint);
+            for &c in cand.list.iter() {
+                let d = self.dist2(c, v);
+                if d < best.0 || (d == best.0 && c < best.1) {
+                    second = second.min(best.0);
+                    best = (d, c);
+                } else {
+                    second = second.min(d);
+                }
+            }
+            let bound = cand.reach - self.dist2(hint, v).sqrt();
+            let d_best = best.0.sqrt();
+            // Strict: a center at exactly the bound could tie and win on index.
+            if d_best < bound {
+                return (best.1, d_best, second.sqrt().min(bound));
+            }
+        }
+        if self.points.len() == 1 {
+            return (0, self.dist2(0, v).sqrt(), Real::INFINITY);
+        }
+        let found = self.tree.query(v).nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(2).unwrap()).execute();
+        let (a, b) = (&found[0], &found[1]);
+        let owner = self.nearest_tree(v);
+        // The second distance bounds every center but the owner from below.
+        let second = if owner == a.item { b.distance } else { a.distance };
+        (owner, self.dist2(owner, v).sqrt(), second.sqrt())
+    }
+
+    /// Nearest center (ties to the lower index), from a hint or none.
+    pub fn nearest(&self, v: &[Real; 3], hint: u32) -> u32 {
+        self.nearest2(v, hint).0
+    }
+
+    pub fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
+    }
+}
+
+/// Per-cell sums over occupied voxels, in integer voxel coordinates so that
+/// they are exact and independent of summation order.
+#[derive(Clone, Debug, Default)]
+pub struct CellStats {
+    pub count: Vec<u32>,
+    pub sum: Vec<[i64; 3]>,
+    /// Σ v vᵀ as (xx, yy, zz, xy, xz, yz), when requested.
+    pub second: Option<Vec<[i64; 6]>>,
+}
+
+/// Mean and covariance of a cell's voxel centers, in world units.
+#[derive(Clone, Copy, Debug)]
+pub struct CellMoments {
+    pub count: u32,
+    pub mean: Point3,
+    pub covariance: nalgebra::Matrix3<Real>,
+}
+
+impl CellStats {
+    /// World centroid of cell i, None when it holds no voxel.
+    pub fn centroid(&self, i: usize, grid: &GridSpec) -> Option<Point3> {
+        let n = self.count[i];
+        (n > 0).then(|| {
+            let s = self.sum[i];
+            let m = [0, 1, 2].map(|k| s[k] as Real / n as Real + 0.5);
+            grid.origin + nalgebra::Vector3::new(m[0], m[1], m[2]) * grid.voxel_size
+        })
+    }
+
+    /// Mean and covariance of cell i (needs `second`).
+    pub fn moments(&self, i: usize, grid: &GridSpec) -> Option<CellMoments> {
+        let second = self.second.as_ref()?;
+        let mean = self.centroid(i, grid)?;
+        let n = self.count[i] as Real;
+        let s = self.sum[i].map(|x| x as Real / n);
+        let q = second[i].map(|x| x as Real / n);
+        // Covariance is shift-invariant: compute it in voxel units, then scale.
+        let (xx, yy, zz) = (q[0] - s[0] * s[0], q[1] - s[1] * s[1], q[2] - s[2] * s[2]);
+        let (xy, xz, yz) = (q[3] - s[0] * s[1], q[4] - s[0] * s[2], q[5] - s[1] * s[2]);
+        let a2 = grid.voxel_size * grid.voxel_size;
+        let covariance = nalgebra::Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz) * a2;
+        Some(CellMoments { count: self.count[i], mean, covariance })
+    }
+}
+
+/// One frame's voxels with their owners and Hamerly bounds, updated as the
+/// centers move.
+pub struct Assignment {
+    positions: Vec<[Real; 3]>,
+    coords: Vec<[u16; 3]>,
+    pub owners: Vec<u32>,
+    upper: Vec<Real>,
+    lower: Vec<Real>,
+    /// Slack for rounding in the bounds, in world units.
+    eps: Real,
+}
+
+impl Assignment {
+    /// `hints`: one center index (or NO_OWNER) per voxel.
+    pub fn new(grid: &GridSpec, voxels: &[u32], hints: Vec<u32>) -> Self {
+        assert_eq!(voxels.len(), hints.len());
+        let positions = voxels.iter().map(|&v| grid.voxel_center(v as usize).coords.into()).collect();
+        let coords = voxels.iter().map(|&v| grid.voxel_coords(v as usize).map(|c| c as u16)).collect();
+        let n = voxels.len();
+        Assignment {
+            positions,
+            coords,
+            owners: hints,
+            upper: vec![Real::INFINITY; n],
+            lower: vec![Real::NEG_INFINITY; n],
+            eps: grid.voxel_size * 1e-9,
+        }
+    }
+
+    /// Re-assigns after the centers moved: `index` over the new positions,
+    /// `moved[i]` how far center i moved since the last call (ignored on the
+    /// first call). Returns the cells' sums.
+    pub fn update(&mut self, index: &CenterIndex, moved: &[Real], with_moments: bool) -> CellStats {
+        let max_move = moved.iter().copied().fold(0.0, Real::max);
+        let eps = self.eps;
+        self.owners
+            .par_chunks_mut(CHUNK)
+            .zip(self.upper.par_chunks_mut(CHUNK))
+            .zip(self.lower.par_chunks_mut(CHUNK))
+            .zip(self.positions.par_chunks(CHUNK))
+            .for_each(|(((own, up), low), pos)| {
+                for k in 0..own.len() {
+                    let o = own[k];
+                    if o != NO_OWNER && up[k].is_finite() {
+                        up[k] += moved[o as usize];
+                        low[k] -= max_move;
+                        if up[k] + eps < low[k] {
+                            continue;
+                        }
+                        up[k] = index.dist2(o, &pos[k]).sqrt();
+                        if up[k] + eps < low[k] {
+                            continue;
+                        }
+                    }
+                    let (owner, d, second) = index.nearest2(&pos[k], o);
+                    own[k] = owner;
+                    up[k] = d;
+                    low[k] = second;
+                }
+            });
+        cell_stats(&self.coords, &self.owners, index.len(), with_moments)
+    }
+}
+
+/// Assigns every occupied voxel to its nearest center in one go. `owners`
+/// holds one hint per voxel on entry (NO_OWNER for none), the owner on return.
+pub fn assign(grid: &GridSpec, voxels: &[u32], index: &CenterIndex, owners: &mut [u32], with_moments: bool) -> CellStats {
+    let mut a = Assignment::new(grid, voxels, owners.to_vec());
+    let stats = a.update(index, &[], with_moments);
+    owners.copy_from_slice(&a.owners);
+    stats
+}
+
+/// Sums over each cell's voxels given their owners (sequential: integer
+/// sums, a small share of the time).
+fn cell_stats(coords: &[[u16; 3]], owners: &[u32], n: usize, with_moments: bool) -> CellStats {
+    let mut stats = CellStats {
+        count: vec![0; n],
+        sum: vec![[0; 3]; n],
+        second: with_moments.then(|| vec![[0; 6]; n]),
+    };
+    for (&o, c) in owners.iter().zip(coords) {
+        let [x, y, z] = c.map(|c| c as i64);
+        let o = o as usize;
+        stats.count[o] += 1;
+        let s = &mut stats.sum[o];
+        s[0] += x;
+        s[1] += y;
+        s[2] += z;
+        if let Some(second) = &mut stats.second {
+            let q = &mut second[o];
+            q[0] += x * x;
+            q[1] += y * y;
+            q[2] += z * z;
+            q[3] += x * y;
+            q[4] += x * z;
+            q[5] += y * z;
+        }
+    }
+    stats
+}
+
+/// Carries owners from one frame's voxels to the next's: voxels present in
+/// both keep their owner as a hint (both lists are sorted).
+pub fn carry_owners(prev_voxels: &[u32], prev_owners: &[u32], voxels: &[u32]) -> Vec<u32> {
+    let mut out = vec![NO_OWNER; voxels.len()];
+    let mut j = 0;
+    let mut last = NO_OWNER;
+    for (k, &v) in voxels.iter().enumerate() {
+        while j < prev_voxels.len() && prev_voxels[j] < v {
+            last = prev_owners[j];
+            j += 1;
+        }
+        out[k] = if j < prev_voxels.len() && prev_voxels[j] == v { prev_owners[j] } else { last };
+    }
+    out
+}

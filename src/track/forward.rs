@@ -1,0 +1,161 @@
+//! Forward tracking, frame by frame (method.md §3): extrapolate, presmooth
+//! with rigid predictions, then alternate Voronoi centroids and rigid
+//! predictions until no center moves more than the threshold.
+
+use super::affinity::{fit_all, Affinity};
+use super::assign::{assign, carry_owners, Assignment, CellMoments, CellStats, CenterIndex, NO_OWNER};
+use super::lloyd::seed_centers;
+use super::rigid::Rigid;
+use super::Trajectories;
+use crate::error::{Error, Result};
+use crate::math::{Point3, Real};
+use crate::params::TrackParams;
+use crate::progress::{Progress, Stage};
+use crate::voxel::{GridSpec, VoxelSequence};
+use std::time::Instant;
+
+/// Where the time of one frame went, in seconds.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct FrameTiming {
+    pub total: f64,
+    pub assign: f64,
+    pub fit: f64,
+    pub affinity: f64,
+    pub iterations: usize,
+}
+
+/// The tracker's result.
+#[derive(Clone, Debug)]
+pub struct TrackResult {
+    pub trajectories: Trajectories,
+    /// Occupied voxels per Voronoi cell at the final positions, per frame (for DFU).
+    pub cell_counts: Vec<Vec<u32>>,
+    /// Frame 0 is the Lloyd placement.
+    pub timings: Vec<FrameTiming>,
+    /// Lengths in the input's units: ρ_p, ρ_m, threshold after scaling.
+    pub scale: Real,
+}
+
+/// The state the tracker carries from one frame to the next.
+struct Tracker<'a> {
+    grid: &'a GridSpec,
+    params: &'a TrackParams,
+    threshold2: Real,
+    affinity: Affinity,
+    owners: Vec<u32>,
+    prev_voxels: &'a [u32],
+}
+
+/// Tracks `params.centers` centers through every frame of `seq`.
+pub fn track(seq: &VoxelSequence, params: &TrackParams, progress: Progress) -> Result<TrackResult> {
+    params.validate()?;
+    let frames = seq.frames.len();
+    let n0 = seq.frames[0].len();
+    if params.centers > n0 {
+        return Err(Error::InvalidInput(format!(
+            "{}: only {n0} occupied voxels for {} centers; lower --centers or raise --resolution",
+            seq.paths[0].display(),
+            params.centers
+        )));
+    }
+    let scale = params.length_scale(&seq.bounds);
+    let grid = &seq.grid;
+    progress.report(Stage::Track, 0, frames);
+
+    let start = Instant::now();
+    let voxels0 = &seq.frames[0].indices;
+    let centers0 = seed_centers(grid, voxels0, params.centers, params.seed, params.lloyd_iterations, params.over_relaxation);
+    let mut traj = Trajectories::new(frames, params.centers);
+    traj.frame_mut(0).copy_from_slice(&centers0);
+    let mut owners = vec![NO_OWNER; voxels0.len()];
+    let stats0 = assign(grid, voxels0, &CenterIndex::new(&centers0), &mut owners, false);
+    let mut cell_counts = vec![stats0.count];
+    let affinity = Affinity::initial(&centers0, params.affinity, params.rho_p * scale, params.rho_m * scale, params.alpha, params.mu);
+    let mut timings = vec![FrameTiming { total: start.elapsed().as_secs_f64(), iterations: params.lloyd_iterations, ..Default::default() }];
+    log::info!("frame 0: {} centers placed, {:.1} neighbours each", params.centers, affinity.mean_neighbors());
+    progress.report(Stage::Track, 1, frames);
+
+    let mut tracker = Tracker {
+        grid,
+        params,
+        threshold2: (params.threshold * scale).powi(2),
+        affinity,
+        owners,
+        prev_voxels: voxels0,
+    };
+    for f in 1..frames {
+        let guess: Vec<Point3> = if f == 1 {
+            traj.frame(0).to_vec()
+        } else {
+            traj.frame(f - 1).iter().zip(traj.frame(f - 2)).map(|(a, b)| a + (a - b)).collect()
+        };
+        let (centers, counts, timing) = tracker.track_frame(traj.frame(f - 1), guess, &seq.frames[f].indices);
+        traj.frame_mut(f).copy_from_slice(&centers);
+        cell_counts.push(counts);
+        log::debug!("frame {f}: {} iterations, {:.3} s", timing.iterations, timing.total);
+        timings.push(timing);
+        progress.report(Stage::Track, f + 1, frames);
+    }
+    Ok(TrackResult { trajectories: traj, cell_counts, timings, scale })
+}
+
+impl<'a> Tracker<'a> {
+    /// One frame: returns the centers, their cells' voxel counts and the timing.
+    fn track_frame(&mut self, prev: &[Point3], mut cur: Vec<Point3>, voxels: &'a [u32]) -> (Vec<Point3>, Vec<u32>, FrameTiming) {
+        let start = Instant::now();
+        let mut t = FrameTiming::default();
+        let beta = self.params.beta;
+        let mut cells = Assignment::new(self.grid, voxels, carry_owners(self.prev_voxels, &self.owners, voxels));
+        let mut moved: Vec<Real> = Vec::new();
+
+        for _ in 0..self.params.presmooth_steps {
+            let clock = Instant::now();
+            let motions = fit_all(prev, &cur, &self.affinity);
+            cur = predict(&motions, prev);
+            t.fit += clock.elapsed().as_secs_f64();
+        }
+        for _ in 0..self.params.max_iterations {
+            t.iterations += 1;
+            let clock = Instant::now();
+            let stats = cells.update(&CenterIndex::new(&cur), &moved, false);
+            t.assign += clock.elapsed().as_secs_f64();
+            let clock = Instant::now();
+            let motions = fit_all(prev, &cur, &self.affinity);
+            t.fit += clock.elapsed().as_secs_f64();
+            moved.clear();
+            for (i, c) in cur.iter_mut().enumerate() {
+                let p = motions[i].apply(&prev[i]);
+                let x = stats.centroid(i, self.grid).unwrap_or(p);
+                let next = Point3::from((p.coords + x.coords * beta) / (1.0 + beta));
+                moved.push((next - *c).norm());
+                *c = next;
+            }
+            let moved_most = moved.iter().copied().fold(0.0, Real::max);
+            if moved_most * moved_most < self.threshold2 {
+                break;
+            }
+        }
+        // The frame's motions and cells at the final positions feed the affinity.
+        let clock = Instant::now();
+        let stats = cells.update(&CenterIndex::new(&cur), &moved, true);
+        t.assign += clock.elapsed().as_secs_f64();
+        let clock = Instant::now();
+        let motions = fit_all(prev, &cur, &self.affinity);
+        self.affinity.update(&cur, &motions, &cell_moments(&stats, self.grid));
+        t.affinity += clock.elapsed().as_secs_f64();
+        self.owners = cells.owners;
+        self.prev_voxels = voxels;
+        t.total = start.elapsed().as_secs_f64();
+        (cur, stats.count, t)
+    }
+}
+
+/// Rigid predictions p_i = A_i(c_i^{f-1}).
+pub fn predict(motions: &[Rigid], prev: &[Point3]) -> Vec<Point3> {
+    motions.iter().zip(prev).map(|(m, p)| m.apply(p)).collect()
+}
+
+/// Every cell's moments (None for empty cells).
+pub fn cell_moments(stats: &CellStats, grid: &GridSpec) -> Vec<Option<CellMoments>> {
+    (0..stats.count.len()).map(|i| stats.moments(i, grid)).collect()
+}

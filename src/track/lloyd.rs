@@ -1,0 +1,33 @@
+//! Frame 0: N distinct random occupied voxels, relaxed by over-relaxed Lloyd
+//! iterations into an even cover (method.md §2).
+
+use super::assign::{Assignment, CenterIndex, NO_OWNER};
+use super::rng::SplitMix64;
+use crate::math::{Point3, Real};
+use crate::voxel::GridSpec;
+
+/// Centers after `iterations` Lloyd steps c += ω (x̄ - c) from a seeded
+/// random choice of `n` distinct voxels (`n` <= voxels.len()).
+pub fn seed_centers(grid: &GridSpec, voxels: &[u32], n: usize, seed: u64, iterations: usize, omega: Real) -> Vec<Point3> {
+    assert!(n >= 1 && n <= voxels.len());
+    // Partial Fisher-Yates over the voxel list.
+    let mut rng = SplitMix64::new(seed);
+    let mut order: Vec<u32> = voxels.to_vec();
+    for k in 0..n {
+        let r = k + rng.below(order.len() - k);
+        order.swap(k, r);
+    }
+    let mut centers: Vec<Point3> = order[..n].iter().map(|&v| grid.voxel_center(v as usize)).collect();
+    let mut cells = Assignment::new(grid, voxels, vec![NO_OWNER; voxels.len()]);
+    let mut moved = Vec::new();
+    for _ in 0..iterations {
+        let stats = cells.update(&CenterIndex::new(&centers), &moved, false);
+        moved.clear();
+        for (i, c) in centers.iter_mut().enumerate() {
+            let step = stats.centroid(i, grid).map_or(nalgebra::Vector3::zeros(), |x| (x - *c) * omega);
+            *c += step;
+            moved.push(step.norm());
+        }
+    }
+    centers
+}

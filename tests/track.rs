@@ -1,0 +1,247 @@
+//! The tracker's parts against direct evaluation, and whole runs on rigid
+//! motions whose answer is known.
+
+use voltrack::math::{Matrix3, Point3, Real, Rotation3, Vector3};
+use voltrack::params::{sigma_for, AffinityKind, TrackParams};
+use voltrack::track::affinity::{motion_dissimilarity2, Affinity};
+use voltrack::track::assign::{Assignment, CellMoments, CenterIndex, NO_OWNER};
+use voltrack::track::{fit_rigid, track, Rigid};
+use voltrack::voxel::{voxelize, GridSpec, Occupancy, VoxelSequence};
+
+/// A small deterministic generator (tests need no rand crate).
+struct Lcg(u64);
+impl Lcg {
+    fn next(&mut self) -> Real {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (self.0 >> 11) as Real / (1u64 << 53) as Real
+    }
+    fn vec(&mut self, scale: Real) -> Vector3 {
+        Vector3::new(self.next() - 0.5, self.next() - 0.5, self.next() - 0.5) * scale
+    }
+    fn rigid(&mut self) -> Rigid {
+        let rot = Rotation3::new(self.vec(1.0).normalize() * (self.next() * 3.0));
+        Rigid { rotation: *rot.matrix(), translation: self.vec(4.0) }
+    }
+}
+
+#[test]
+fn kabsch_recovers_a_random_rigid_motion() {
+    let mut g = Lcg(1);
+    for _ in 0..50 {
+        let truth = g.rigid();
+        let src: Vec<Point3> = (0..12).map(|_| Point3::from(g.vec(3.0))).collect();
+        let dst: Vec<Point3> = src.iter().map(|p| truth.apply(p)).collect();
+        let pairs: Vec<(usize, Real)> = (0..12).map(|j| (j, 0.1 + g.next())).collect();
+        let fit = fit_rigid(&src, &dst, pairs.iter().copied());
+        assert!((fit.rotation - truth.rotation).abs().max() < 1e-9, "{:?} vs {:?}", fit.rotation, truth.rotation);
+        assert!((fit.translation - truth.translation).abs().max() < 1e-9);
+        assert!((fit.rotation.determinant() - 1.0).abs() < 1e-12);
+    }
+}
+
+#[test]
+fn kabsch_respects_weights() {
+    let mut g = Lcg(2);
+    let (inlier, outlier) = (g.rigid(), g.rigid());
+    let src: Vec<Point3> = (0..20).map(|_| Point3::from(g.vec(3.0))).collect();
+    let dst: Vec<Point3> = src.iter().enumerate().map(|(j, p)| if j < 10 { inlier.apply(p) } else { outlier.apply(p) }).collect();
+    // Zero weight on the outliers: exactly the inliers' motion.
+    let fit = fit_rigid(&src, &dst, (0..20).map(|j| (j, if j < 10 { 1.0 } else { 0.0 })));
+    assert!((fit.rotation - inlier.rotation).abs().max() < 1e-9);
+    // Mixed weights: the fit minimises the weighted objective, so no small
+    // perturbation does better.
+    let w: Vec<Real> = (0..20).map(|_| g.next()).collect();
+    let fit = fit_rigid(&src, &dst, (0..20).map(|j| (j, w[j])));
+    let energy = |r: &Rigid| -> Real { (0..20).map(|j| w[j] * (dst[j] - r.apply(&src[j])).norm_squared()).sum() };
+    let e0 = energy(&fit);
+    for _ in 0..200 {
+        let d = Rotation3::new(g.vec(1e-3));
+        let p = Rigid { rotation: d.matrix() * fit.rotation, translation: fit.translation + g.vec(1e-3) };
+        assert!(energy(&p) >= e0 - 1e-12, "{} < {}", energy(&p), e0);
+    }
+}
+
+#[test]
+fn voronoi_assignment_equals_a_linear_scan_while_centers_move() {
+    let grid = GridSpec { origin: Point3::new(-1.0, -2.0, 0.5), voxel_size: 0.1, dims: [30, 25, 20] };
+    let mut g = Lcg(3);
+    let voxels: Vec<u32> = (0..grid.len() as u32).filter(|_| g.next() < 0.4).collect();
+    let mut centers: Vec<Point3> = (0..60).map(|_| grid.voxel_center((g.next() * grid.len() as Real) as usize) + g.vec(0.05)).collect();
+    let mut cells = Assignment::new(&grid, &voxels, vec![NO_OWNER; voxels.len()]);
+    let mut moved = Vec::new();
+    for step in 0..25 {
+        let index = CenterIndex::new(&centers);
+        let stats = cells.update(&index, &moved, false);
+        let mut counts = vec![0u32; centers.len()];
+        for (k, &v) in voxels.iter().enumerate() {
+            let p = grid.voxel_center(v as usize);
+            let q = [p.x, p.y, p.z];
+            let best = index.nearest_brute_force(&q);
+            let d = |i: u32| (centers[i as usize] - p).norm_squared();
+            let owner = cells.owners[k];
+            assert_eq!(d(owner), d(best), "step {step}, voxel {v}: owner {owner} vs nearest {best}");
+            assert_eq!(index.nearest_tree(&q), owner.min(best).max(owner), "tree and fast path pick the same center");
+            counts[owner as usize] += 1;
+        }
+        assert_eq!(stats.count, counts);
+        // Move: small steps mostly, a few jumps.
+        moved.clear();
+        for c in centers.iter_mut() {
+            let step = if g.next() < 0.05 { g.vec(1.0) } else { g.vec(0.02) };
+            *c += step;
+            moved.push(step.norm());
+        }
+    }
+}
+
+#[test]
+fn motion_dissimilarity_matches_its_definition() {
+    let mut g = Lcg(4);
+    let pts: Vec<Point3> = (0..40).map(|_| Point3::from(g.vec(2.0) + Vector3::new(5.0, 0.0, 0.0))).collect();
+    let n = pts.len() as Real;
+    let mean = Point3::from(pts.iter().map(|p| p.coords).sum::<Vector3>() / n);
+    let covariance = pts.iter().map(|p| (p - mean) * (p - mean).transpose()).sum::<Matrix3>() / n;
+    let cell = CellMoments { count: 40, mean, covariance };
+    for _ in 0..20 {
+        let (a, b) = (g.rigid(), g.rigid());
+        let direct: Real = pts.iter().map(|p| (a.apply(p) - b.apply(p)).norm_squared()).sum::<Real>() / n;
+        let closed = motion_dissimilarity2(&cell, &a, &b);
+        assert!((direct - closed).abs() < 1e-9 * direct.max(1.0), "{direct} vs {closed}");
+    }
+}
+
+/// Weights after a few frames, from the formulas of method.md §5 evaluated
+/// directly over the whole history.
+#[test]
+fn both_affinities_match_their_formulas() {
+    let mut g = Lcg(5);
+    let n = 8;
+    let (rho_p, rho_m, alpha, mu) = (1.5, 0.4, 0.3, 1e-6);
+    let (sp, sm) = (sigma_for(rho_p), sigma_for(rho_m));
+    let frames: Vec<Vec<Point3>> = (0..4).map(|_| (0..n).map(|_| Point3::from(g.vec(2.0))).collect()).collect();
+    let motions: Vec<Vec<Rigid>> = (0..4).map(|_| (0..n).map(|_| g.rigid()).collect()).collect();
+    let cells: Vec<Vec<Option<CellMoments>>> = (0..4)
+        .map(|_| {
+            (0..n)
+                .map(|_| {
+                    let a = g.vec(0.3);
+                    Some(CellMoments { count: 5, mean: Point3::from(g.vec(2.0)), covariance: a * a.transpose() + Matrix3::identity() * 0.01 })
+                })
+                .collect()
+        })
+        .collect();
+    for kind in [AffinityKind::Max, AffinityKind::Iir] {
+        let mut aff = Affinity::initial(&frames[0], kind, rho_p, rho_m, alpha, mu);
+        for f in 1..4 {
+            aff.update(&frames[f], &motions[f], &cells[f]);
+        }
+        for i in 0..n {
+            for j in 0..n {
+                let d2 = |f: usize| (frames[f][i] - frames[f][j]).norm_squared();
+                let m2 = |f: usize| motion_dissimilarity2(cells[f][i].as_ref().unwrap(), &motions[f][i], &motions[f][j]);
+                let expected = match kind {
+                    AffinityKind::Max => {
+                        let maxd = (0..4).map(d2).fold(0.0, Real::max);
+                        let maxm = (1..4).map(m2).fold(0.0, Real::max);
+                        (-sp * maxd).exp() * (-sm * maxm).exp()
+                    }
+                    AffinityKind::Iir => {
+                        let mut a = 1.0;
+                        for f in 1..4 {
+                            a = alpha * (-sm * m2(f)).exp() + (1.0 - alpha) * a;
+                        }
+                        (-sp * d2(3)).exp() * a
+                    }
+                };
+                let got = aff.neighbors(i).iter().find(|nb| nb.j as usize == j).map_or(0.0, |nb| nb.w);
+                let tol = if kind == AffinityKind::Iir { 1e-6 } else { 1e-12 };
+                if expected >= mu * 1.01 {
+                    assert!((got - expected).abs() < tol, "{kind:?} w({i},{j}) = {got}, expected {expected}");
+                } else {
+                    assert!(got < mu * 1.01 + tol, "{kind:?} w({i},{j}) = {got} should be pruned");
+                }
+            }
+        }
+    }
+}
+
+/// A sequence voxelised from one mesh moved rigidly frame by frame.
+fn rigid_sequence(mesh: &voltrack::TriangleMesh, motions: &[Rigid], resolution: usize) -> VoxelSequence {
+    let moved: Vec<voltrack::TriangleMesh> = motions
+        .iter()
+        .map(|m| {
+            let mut c = mesh.clone();
+            c.positions.iter_mut().for_each(|p| *p = m.apply(p));
+            c
+        })
+        .collect();
+    let bounds = moved.iter().map(|m| m.bounding_box()).reduce(|a, b| a.union(&b)).unwrap();
+    let grid = GridSpec::for_bounds(&bounds, resolution).unwrap();
+    let frames: Vec<Occupancy> = moved.iter().map(|m| voxelize(m, &grid)).collect();
+    VoxelSequence {
+        grid,
+        paths: (0..frames.len()).map(|f| format!("frame{f}.obj").into()).collect(),
+        frames,
+        bounds,
+        first_mesh: Some(mesh.clone()),
+        read_seconds: 0.0,
+        voxelize_seconds: 0.0,
+    }
+}
+
+fn screw(frames: usize) -> Vec<Rigid> {
+    (0..frames)
+        .map(|f| {
+            let t = f as Real;
+            Rigid { rotation: *Rotation3::new(Vector3::new(0.1, 0.05, 0.3) * (0.08 * t)).matrix(), translation: Vector3::new(0.06 * t, 0.02 * t, 0.0) }
+        })
+        .collect()
+}
+
+#[test]
+fn centers_follow_a_rigid_motion() {
+    let mesh = voltrack::fixtures::merge(&[
+        voltrack::fixtures::cube(Point3::new(0.0, 0.0, 0.0), 1.0),
+        voltrack::fixtures::cube(Point3::new(0.0, 0.0, 0.9), 0.6),
+    ]);
+    let motions = screw(8);
+    let seq = rigid_sequence(&mesh, &motions, 96);
+    for kind in [AffinityKind::Max, AffinityKind::Iir] {
+        let params = TrackParams { centers: 60, affinity: kind, ..Default::default() };
+        let res = track(&seq, &params, Default::default()).unwrap();
+        let traj = &res.trajectories;
+        for f in 0..traj.frames {
+            let m = motions[f].compose(&motions[0].inverse());
+            let mut d: Vec<Real> = (0..traj.centers).map(|i| (traj.get(f, i) - m.apply(&traj.get(0, i))).norm() / seq.grid.voxel_size).collect();
+            d.sort_by(Real::total_cmp);
+            let mean = d.iter().sum::<Real>() / d.len() as Real;
+            let (p95, max) = (d[d.len() * 95 / 100], d[d.len() - 1]);
+            // The Voronoi equilibrium is not unique on a voxel grid: centers
+            // settle within about a voxel of the ideal, a few a little farther.
+            assert!(mean < 1.0 && p95 < 2.5 && max < 4.0, "{kind:?} frame {f}: deviation mean {mean:.2}, p95 {p95:.2}, max {max:.2} voxels");
+        }
+    }
+}
+
+#[test]
+fn tracking_is_deterministic_whatever_the_thread_count() {
+    let mesh = voltrack::fixtures::torus(Point3::origin(), 1.0, 0.4, 24, 12);
+    let seq = rigid_sequence(&mesh, &screw(4), 40);
+    let params = TrackParams { centers: 50, seed: 7, ..Default::default() };
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| track(&seq, &params, Default::default()).unwrap())
+    };
+    let (a, b) = (run(1), run(3));
+    assert_eq!(a.trajectories, b.trajectories);
+    assert_eq!(a.cell_counts, b.cell_counts);
+    let c = track(&seq, &TrackParams { seed: 8, ..params.clone() }, Default::default()).unwrap();
+    assert_ne!(a.trajectories, c.trajectories, "the seed matters");
+}
+
+#[test]
+fn too_many_centers_is_a_clear_error() {
+    let mesh = voltrack::fixtures::cube(Point3::origin(), 1.0);
+    let seq = rigid_sequence(&mesh, &screw(2), 4);
+    let e = track(&seq, &TrackParams { centers: 100_000, ..Default::default() }, Default::default()).unwrap_err().to_string();
+    assert!(e.contains("frame0.obj") && e.contains("centers"), "{e}");
+}
