@@ -198,13 +198,18 @@ impl CellStats {
 
 /// One frame's voxels with their owners and Hamerly bounds, updated as the
 /// centers move.
+///
+/// 14 bytes per voxel (coordinates, owner, f32 bounds), so that every frame of
+/// a long sequence can keep its state during the global optimisation.
 pub struct Assignment {
-    positions: Vec<[Real; 3]>,
+    origin: [Real; 3],
+    voxel_size: Real,
     coords: Vec<[u16; 3]>,
     pub owners: Vec<u32>,
-    upper: Vec<Real>,
-    lower: Vec<Real>,
-    /// Slack for rounding in the bounds, in world units.
+    upper: Vec<f32>,
+    lower: Vec<f32>,
+    /// Slack for the f64 arithmetic on the bounds, in world units (the f32
+    /// bounds themselves are rounded outwards).
     eps: Real,
 }
 
@@ -212,15 +217,15 @@ impl Assignment {
     /// `hints`: one center index (or NO_OWNER) per voxel.
     pub fn new(grid: &GridSpec, voxels: &[u32], hints: Vec<u32>) -> Self {
         assert_eq!(voxels.len(), hints.len());
-        let positions = voxels.iter().map(|&v| grid.voxel_center(v as usize).coords.into()).collect();
         let coords = voxels.iter().map(|&v| grid.voxel_coords(v as usize).map(|c| c as u16)).collect();
         let n = voxels.len();
         Assignment {
-            positions,
+            origin: grid.origin.coords.into(),
+            voxel_size: grid.voxel_size,
             coords,
             owners: hints,
-            upper: vec![Real::INFINITY; n],
-            lower: vec![Real::NEG_INFINITY; n],
+            upper: vec![f32::INFINITY; n],
+            lower: vec![f32::NEG_INFINITY; n],
             eps: grid.voxel_size * 1e-9,
         }
     }
@@ -230,30 +235,35 @@ impl Assignment {
     /// first call). Returns the cells' sums.
     pub fn update(&mut self, index: &CenterIndex, moved: &[Real], with_moments: bool) -> CellStats {
         let max_move = moved.iter().copied().fold(0.0, Real::max);
-        let eps = self.eps;
+        let (eps, origin, a) = (self.eps, self.origin, self.voxel_size);
         self.owners
             .par_chunks_mut(CHUNK)
             .zip(self.upper.par_chunks_mut(CHUNK))
             .zip(self.lower.par_chunks_mut(CHUNK))
-            .zip(self.positions.par_chunks(CHUNK))
-            .for_each(|(((own, up), low), pos)| {
+            .zip(self.coords.par_chunks(CHUNK))
+            .for_each(|(((own, up), low), coords)| {
                 for k in 0..own.len() {
+                    let c = coords[k];
+                    let pos = [0, 1, 2].map(|d| origin[d] + (c[d] as Real + 0.5) * a);
                     let o = own[k];
                     if o != NO_OWNER && up[k].is_finite() {
-                        up[k] += moved[o as usize];
-                        low[k] -= max_move;
-                        if up[k] + eps < low[k] {
+                        let u = up[k] as Real + moved[o as usize];
+                        let l = low[k] as Real - max_move;
+                        low[k] = (l as f32).next_down();
+                        if u + eps < l {
+                            up[k] = (u as f32).next_up();
                             continue;
                         }
-                        up[k] = index.dist2(o, &pos[k]).sqrt();
-                        if up[k] + eps < low[k] {
+                        let u = index.dist2(o, &pos).sqrt();
+                        up[k] = (u as f32).next_up();
+                        if u + eps < l {
                             continue;
                         }
                     }
-                    let (owner, d, second) = index.nearest2(&pos[k], o);
+                    let (owner, d, second) = index.nearest2(&pos, o);
                     own[k] = owner;
-                    up[k] = d;
-                    low[k] = second;
+                    up[k] = (d as f32).next_up();
+                    low[k] = (second as f32).next_down();
                 }
             });
         cell_stats(&self.coords, &self.owners, index.len(), with_moments)
