@@ -128,6 +128,84 @@ pub fn is_closed(name: &str) -> bool {
     name != "open_cup"
 }
 
+/// A box surface [x0, x1] × [-h, h] × [-h, h] with `n` quads along x and `m`
+/// across, outward.
+fn box_bar(x0: Real, x1: Real, h: Real, n: u32, m: u32) -> TriangleMesh {
+    let mut positions = Vec::new();
+    let mut triangles = Vec::new();
+    // Six faces, each a grid over (s, t) in [0, 1]², mapped by `at`.
+    let faces: [(u32, u32, &dyn Fn(Real, Real) -> Point3); 6] = [
+        (n, m, &|s, t| Point3::new(x0 + (x1 - x0) * s, -h + 2.0 * h * t, h)),
+        (n, m, &|s, t| Point3::new(x0 + (x1 - x0) * s, h - 2.0 * h * t, -h)),
+        (n, m, &|s, t| Point3::new(x0 + (x1 - x0) * s, h, h - 2.0 * h * t)),
+        (n, m, &|s, t| Point3::new(x0 + (x1 - x0) * s, -h, -h + 2.0 * h * t)),
+        (m, m, &|s, t| Point3::new(x1, -h + 2.0 * h * s, -h + 2.0 * h * t)),
+        (m, m, &|s, t| Point3::new(x0, -h + 2.0 * h * t, -h + 2.0 * h * s)),
+    ];
+    for (a, b, at) in faces {
+        let base = positions.len() as u32;
+        for j in 0..=b {
+            for i in 0..=a {
+                positions.push(at(i as Real / a as Real, j as Real / b as Real));
+            }
+        }
+        let id = |i: u32, j: u32| base + j * (a + 1) + i;
+        for j in 0..b {
+            for i in 0..a {
+                triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+    }
+    weld(TriangleMesh { positions, triangles, ..Default::default() })
+}
+
+/// Merges coincident vertices (the box's faces share their edges).
+fn weld(m: TriangleMesh) -> TriangleMesh {
+    let mut map = std::collections::HashMap::new();
+    let mut positions = Vec::new();
+    let remap: Vec<u32> = m
+        .positions
+        .iter()
+        .map(|p| {
+            let key = [p.x, p.y, p.z].map(|c| (c * 1e6).round() as i64);
+            *map.entry(key).or_insert_with(|| {
+                positions.push(*p);
+                positions.len() as u32 - 1
+            })
+        })
+        .collect();
+    let triangles = m.triangles.iter().map(|t| t.map(|i| remap[i as usize])).collect();
+    TriangleMesh { positions, triangles, ..Default::default() }
+}
+
+/// Frame `f` of the bundled example: a bar that bends at its middle like an
+/// elbow while the whole slowly turns, re-tessellated differently every
+/// frame (a time-varying mesh: no correspondence between frames). Returns
+/// the mesh and, for each of its vertices, nothing more: the truth is
+/// [`bending_bar_motion`].
+pub fn bending_bar(f: usize) -> TriangleMesh {
+    let (n, m) = (14 + (f % 3) as u32 * 2, 4 + (f % 2) as u32);
+    let mut mesh = box_bar(0.0, 3.0, 0.4, n, m);
+    for p in &mut mesh.positions {
+        *p = bending_bar_motion(f, p);
+    }
+    mesh.positions.iter_mut().for_each(|p| *p = p.map(|c| c as f32 as Real));
+    mesh
+}
+
+/// Where the rest-pose point `p` of the bar is in frame `f`.
+pub fn bending_bar_motion(f: usize, p: &Point3) -> Point3 {
+    let bend = 0.12 * f as Real; // radians at the elbow
+    let turn = 0.04 * f as Real; // the whole bar about y
+    let pivot = Point3::new(1.5, 0.0, 0.0);
+    let q = if p.x > pivot.x { pivot + nalgebra::Rotation3::new(nalgebra::Vector3::new(0.0, 0.0, bend)) * (p - pivot) } else { *p };
+    Point3::from(nalgebra::Rotation3::new(nalgebra::Vector3::new(0.0, turn, 0.0)) * q.coords + nalgebra::Vector3::new(0.02 * f as Real, 0.0, 0.0))
+}
+
+/// Frames in the bundled example sequence.
+pub const BENDING_BAR_FRAMES: usize = 8;
+
 /// Every fixture file as (relative path, contents).
 pub fn files() -> crate::Result<Vec<(String, Vec<u8>)>> {
     use crate::export::ply::{write_ply, PlyEncoding};
@@ -142,6 +220,12 @@ pub fn files() -> crate::Result<Vec<(String, Vec<u8>)>> {
             out.push((format!("shapes/{name}{suffix}.ply"), ply));
         }
         out.push((format!("shapes/{name}.glb"), crate::export::gltf::glb_bytes(&m, None)?));
+    }
+    for f in 0..BENDING_BAR_FRAMES {
+        let m = bending_bar(f);
+        let mut obj = Vec::new();
+        crate::export::obj::write_obj(&mut obj, &m, &m.positions).expect("writing to memory");
+        out.push((format!("bending_bar/frame_{f}.obj"), obj));
     }
     Ok(out)
 }

@@ -12,8 +12,11 @@ pub mod io;
 pub mod math;
 pub mod mesh;
 pub mod params;
+pub mod pipeline;
+pub mod plot;
 pub mod metrics;
 pub mod progress;
+pub mod refine;
 pub mod track;
 pub mod voxel;
 

@@ -122,3 +122,114 @@ impl TrackParams {
 pub fn sigma_for(rho: Real) -> Real {
     std::f64::consts::LN_2 / (rho * rho)
 }
+
+/// Irregular-center removal and the temporally global optimisation (method.md §6-§7).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct RefineParams {
+    /// Irregular centers removed in all. Default None = 1 % of N, at least 1;
+    /// 0 ..= N - 2.
+    pub remove: Option<usize>,
+    /// n_go: batches the removal is split into, each followed by one global
+    /// optimisation. Default 5; >= 1 (n_rem = remove / batches).
+    pub batches: usize,
+    /// Run the global optimisation after each batch; false = removal only.
+    /// Default true.
+    pub optimise: bool,
+    /// β̂: weight of the centroid term in the global energy. Default 0.5; > 0.
+    pub beta_hat: Real,
+    /// ρ_gp: distance (maximum over frames) at which ω_max is 0.5. Default
+    /// 0.07 (relative; the paper's 0.125 m); > 0.
+    pub rho_gp: Real,
+    /// ρ_gm: motion dissimilarity (maximum over frames) at which ω is 0.5.
+    /// Default 0.0167 (relative; the paper's 0.03 m); > 0.
+    pub rho_gm: Real,
+    /// Global iterations per batch. Default 20 (the reference: 30); >= 0.
+    pub max_iterations: usize,
+    /// Initial step λ of each iteration. Default 0.1; > 0.
+    pub lambda: Real,
+    /// Halvings of λ tried before an iteration gives up. Default 20.
+    pub max_halvings: usize,
+    /// Affinities below this are dropped. Default 0.001; in (0, 1).
+    pub mu: Real,
+    /// Lengths in the input's units instead of fractions of the bounding
+    /// box's longest side. Default false.
+    pub absolute_units: bool,
+}
+
+impl Default for RefineParams {
+    fn default() -> Self {
+        RefineParams {
+            remove: None,
+            batches: 5,
+            optimise: true,
+            beta_hat: 0.5,
+            rho_gp: 0.07,
+            rho_gm: 0.0167,
+            max_iterations: 20,
+            lambda: 0.1,
+            max_halvings: 20,
+            mu: 0.001,
+            absolute_units: false,
+        }
+    }
+}
+
+impl RefineParams {
+    /// Centers removed in all for `n` centers.
+    pub fn total_removed(&self, n: usize) -> usize {
+        self.remove.unwrap_or((n / 100).max(1))
+    }
+
+    pub fn validate(&self, n: usize) -> crate::Result<()> {
+        let bad = |what: String| Err(crate::Error::InvalidParameter(what));
+        if self.total_removed(n) + 2 > n {
+            return bad(format!("cannot remove {} of {n} centers", self.total_removed(n)));
+        }
+        if self.batches == 0 {
+            return bad("--batches must be at least 1".into());
+        }
+        if !(self.beta_hat > 0.0 && self.rho_gp > 0.0 && self.rho_gm > 0.0 && self.lambda > 0.0) {
+            return bad("beta_hat, rho_gp, rho_gm and lambda must be positive".into());
+        }
+        if !(self.mu > 0.0 && self.mu < 1.0) {
+            return bad("mu must be in (0, 1)".into());
+        }
+        Ok(())
+    }
+
+    pub fn length_scale(&self, bounds: &crate::mesh::Aabb) -> Real {
+        if self.absolute_units {
+            1.0
+        } else {
+            bounds.longest_side()
+        }
+    }
+}
+
+/// How a vertex combines its centers' motions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Blending {
+    /// Dual-quaternion blending: no collapse at twisting joints (default).
+    DualQuaternion,
+    /// Linear blending of the transformed positions.
+    Linear,
+}
+
+/// Deforming the first-frame mesh by the trajectories (method.md §10).
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct DeformParams {
+    /// Centers each vertex is bound to. Default 4; >= 1.
+    pub neighbors: usize,
+    /// Least ω between a vertex's nearest center and another center for the
+    /// vertex to bind to it too. Default 0.5; in (0, 1].
+    pub min_affinity: Real,
+    /// Blending. Default dual quaternions.
+    pub blending: Blending,
+}
+
+impl Default for DeformParams {
+    fn default() -> Self {
+        DeformParams { neighbors: 4, min_affinity: 0.5, blending: Blending::DualQuaternion }
+    }
+}

@@ -1,11 +1,14 @@
 //! Command-line definitions and the glue from flags to library calls.
 
 mod bars;
+mod options;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use std::path::PathBuf;
-use voltrack::voxel::{voxelize_sequence, VoxelParams};
+use options::{ConvertArgs, InputArgs, OutputFormat, RefineArgs, TrackArgs};
+use std::path::{Path, PathBuf};
+use voltrack::pipeline::{self, Quality};
+use voltrack::Stage;
 
 #[derive(Parser)]
 #[command(name = "voltrack", version, about = "Time-varying meshes to dynamic meshes by volume tracking")]
@@ -14,18 +17,10 @@ struct Cli {
     command: Command,
 }
 
-#[derive(clap::Args)]
-struct InputArgs {
-    /// Frames: a directory, a pattern such as 'seq/frame_*.obj', or files in order
-    #[arg(required = true, value_name = "INPUT")]
-    input: Vec<PathBuf>,
-    /// Voxels along the longest side of the sequence's bounding box
-    #[arg(long, short = 'r', default_value_t = 256)]
-    resolution: usize,
-}
-
 #[derive(Subcommand)]
 enum Command {
+    /// Convert a captured sequence into one animated mesh (voxelise, track, refine, deform, export)
+    Convert(ConvertArgs),
     /// Voxelise every frame on one grid and write one .binvox per frame
     Voxelize {
         #[command(flatten)]
@@ -37,20 +32,74 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Track volume elements through the sequence; write their trajectories as EXR
+    Track {
+        #[command(flatten)]
+        input: InputArgs,
+        /// Output EXR (width = centers, height = frames, RGB = xyz)
+        #[arg(long, short = 'o')]
+        output: PathBuf,
+        #[command(flatten)]
+        track: TrackArgs,
+        /// Also remove irregular centers and optimise globally
+        #[arg(long)]
+        refine: bool,
+        #[command(flatten)]
+        refine_args: RefineArgs,
+        /// Print a machine-readable summary on stdout
+        #[arg(long)]
+        json: bool,
+    },
+    /// Remove irregular centers from tracked trajectories and optimise globally
+    Refine {
+        /// Trajectories written by `voltrack track`
+        centers: PathBuf,
+        /// The sequence they were tracked on
+        #[arg(long, required = true, num_args = 1..)]
+        input: Vec<PathBuf>,
+        #[arg(long, short = 'o')]
+        output: PathBuf,
+        #[command(flatten)]
+        refine_args: RefineArgs,
+        #[arg(long)]
+        json: bool,
+    },
+    /// PCAC, DFU and irregularity of trajectories against their sequence
+    Metrics {
+        centers: PathBuf,
+        #[arg(long, required = true, num_args = 1..)]
+        input: Vec<PathBuf>,
+        /// Print a machine-readable summary on stdout
+        #[arg(long)]
+        json: bool,
+        /// Draw the irregularity curve (sorted I_i) as SVG
+        #[arg(long)]
+        plot: Option<PathBuf>,
+    },
 }
 
 pub fn run() -> Result<()> {
     let cli = Cli::parse();
     match cli.command {
+        Command::Convert(args) => convert(args),
         Command::Voxelize { input, output, json } => voxelize(input, output, json),
+        Command::Track { input, output, track, refine, refine_args, json } => {
+            track_command(input, output, track, refine.then_some(refine_args), json)
+        }
+        Command::Refine { centers, input, output, refine_args, json } => refine_command(centers, input, output, refine_args, json),
+        Command::Metrics { centers, input, json, plot } => metrics(centers, input, json, plot),
     }
 }
 
+fn print_json(value: &serde_json::Value) -> Result<()> {
+    println!("{}", serde_json::to_string_pretty(value)?);
+    Ok(())
+}
+
 fn voxelize(input: InputArgs, output: PathBuf, json: bool) -> Result<()> {
-    let paths = voltrack::io::discover_frames(&input.input)?;
-    let params = VoxelParams { resolution: input.resolution, ..Default::default() };
+    let params = input.voxel_params();
     let bars = bars::Bars::new();
-    let seq = voxelize_sequence(&paths, &params, bars.progress())?;
+    let seq = pipeline::load(&input.input, &params, bars.progress())?;
     let written = voltrack::export::write_binvox_frames(&seq, &output)?;
     bars.finish();
     let g = &seq.grid;
@@ -58,32 +107,219 @@ fn voxelize(input: InputArgs, output: PathBuf, json: bool) -> Result<()> {
         let frames: Vec<_> = seq
             .frames
             .iter()
-            .zip(&paths)
+            .zip(&seq.paths)
             .zip(&written)
             .map(|((o, p), w)| serde_json::json!({"input": p, "output": w, "occupied": o.len()}))
             .collect();
-        let summary = serde_json::json!({
+        return print_json(&serde_json::json!({
             "frames": frames,
             "resolution": params.resolution,
             "grid": {"dims": g.dims, "origin": g.origin.coords.as_slice(), "voxel_size": g.voxel_size},
             "seconds": {"read": seq.read_seconds, "voxelize": seq.voxelize_seconds},
-        });
-        println!("{}", serde_json::to_string_pretty(&summary)?);
-    } else {
-        println!(
-            "grid {} x {} x {} voxels of {:.6} (origin {:.4} {:.4} {:.4})",
-            g.dims[0], g.dims[1], g.dims[2], g.voxel_size, g.origin.x, g.origin.y, g.origin.z
-        );
-        for (o, w) in seq.frames.iter().zip(&written) {
-            println!("{:>10} occupied  {}", o.len(), w.display());
+        }));
+    }
+    println!("grid {} x {} x {} voxels of {:.6} (origin {:.4} {:.4} {:.4})", g.dims[0], g.dims[1], g.dims[2], g.voxel_size, g.origin.x, g.origin.y, g.origin.z);
+    for (o, w) in seq.frames.iter().zip(&written) {
+        println!("{:>10} occupied  {}", o.len(), w.display());
+    }
+    println!(
+        "{} frames: read {:.2} s, voxelised {:.2} s ({:.1} ms/frame)",
+        seq.frames.len(),
+        seq.read_seconds,
+        seq.voxelize_seconds,
+        1000.0 * seq.voxelize_seconds / seq.frames.len() as f64
+    );
+    Ok(())
+}
+
+fn quality_json(q: &Quality) -> serde_json::Value {
+    serde_json::json!({"pcac": q.pcac, "dfu": q.dfu, "dfu_per_frame": q.dfu_per_frame, "largest_irregularity": q.largest_irregularity(20)})
+}
+
+fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Option<RefineArgs>, json: bool) -> Result<()> {
+    let voxel = input.voxel_params();
+    let params = track.params();
+    let bars = bars::Bars::new();
+    let seq = pipeline::load(&input.input, &voxel, bars.progress())?;
+    let tracked = voltrack::track::track(&seq, &params, bars.progress())?;
+    let before = pipeline::measure(&tracked.trajectories, &seq);
+    let (traj, refined, refine_params) = match refine {
+        Some(r) => {
+            let rp = r.params();
+            let res = voltrack::refine::refine(&tracked.trajectories, &seq, &rp, bars.progress())?;
+            (res.trajectories.clone(), Some(res), Some(rp))
         }
-        println!(
-            "{} frames: read {:.2} s, voxelised {:.2} s ({:.1} ms/frame)",
-            seq.frames.len(),
-            seq.read_seconds,
-            seq.voxelize_seconds,
-            1000.0 * seq.voxelize_seconds / seq.frames.len() as f64
-        );
+        None => (tracked.trajectories.clone(), None, None),
+    };
+    let attrs = pipeline::trajectory_attributes(&seq, &voxel, &params, refine_params.as_ref().zip(refined.as_ref()).map(|(p, r)| (p, r.removed.as_slice())));
+    voltrack::export::exr::write_trajectories_exr(&output, &traj, &attrs)?;
+    bars.finish();
+    let after = refined.as_ref().map(|_| pipeline::measure(&traj, &seq));
+    let timings: Vec<_> = tracked.timings.iter().map(|t| serde_json::json!({"seconds": t.total, "iterations": t.iterations, "assign": t.assign, "fit": t.fit, "affinity": t.affinity})).collect();
+    if json {
+        return print_json(&serde_json::json!({
+            "output": output,
+            "frames": seq.frames.len(),
+            "centers": params.centers,
+            "resolution": voxel.resolution,
+            "affinity": params.affinity,
+            "pcac": before.pcac,
+            "dfu": before.dfu,
+            "seconds": {"read": seq.read_seconds, "voxelize": seq.voxelize_seconds, "voxelize_per_frame": seq.voxelize_seconds / seq.frames.len() as f64, "track_per_frame": timings},
+            "refined": refined.as_ref().zip(after.as_ref()).map(|(r, q)| serde_json::json!({"removed": r.removed, "after": quality_json(q), "energy": r.batches, "seconds": r.seconds})),
+        }));
+    }
+    let tracking: f64 = tracked.timings.iter().skip(1).map(|t| t.total).sum();
+    println!("{} frames, {} centers, resolution {}, affinity {:?}", seq.frames.len(), params.centers, voxel.resolution, params.affinity);
+    println!("voxelised in {:.2} s; frame 0 placed in {:.2} s; tracked in {:.2} s ({:.3} s/frame)", seq.voxelize_seconds, tracked.timings[0].total, tracking, tracking / (seq.frames.len() - 1).max(1) as f64);
+    println!("PCAC {:.4}  DFU {:.4}", before.pcac, before.dfu);
+    if let (Some(r), Some(q)) = (&refined, &after) {
+        println!("refined: removed {} centers in {:.1} s; PCAC {:.4}  DFU {:.4}", r.removed.len(), r.seconds, q.pcac, q.dfu);
+    }
+    println!("wrote {}", output.display());
+    Ok(())
+}
+
+/// Reads trajectories and re-voxelises their input at the stored resolution.
+fn load_tracked(centers: &Path, input: &[PathBuf], bars: &bars::Bars) -> Result<(voltrack::track::Trajectories, Vec<(String, String)>, voltrack::voxel::VoxelSequence)> {
+    let (traj, attrs) = voltrack::io::exr::read_trajectories_exr(centers)?;
+    let resolution = pipeline::resolution_of(&attrs, centers)?;
+    let voxel = voltrack::voxel::VoxelParams { resolution, ..Default::default() };
+    let seq = pipeline::load(input, &voxel, bars.progress())?;
+    pipeline::check_grid(&attrs, &seq.grid, &traj, &seq, centers)?;
+    Ok((traj, attrs, seq))
+}
+
+fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: RefineArgs, json: bool) -> Result<()> {
+    let bars = bars::Bars::new();
+    let (traj, attrs, seq) = load_tracked(&centers, &input, &bars)?;
+    let params = args.params();
+    let before = pipeline::measure(&traj, &seq);
+    let res = voltrack::refine::refine(&traj, &seq, &params, bars.progress())?;
+    let after = pipeline::measure(&res.trajectories, &seq);
+    let mut out_attrs: Vec<(String, String)> = attrs.into_iter().filter(|(k, _)| k != "voltrack.version").collect();
+    out_attrs.push(("voltrack.refine".into(), serde_json::to_string(&params)?));
+    out_attrs.push(("voltrack.removed".into(), serde_json::to_string(&res.removed)?));
+    voltrack::export::exr::write_trajectories_exr(&output, &res.trajectories, &out_attrs)?;
+    bars.finish();
+    if json {
+        return print_json(&serde_json::json!({
+            "output": output, "removed": res.removed, "before": quality_json(&before), "after": quality_json(&after),
+            "energy": res.batches, "seconds": res.seconds,
+        }));
+    }
+    println!("removed {} irregular centers: {:?}", res.removed.len(), res.removed);
+    println!("PCAC {:.4} -> {:.4}   DFU {:.4} -> {:.4}", before.pcac, after.pcac, before.dfu, after.dfu);
+    for (b, h) in res.batches.iter().enumerate() {
+        if let (Some(first), Some(last)) = (h.first(), h.last()) {
+            println!("batch {}: energy {:.6e} -> {:.6e} in {} steps", b + 1, first.energy, last.energy, h.len() - 1);
+        }
+    }
+    println!("wrote {} ({:.1} s)", output.display(), res.seconds);
+    Ok(())
+}
+
+fn metrics(centers: PathBuf, input: Vec<PathBuf>, json: bool, plot: Option<PathBuf>) -> Result<()> {
+    let bars = bars::Bars::new();
+    let (traj, _, seq) = load_tracked(&centers, &input, &bars)?;
+    let q = pipeline::measure(&traj, &seq);
+    bars.finish();
+    if let Some(p) = &plot {
+        let svg = voltrack::metrics::irregularity_curve_svg(&q.irregularity);
+        voltrack::export::write_atomic(p, |w| std::io::Write::write_all(w, svg.as_bytes())).with_context(|| "writing the plot")?;
+    }
+    if json {
+        return print_json(&serde_json::json!({
+            "frames": traj.frames, "centers": traj.centers, "pcac": q.pcac, "dfu": q.dfu,
+            "dfu_per_frame": q.dfu_per_frame, "irregularity": q.irregularity,
+        }));
+    }
+    println!("{} frames, {} centers", traj.frames, traj.centers);
+    println!("PCAC {:.4}", q.pcac);
+    println!("DFU  {:.4} (mean over frames; worst frame {:.4})", q.dfu, q.dfu_per_frame.iter().copied().fold(0.0, f64::max));
+    let top = q.largest_irregularity(10);
+    println!("largest irregularity: {}", top.iter().map(|v| format!("{v:.4e}")).collect::<Vec<_>>().join(" "));
+    if let Some(p) = plot {
+        println!("irregularity curve: {}", p.display());
     }
     Ok(())
+}
+
+fn convert(args: ConvertArgs) -> Result<()> {
+    let voxel = args.input.voxel_params();
+    let track = args.track.params();
+    let refine = (!args.no_refine).then(|| args.refine.params());
+    let deform = args.deform_params();
+    let format = args.format()?;
+    let bars = bars::Bars::new();
+    let conv = pipeline::convert(&args.input.input, &voxel, &track, refine.as_ref(), &deform, bars.progress())?;
+    let clock = std::time::Instant::now();
+    bars.progress().report(Stage::Export, 0, 1);
+    let out = &args.output;
+    let mut notes = Vec::new();
+    match format {
+        OutputFormat::Glb => {
+            let report = voltrack::export::gltf::write_dynamic_glb(out, &conv.mesh, &args.gltf_options())?;
+            if let Some(k) = report.basis {
+                notes.push(format!(
+                    "compact basis of {k} components: reconstruction error max {:.4} %, mean {:.4} % of the diagonal",
+                    100.0 * report.reconstruction_error_max,
+                    100.0 * report.reconstruction_error_mean
+                ));
+            }
+        }
+        OutputFormat::Exr => {
+            let traj = conv.refined.as_ref().map_or(&conv.tracked.trajectories, |r| &r.trajectories);
+            let removed = conv.refined.as_ref().map(|r| r.removed.clone()).unwrap_or_default();
+            let attrs = pipeline::trajectory_attributes(&conv.sequence, &voxel, &track, refine.as_ref().map(|r| (r, removed.as_slice())));
+            voltrack::export::exr::write_trajectories_exr(out, traj, &attrs)?;
+        }
+        OutputFormat::Vat => voltrack::export::exr::write_vat_exr(out, &conv.mesh.frames)?,
+        OutputFormat::Pc2 => voltrack::export::pc2::write_pc2(out, &conv.mesh, args.fps)?,
+        OutputFormat::ObjSequence => {
+            voltrack::export::obj::write_obj_sequence(out, &conv.mesh)?;
+        }
+    }
+    bars.progress().report(Stage::Export, 1, 1);
+    bars.finish();
+    let mut seconds = conv.seconds.clone();
+    seconds.push((Stage::Export, clock.elapsed().as_secs_f64()));
+    let size = output_size(out);
+    let traj = conv.refined.as_ref().map_or(&conv.tracked.trajectories, |r| &r.trajectories);
+    println!(
+        "{} frames, {} vertices, {} triangles, {} centers{}",
+        conv.mesh.frames.len(),
+        conv.mesh.base.positions.len(),
+        conv.mesh.base.triangles.len(),
+        traj.centers,
+        conv.refined.as_ref().map_or(String::new(), |r| format!(" ({} irregular removed)", r.removed.len()))
+    );
+    let total: f64 = seconds.iter().map(|s| s.1).sum();
+    for (stage, s) in &seconds {
+        println!("  {:>9} {:>8.2} s  {:>5.1} %", stage.name(), s, 100.0 * s / total.max(1e-9));
+    }
+    println!("  {:>9} {:>8.2} s", "total", total);
+    for n in notes {
+        println!("{n}");
+    }
+    println!("wrote {} ({})", out.display(), human_size(size));
+    Ok(())
+}
+
+/// Bytes under `path` (a file, or a directory of files).
+fn output_size(path: &Path) -> u64 {
+    if path.is_dir() {
+        std::fs::read_dir(path).map(|d| d.flatten().filter_map(|e| e.metadata().ok()).map(|m| m.len()).sum()).unwrap_or(0)
+    } else {
+        std::fs::metadata(path).map(|m| m.len()).unwrap_or(0)
+    }
+}
+
+fn human_size(bytes: u64) -> String {
+    match bytes {
+        b if b >= 1 << 30 => format!("{:.2} GiB", b as f64 / (1u64 << 30) as f64),
+        b if b >= 1 << 20 => format!("{:.1} MiB", b as f64 / (1u64 << 20) as f64),
+        b if b >= 1 << 10 => format!("{:.1} KiB", b as f64 / 1024.0),
+        b => format!("{b} B"),
+    }
 }

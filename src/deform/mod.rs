@@ -1,8 +1,25 @@
 //! Stage 5: the first-frame mesh deformed by the center trajectories into one
 //! mesh with one connectivity for all frames (method.md §10).
+//!
+//! Every frame-0 vertex binds to its nearest centers, but only to those
+//! affine (ω) to its nearest one, so a hand resting on a hip in frame 0 is not
+//! glued to the hip. Each center's rigid motion from frame 0 to frame f is
+//! fitted over its own affine neighbours, and a vertex follows the blend of
+//! its centers' motions.
 
-use crate::math::Point3;
+mod blend;
+
+pub use blend::DualQuaternion;
+
+use crate::error::{Error, Result};
+use crate::math::{Point3, Real};
 use crate::mesh::TriangleMesh;
+use crate::params::{Blending, DeformParams};
+use crate::refine::SparseAffinity;
+use crate::track::{Rigid, Trajectories};
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rayon::prelude::*;
+use std::num::NonZeroUsize;
 
 /// One connectivity, animated: `base` is the first frame as loaded (vertex
 /// order, UVs, normals, texture), `frames[f][v]` vertex v's position in frame f
@@ -11,4 +28,89 @@ use crate::mesh::TriangleMesh;
 pub struct DynamicMesh {
     pub base: TriangleMesh,
     pub frames: Vec<Vec<Point3>>,
+}
+
+/// A vertex's centers and their normalised weights.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Binding {
+    pub centers: Vec<(u32, Real)>,
+}
+
+/// Binds every vertex of `mesh` to up to `params.neighbors` centers of frame 0.
+pub fn bind(mesh: &TriangleMesh, centers: &[Point3], omega: &SparseAffinity, params: &DeformParams) -> Vec<Binding> {
+    let points: Vec<[Real; 3]> = centers.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let tree = ImmutableKdTree::<Real, 3>::new_from_slice(&points).expect("finite centers");
+    // Weight falloff: a center one typical spacing away counts half.
+    let spacing = typical_spacing(&tree, &points);
+    let sigma = std::f64::consts::LN_2 / (spacing * spacing);
+    let candidates = NonZeroUsize::new((params.neighbors * 4).min(points.len())).unwrap();
+    mesh.positions
+        .par_iter()
+        .map(|v| {
+            let found = tree.query(&[v.x, v.y, v.z]).nearest_n::<SquaredEuclidean<Real>>(candidates).execute();
+            let nearest = found[0].item as usize;
+            let mut centers: Vec<(u32, Real)> = found
+                .iter()
+                .filter(|r| r.item as usize == nearest || omega.weight(nearest, r.item as usize) >= params.min_affinity)
+                .take(params.neighbors)
+                .map(|r| (r.item, (-sigma * r.distance).exp().max(1e-12)))
+                .collect();
+            let total: Real = centers.iter().map(|c| c.1).sum();
+            centers.iter_mut().for_each(|c| c.1 /= total);
+            Binding { centers }
+        })
+        .collect()
+}
+
+/// Median distance from a center to its nearest other center.
+fn typical_spacing(tree: &ImmutableKdTree<Real, 3>, points: &[[Real; 3]]) -> Real {
+    if points.len() < 2 {
+        return 1.0;
+    }
+    let mut d: Vec<Real> = points
+        .iter()
+        .map(|p| tree.query(p).nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(2).unwrap()).execute()[1].distance.sqrt())
+        .collect();
+    d.sort_by(Real::total_cmp);
+    d[d.len() / 2].max(Real::MIN_POSITIVE)
+}
+
+/// Each center's rigid motion from frame 0 to every frame, fitted over its
+/// affine neighbours: `motions[f][i]`.
+pub fn center_motions(traj: &Trajectories, omega: &SparseAffinity) -> Vec<Vec<Rigid>> {
+    (0..traj.frames).map(|f| omega.fit_frames(traj, 0, f)).collect()
+}
+
+/// The dynamic mesh: `mesh` (frame 0 as loaded) moved by the trajectories.
+pub fn deform(mesh: &TriangleMesh, traj: &Trajectories, omega: &SparseAffinity, params: &DeformParams) -> Result<DynamicMesh> {
+    if params.neighbors == 0 {
+        return Err(Error::InvalidParameter("--bind-neighbors must be at least 1".into()));
+    }
+    if traj.centers == 0 || omega.lists.len() != traj.centers {
+        return Err(Error::InvalidInput("no centers to deform the mesh with".into()));
+    }
+    let bindings = bind(mesh, traj.frame(0), omega, params);
+    let motions = center_motions(traj, omega);
+    let mut frames = vec![mesh.positions.clone()];
+    for m in motions.iter().skip(1) {
+        frames.push(move_vertices(&mesh.positions, &bindings, m, params.blending));
+    }
+    Ok(DynamicMesh { base: mesh.clone(), frames })
+}
+
+/// Every vertex moved by the blend of its centers' motions.
+pub fn move_vertices(positions: &[Point3], bindings: &[Binding], motions: &[Rigid], blending: Blending) -> Vec<Point3> {
+    positions
+        .par_iter()
+        .zip(bindings)
+        .map(|(v, b)| match blending {
+            Blending::Linear => {
+                Point3::from(b.centers.iter().map(|&(c, w)| motions[c as usize].apply(v).coords * w).sum::<crate::math::Vector3>())
+            }
+            Blending::DualQuaternion => {
+                let blended = DualQuaternion::blend(b.centers.iter().map(|&(c, w)| (DualQuaternion::from_rigid(&motions[c as usize]), w)));
+                blended.apply(v)
+            }
+        })
+        .collect()
 }

@@ -1,1 +1,113 @@
 //! OpenEXR output: center trajectories and vertex-animation textures.
+//!
+//! Both are one RGB float32 image, one column per point, one row per frame,
+//! R, G, B = x, y, z in the input's units, ZIP-compressed (lossless). Our
+//! metadata travel as one JSON text attribute, `voltrack`: the exr crate keeps
+//! extra attributes in a `HashMap` and writes them in its random order, so one
+//! attribute is what keeps the file bit-identical from run to run.
+
+use super::write_atomic;
+use crate::error::{Error, Result};
+use crate::math::Point3;
+use crate::mesh::Aabb;
+use crate::track::Trajectories;
+use exr::meta::attribute::{AttributeValue, Text};
+use exr::prelude::*;
+use std::io::Write as _;
+use std::path::Path;
+
+/// Name of the attribute holding voltrack's metadata as a JSON object.
+pub const METADATA_ATTRIBUTE: &str = "voltrack";
+
+/// Writes `traj` (width = centers, height = frames) with `attributes` (and
+/// the tool version) in the header.
+pub fn write_trajectories_exr(path: &Path, traj: &Trajectories, attributes: &[(String, String)]) -> Result<()> {
+    let pixel = |x: usize, y: usize| traj.get(y, x);
+    write_points_exr(path, "trajectories", traj.centers, traj.frames, pixel, attributes)
+}
+
+/// Writes per-vertex positions as a vertex-animation texture (width =
+/// vertices, height = frames) and a JSON sidecar `path.with_extension("json")`
+/// with the frame count, vertex count and the bounds of all positions, which
+/// shaders that take normalised textures need.
+pub fn write_vat_exr(path: &Path, frames: &[Vec<Point3>]) -> Result<()> {
+    let vertices = frames.first().map_or(0, Vec::len);
+    if vertices == 0 || frames.iter().any(|f| f.len() != vertices) {
+        return Err(Error::InvalidInput("a vertex animation needs frames with the same, non-zero vertex count".into()));
+    }
+    let sidecar = path.with_extension("json");
+    if sidecar == path {
+        return Err(Error::write(path, "the texture would overwrite its JSON sidecar; name it .exr"));
+    }
+    let bounds = Aabb::from_points(frames.iter().flatten());
+    let info = serde_json::json!({
+        "frames": frames.len(),
+        "vertices": vertices,
+        "layout": "width = vertices in the base mesh's order, height = frames, RGB = xyz",
+        "bounds_min": bounds.min.coords.as_slice(),
+        "bounds_max": bounds.max.coords.as_slice(),
+        "software": concat!("voltrack ", env!("CARGO_PKG_VERSION")),
+    });
+    let attrs = vec![("vat".to_string(), info.to_string())];
+    write_points_exr(path, "vertex animation", vertices, frames.len(), |x, y| frames[y][x], &attrs)?;
+    let text = serde_json::to_string_pretty(&info).map_err(|e| Error::write(&sidecar, e))?;
+    write_atomic(&sidecar, |w| w.write_all(text.as_bytes()))
+}
+
+fn write_points_exr(
+    path: &Path,
+    name: &str,
+    width: usize,
+    height: usize,
+    pixel: impl Fn(usize, usize) -> Point3 + Sync,
+    attributes: &[(String, String)],
+) -> Result<()> {
+    if width == 0 || height == 0 {
+        return Err(Error::InvalidInput(format!("nothing to write to {}: {width} × {height} points", path.display())));
+    }
+    if width >= i32::MAX as usize / 2 || height >= i32::MAX as usize / 2 {
+        return Err(Error::InvalidInput(format!("{width} × {height} is beyond what OpenEXR can store")));
+    }
+    let mut meta = serde_json::Map::new();
+    meta.insert("version".into(), env!("CARGO_PKG_VERSION").into());
+    for (k, v) in attributes {
+        // Values that are JSON themselves stay structured.
+        let value = serde_json::from_str(v).unwrap_or_else(|_| serde_json::Value::String(v.clone()));
+        meta.insert(k.clone(), value);
+    }
+    let json = ascii_json(&serde_json::Value::Object(meta).to_string());
+    let mut layer_attributes = LayerAttributes::named(name);
+    layer_attributes.software_name = Some(Text::new_or_panic(concat!("voltrack ", env!("CARGO_PKG_VERSION"))));
+    layer_attributes.other.insert(Text::new_or_panic(METADATA_ATTRIBUTE), AttributeValue::Text(Text::new_or_panic(&json)));
+    let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
+        let q = pixel(p.x(), p.y());
+        (q.x as f32, q.y as f32, q.z as f32)
+    });
+    let layer = Layer::new((width, height), layer_attributes, Encoding::SMALL_LOSSLESS, channels);
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    // Sequential compression: block order, hence bytes, independent of threads.
+    Image::from_layer(layer)
+        .write()
+        .non_parallel()
+        .to_buffered(&mut bytes)
+        .map_err(|e| Error::write(path, e))?;
+    write_atomic(path, |w| w.write_all(bytes.get_ref()))
+}
+
+/// JSON with every non-ASCII character escaped (`\uXXXX`, surrogate pairs
+/// beyond the BMP): EXR text attributes hold Latin-1 only, and escaped JSON
+/// parses back to the same value.
+fn ascii_json(json: &str) -> String {
+    let mut out = String::with_capacity(json.len());
+    for c in json.chars() {
+        if c.is_ascii() {
+            out.push(c);
+        } else {
+            let mut units = [0u16; 2];
+            for u in c.encode_utf16(&mut units) {
+                out.push_str(&format!("\\u{u:04x}"));
+            }
+        }
+    }
+    out
+}

@@ -1,11 +1,182 @@
 //! Binary glTF (GLB) through gltf-json: one mesh, optionally animated by morph
 //! targets whose weights are keyed per frame.
+//!
+//! [`write_dynamic_glb`] is the dynamic-mesh export: one mesh whose morph
+//! targets (per frame, or a compact PCA basis, see [`super::basis`]) replay the
+//! captured sequence in Blender, three.js and other glTF viewers.
 
+use super::basis::{self, MorphBasis};
+pub use super::basis::BasisChoice;
+use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
-use crate::mesh::TriangleMesh;
+use crate::math::{Point3, Real, Vector3};
+use crate::mesh::{Aabb, TriangleMesh};
 use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
+use std::path::Path;
+
+/// How [`write_dynamic_glb`] encodes the animation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GltfExportOptions {
+    /// Capture rate in frames per second: frame f is keyed at f / fps seconds.
+    /// Default 30; finite and > 0.
+    pub fps: f32,
+    /// Morph basis: one target per frame, a fixed number of principal
+    /// components, or chosen by length and error. Default [`BasisChoice::Auto`].
+    pub basis: BasisChoice,
+    /// Largest vertex error [`BasisChoice::Auto`] accepts from a compact basis,
+    /// as a fraction of the bounding-box diagonal of the whole animation.
+    /// Default 0.001; finite and ≥ 0 (0 means per-frame targets past 256 frames
+    /// unless a basis reproduces the motion exactly).
+    pub max_basis_error: Real,
+    /// Write vertex normals (recomputed from the geometry of every frame) and
+    /// their NORMAL morph deltas, so lighting follows the deformation. Without
+    /// them the file has no normals and viewers derive them (three.js shades
+    /// flat). Default true.
+    pub normals: bool,
+}
+
+impl Default for GltfExportOptions {
+    fn default() -> Self {
+        GltfExportOptions { fps: 30.0, basis: BasisChoice::Auto, max_basis_error: 0.001, normals: true }
+    }
+}
+
+impl GltfExportOptions {
+    fn check(&self) -> Result<()> {
+        if !(self.fps.is_finite() && self.fps > 0.0) {
+            return Err(Error::InvalidParameter(format!("the frame rate must be positive, not {}", self.fps)));
+        }
+        if !(self.max_basis_error.is_finite() && self.max_basis_error >= 0.0) {
+            return Err(Error::InvalidParameter(format!(
+                "the basis error bound must be a non-negative fraction, not {}",
+                self.max_basis_error
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// What [`write_dynamic_glb`] wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GltfExportReport {
+    /// Morph targets in the file (0 for a single frame or no motion).
+    pub targets: usize,
+    /// Principal components of the compact basis, `None` for per-frame targets.
+    pub basis: Option<usize>,
+    /// Largest vertex error of the basis over all frames, as a fraction of the
+    /// animation's bounding-box diagonal (0 for per-frame targets; f32
+    /// rounding of the file, ~1e-7, not included).
+    pub reconstruction_error_max: Real,
+    /// Mean vertex error over all frames and vertices, same unit.
+    pub reconstruction_error_mean: Real,
+    /// Size of the file.
+    pub bytes: u64,
+}
+
+/// Writes `mesh` as a GLB holding one mesh: frame 0 as the base, morph targets
+/// from the basis `options` selects, and one animation ("capture") of the
+/// node's morph weights with one keyframe per frame at f / fps. Per-frame
+/// targets are keyed STEP with a one-hot weight vector (all zero at frame 0);
+/// a compact basis is keyed LINEAR. `mesh.extras.targetNames` names the
+/// targets (Blender's shape keys, three.js' `morphTargetDictionary`). UVs and
+/// the first frame's texture are carried over; normals as `options.normals`
+/// says (the base mesh's loaded normals are not used: they would not match
+/// the recomputed ones of the other frames).
+pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOptions) -> Result<GltfExportReport> {
+    options.check()?;
+    basis::check_frames(mesh)?;
+    let frames = &mesh.frames;
+    let diagonal = Aabb::from_points(frames.iter().flatten()).diagonal();
+    let (basis, error) = basis::choose(frames, options.basis, options.max_basis_error * diagonal)?;
+    let relative = |e: Real| if diagonal > 0.0 { e / diagonal } else { 0.0 };
+    let normals = options.normals.then(|| FrameNormals::new(&mesh.base.triangles, &frames[0]));
+    let base = TriangleMesh {
+        positions: frames[0].clone(),
+        triangles: mesh.base.triangles.clone(),
+        uvs: mesh.base.uvs.clone(),
+        normals: normals.as_ref().map(|n| n.base.iter().map(to_f32).collect()),
+        texture: mesh.base.texture.clone(),
+    };
+    let animation = (basis.targets() > 0).then(|| morph_animation(frames, &basis, normals.as_ref(), options.fps));
+    let bytes = glb_bytes(&base, animation.as_ref())?;
+    super::write_atomic(path, |w| std::io::Write::write_all(w, &bytes))?;
+    Ok(GltfExportReport {
+        targets: basis.targets(),
+        basis: basis.components,
+        reconstruction_error_max: relative(error.max),
+        reconstruction_error_mean: relative(error.mean),
+        bytes: bytes.len() as u64,
+    })
+}
+
+/// The morph animation of `basis`: position targets from the displacements,
+/// normal targets from the normals' change since frame 0, weights keyed at
+/// f / fps (STEP for per-frame targets, each frame shown as captured; LINEAR
+/// for a compact basis, whose weights vary smoothly).
+fn morph_animation(frames: &[Vec<Point3>], basis: &MorphBasis, normals: Option<&FrameNormals>, fps: f32) -> MorphAnimation {
+    let vertices = frames[0].len();
+    let position_deltas =
+        basis.combine(frames.len(), vertices, |g| frames[g].iter().zip(&frames[0]).map(|(p, p0)| p - p0).collect());
+    let normal_deltas =
+        normals.map(|n| basis.combine(frames.len(), vertices, |g| n.of(&frames[g]).iter().zip(&n.base).map(|(a, b)| a - b).collect()));
+    MorphAnimation {
+        position_deltas,
+        normal_deltas,
+        weights: basis.weights.iter().map(|w| w.iter().map(|&x| x as f32).collect()).collect(),
+        times: (0..frames.len()).map(|f| (f as f64 / fps as f64) as f32).collect(),
+        interpolation: if basis.components.is_some() { Interpolation::Linear } else { Interpolation::Step },
+        target_names: basis.names.clone(),
+    }
+}
+
+/// Area-weighted vertex normals with vertices welded by identical frame-0
+/// position, so a UV seam (duplicated vertices) shares one normal instead of
+/// showing as a crease.
+struct FrameNormals<'a> {
+    triangles: &'a [[u32; 3]],
+    /// Per vertex, the first vertex at the same frame-0 position.
+    weld: Vec<u32>,
+    /// Frame 0's normals; +Z where no triangle with area touches a vertex, as
+    /// glTF requires unit normals.
+    base: Vec<Vector3>,
+}
+
+impl<'a> FrameNormals<'a> {
+    fn new(triangles: &'a [[u32; 3]], frame0: &[Point3]) -> Self {
+        let mut first = HashMap::new();
+        // `+ 0.0` turns −0 into +0, so both weld.
+        let weld = (0..frame0.len() as u32)
+            .map(|v| *first.entry(frame0[v as usize].coords.map(|c| (c + 0.0).to_bits())).or_insert(v))
+            .collect();
+        let mut n = FrameNormals { triangles, weld, base: Vec::new() };
+        n.base = n.raw(frame0).into_iter().map(|v| if v == Vector3::zeros() { Vector3::z() } else { v }).collect();
+        n
+    }
+
+    /// Unit normals of a frame; zero where undefined.
+    fn raw(&self, positions: &[Point3]) -> Vec<Vector3> {
+        let mut sum = vec![Vector3::zeros(); positions.len()];
+        for t in self.triangles {
+            let [a, b, c] = t.map(|i| positions[i as usize]);
+            let face = (b - a).cross(&(c - a));
+            for &i in t {
+                sum[self.weld[i as usize] as usize] += face;
+            }
+        }
+        self.weld.iter().map(|&w| sum[w as usize].try_normalize(0.0).unwrap_or_else(Vector3::zeros)).collect()
+    }
+
+    /// Normals of a frame, frame 0's where undefined (no change there).
+    fn of(&self, positions: &[Point3]) -> Vec<Vector3> {
+        self.raw(positions).into_iter().zip(&self.base).map(|(n, b)| if n == Vector3::zeros() { *b } else { n }).collect()
+    }
+}
+
+fn to_f32(v: &Vector3) -> [f32; 3] {
+    [v.x as f32, v.y as f32, v.z as f32]
+}
 
 /// How morph weights are interpolated between keyframes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -14,19 +185,52 @@ pub enum Interpolation {
     Linear,
 }
 
-/// Morph-target animation of a mesh: frame k's positions are
-/// `base + Σ_t weights[k][t] · position_deltas[t]`.
+/// Morph-target animation of a mesh: at keyframe k the positions are
+/// `base + Σ_t weights[k][t] · position_deltas[t]`, likewise the normals.
 #[derive(Clone, Debug)]
 pub struct MorphAnimation {
+    /// POSITION deltas, one per vertex, per target (at least one target).
     pub position_deltas: Vec<Vec<[f32; 3]>>,
-    /// NORMAL deltas per target, same length as `position_deltas` when given.
+    /// NORMAL deltas per target, relative to the mesh's normals (which must
+    /// then be present), same length as `position_deltas` when given.
     pub normal_deltas: Option<Vec<Vec<[f32; 3]>>>,
-    /// One weight vector (one entry per target) per keyframe.
+    /// One weight vector (one entry per target) per keyframe; the first is
+    /// also the mesh's default weights, what viewers show unanimated.
     pub weights: Vec<Vec<f32>>,
-    /// Keyframe times in seconds.
+    /// Keyframe times in seconds, increasing, one per weight vector.
     pub times: Vec<f32>,
     pub interpolation: Interpolation,
     pub target_names: Vec<String>,
+}
+
+impl MorphAnimation {
+    /// Checks the sizes against `mesh` and each other, and the times.
+    fn check(&self, mesh: &TriangleMesh) -> Result<()> {
+        let (targets, vertices) = (self.position_deltas.len(), mesh.positions.len());
+        let bad = |what: &str| Err(Error::InvalidInput(format!("morph animation: {what}")));
+        if targets == 0 {
+            return bad("no targets");
+        }
+        let sized = |d: &[Vec<[f32; 3]>]| d.len() == targets && d.iter().all(|t| t.len() == vertices);
+        if !sized(&self.position_deltas) {
+            return bad("a position target does not have one delta per vertex");
+        }
+        if let Some(n) = &self.normal_deltas {
+            if mesh.normals.is_none() || !sized(n) {
+                return bad("normal deltas without base normals, or not one per vertex and target");
+            }
+        }
+        if self.weights.is_empty() || self.weights.len() != self.times.len() || self.weights.iter().any(|w| w.len() != targets) {
+            return bad("not one weight per target for every keyframe time");
+        }
+        if self.target_names.len() != targets {
+            return bad("not one name per target");
+        }
+        if !self.times.iter().all(|t| t.is_finite()) || self.times.windows(2).any(|w| w[0] >= w[1]) {
+            return bad("keyframe times are not finite and increasing");
+        }
+        Ok(())
+    }
 }
 
 /// Accumulates binary data and the views/accessors describing it.
@@ -117,20 +321,21 @@ fn bounds_of(data: &[[f32; 3]]) -> (Vec<f32>, Vec<f32>) {
     (lo, hi)
 }
 
-/// Encodes `mesh` (and its animation) as a GLB file.
+/// Encodes `mesh` (and its animation) as a GLB file: positions, and the
+/// mesh's normals, UVs and texture when present. Without an animation the
+/// output is a plain static mesh (the committed fixtures are built this way,
+/// byte for byte).
 pub fn glb_bytes(mesh: &TriangleMesh, animation: Option<&MorphAnimation>) -> Result<Vec<u8>> {
+    if let Some(anim) = animation {
+        anim.check(mesh)?;
+    }
     let mut b = Builder { root: json::Root::default(), bin: Vec::new() };
     b.root.asset.generator = Some(format!("voltrack {}", env!("CARGO_PKG_VERSION")));
     let array = Some(json::buffer::Target::ArrayBuffer);
     let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
     let mut attributes = BTreeMap::new();
     attributes.insert(Valid(json::mesh::Semantic::Positions), b.vec3(&positions, true, array));
-    let normals: Option<Vec<[f32; 3]>> = match (&mesh.normals, animation.is_some_and(|a| a.normal_deltas.is_some())) {
-        (Some(n), _) => Some(n.clone()),
-        (None, true) => Some(mesh.vertex_normals().iter().map(|n| [n.x as f32, n.y as f32, n.z as f32]).collect()),
-        _ => None,
-    };
-    if let Some(n) = &normals {
+    if let Some(n) = &mesh.normals {
         attributes.insert(Valid(json::mesh::Semantic::Normals), b.vec3(n, false, array));
     }
     if let Some(uv) = &mesh.uvs {
@@ -167,7 +372,7 @@ pub fn glb_bytes(mesh: &TriangleMesh, animation: Option<&MorphAnimation>) -> Res
             t.push(json::mesh::MorphTarget { positions: Some(b.vec3(d, true, array)), normals, tangents: None });
         }
         targets = Some(t);
-        weights = Some(vec![0.0; anim.position_deltas.len()]);
+        weights = Some(anim.weights[0].clone());
         let names = serde_json::json!({ "targetNames": anim.target_names });
         extras = Some(serde_json::value::to_raw_value(&names).map_err(|e| Error::InvalidInput(e.to_string()))?);
     }

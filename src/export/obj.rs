@@ -1,8 +1,11 @@
-//! Wavefront OBJ writing.
+//! Wavefront OBJ writing: one mesh, or every frame of a dynamic mesh.
 
+use crate::deform::DynamicMesh;
+use crate::error::{Error, Result};
 use crate::math::Point3;
 use crate::mesh::TriangleMesh;
 use std::io::Write;
+use std::path::{Path, PathBuf};
 
 /// Writes `positions` with the connectivity (and UVs) of `mesh`.
 pub fn write_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3]) -> std::io::Result<()> {
@@ -25,4 +28,23 @@ pub fn write_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3]
         }
     }
     Ok(())
+}
+
+/// Writes every frame of `mesh` into `dir` (created if needed) as
+/// `frame_0000.obj`, `frame_0001.obj`, … (more digits past 10 000 frames, so
+/// names sort in frame order): the same vertex order, faces and UVs in every
+/// file, only the positions change. Returns the paths in frame order.
+pub fn write_obj_sequence(dir: &Path, mesh: &DynamicMesh) -> Result<Vec<PathBuf>> {
+    super::basis::check_frames(mesh)?;
+    std::fs::create_dir_all(dir).map_err(|e| Error::write(dir, e))?;
+    let width = (mesh.frames.len() - 1).to_string().len().max(4);
+    mesh.frames
+        .iter()
+        .enumerate()
+        .map(|(f, positions)| {
+            let path = dir.join(format!("frame_{f:0width$}.obj"));
+            super::write_atomic(&path, |w| write_obj(w, &mesh.base, positions))?;
+            Ok(path)
+        })
+        .collect()
 }

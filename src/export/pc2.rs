@@ -1,1 +1,73 @@
-//! (placeholder, filled in by the export work)
+//! Point caches for Blender's Mesh Cache modifier: every frame's positions as
+//! a PC2 file, and the mesh to put the modifier on as an OBJ beside it.
+
+use super::basis::check_frames;
+use super::obj::write_obj;
+use super::write_atomic;
+use crate::deform::DynamicMesh;
+use crate::error::{Error, Result};
+use crate::mesh::TriangleMesh;
+use std::io::Write;
+use std::path::Path;
+
+/// Writes the frames of `mesh` as a PC2 point cache at `path` and frame 0 as
+/// an OBJ at `path.with_extension("obj")`, both listing the same vertices in
+/// the same order, so the Mesh Cache modifier on the imported OBJ replays the
+/// sequence.
+///
+/// PC2 (3ds Max's format, read by Blender): the header `POINTCACHE2\0`, i32
+/// version 1, i32 point count, f32 start frame (0), f32 sampling (1: one
+/// sample per frame), i32 sample count; then per sample, per point, x y z as
+/// f32, all little-endian. The format counts in frames and has no time base,
+/// so `fps` (finite, > 0) is recorded in the OBJ's header comment: set the
+/// Blender scene to that frame rate.
+///
+/// Vertices that no triangle uses are left out of both files: Blender's OBJ
+/// importer does not create them, and the modifier needs equal counts. All
+/// others keep the mesh's order.
+pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32) -> Result<()> {
+    if !(fps.is_finite() && fps > 0.0) {
+        return Err(Error::InvalidParameter(format!("the frame rate must be positive, not {fps}")));
+    }
+    check_frames(mesh)?;
+    let obj_path = path.with_extension("obj");
+    if obj_path == path {
+        return Err(Error::write(path, "the point cache would overwrite the OBJ of its mesh; name it .pc2"));
+    }
+    let base = &mesh.base;
+    let mut used = vec![false; base.positions.len()];
+    base.triangles.iter().flatten().for_each(|&v| used[v as usize] = true);
+    let kept: Vec<usize> = (0..used.len()).filter(|&v| used[v]).collect();
+    let mut index = vec![0u32; used.len()];
+    kept.iter().enumerate().for_each(|(new, &old)| index[old] = new as u32);
+    let too_many = |what| Error::InvalidInput(format!("too many {what} for a PC2 file"));
+    let points = i32::try_from(kept.len()).map_err(|_| too_many("vertices"))?;
+    let samples = i32::try_from(mesh.frames.len()).map_err(|_| too_many("frames"))?;
+    let obj = TriangleMesh {
+        positions: kept.iter().map(|&v| mesh.frames[0][v]).collect(),
+        triangles: base.triangles.iter().map(|t| t.map(|v| index[v as usize])).collect(),
+        uvs: base.uvs.as_ref().map(|uv| kept.iter().map(|&v| uv[v]).collect()),
+        ..Default::default()
+    };
+    write_atomic(path, |w| {
+        w.write_all(b"POINTCACHE2\0")?;
+        w.write_all(&1i32.to_le_bytes())?;
+        w.write_all(&points.to_le_bytes())?;
+        w.write_all(&0f32.to_le_bytes())?;
+        w.write_all(&1f32.to_le_bytes())?;
+        w.write_all(&samples.to_le_bytes())?;
+        for frame in &mesh.frames {
+            for &v in &kept {
+                for c in frame[v].iter() {
+                    w.write_all(&(*c as f32).to_le_bytes())?;
+                }
+            }
+        }
+        Ok(())
+    })?;
+    let cache = path.file_name().unwrap_or_default().to_string_lossy();
+    write_atomic(&obj_path, |w| {
+        writeln!(w, "# Mesh Cache {cache}: {samples} frames at {fps} fps, start frame 0, one sample per frame")?;
+        write_obj(w, &obj, &obj.positions)
+    })
+}

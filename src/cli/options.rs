@@ -1,0 +1,233 @@
+//! Flags shared by several commands, each mapped onto a library parameter
+//! struct; defaults come from the structs' `Default`, never repeated here.
+
+use anyhow::{bail, Result};
+use clap::{Args, ValueEnum};
+use std::path::PathBuf;
+use voltrack::export::gltf::{BasisChoice, GltfExportOptions};
+use voltrack::params::{AffinityKind, Blending, DeformParams, RefineParams, TrackParams};
+use voltrack::voxel::VoxelParams;
+
+#[derive(Args)]
+pub struct InputArgs {
+    /// Frames: a directory, a pattern such as 'seq/frame_*.obj', or files in order
+    #[arg(required = true, value_name = "INPUT")]
+    pub input: Vec<PathBuf>,
+    /// Voxels along the longest side of the sequence's bounding box
+    #[arg(long, short = 'r', default_value_t = VoxelParams::default().resolution)]
+    pub resolution: usize,
+}
+
+impl InputArgs {
+    pub fn voxel_params(&self) -> VoxelParams {
+        VoxelParams { resolution: self.resolution, ..Default::default() }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum AffinityArg {
+    Max,
+    Iir,
+}
+
+#[derive(Args)]
+pub struct TrackArgs {
+    /// Number of tracked volume elements
+    #[arg(long, short = 'n', default_value_t = TrackParams::default().centers)]
+    pub centers: usize,
+    /// Affinity weighting the rigid fits
+    #[arg(long, value_enum, default_value = "max")]
+    pub affinity: AffinityArg,
+    /// Seed of the initial center placement
+    #[arg(long, default_value_t = TrackParams::default().seed)]
+    pub seed: u64,
+    /// ρ_p: distance at which the positional affinity is 0.5
+    #[arg(long, default_value_t = TrackParams::default().rho_p)]
+    pub rho_p: f64,
+    /// ρ_m: motion dissimilarity at which the motion affinity is 0.5
+    #[arg(long, default_value_t = TrackParams::default().rho_m)]
+    pub rho_m: f64,
+    /// α: IIR filter weight (--affinity iir)
+    #[arg(long, default_value_t = TrackParams::default().alpha)]
+    pub alpha: f64,
+    /// β: weight of the centroid term
+    #[arg(long, default_value_t = TrackParams::default().beta)]
+    pub beta: f64,
+    /// μ: smallest affinity kept
+    #[arg(long, default_value_t = TrackParams::default().mu)]
+    pub mu: f64,
+    /// Rigid-prediction steps before the centroid term enters
+    #[arg(long, default_value_t = TrackParams::default().presmooth_steps)]
+    pub presmooth: usize,
+    /// Convergence threshold on the largest move per iteration
+    #[arg(long, default_value_t = TrackParams::default().threshold)]
+    pub threshold: f64,
+    /// Iteration limit per frame
+    #[arg(long, default_value_t = TrackParams::default().max_iterations)]
+    pub max_iterations: usize,
+    /// Lloyd iterations placing the centers in frame 0
+    #[arg(long, default_value_t = TrackParams::default().lloyd_iterations)]
+    pub lloyd_iterations: usize,
+    /// Over-relaxation of those Lloyd iterations
+    #[arg(long, default_value_t = TrackParams::default().over_relaxation)]
+    pub over_relaxation: f64,
+    /// Take lengths (ρ, thresholds) in the input's units, not as fractions of the bounding box's longest side
+    #[arg(long)]
+    pub absolute_units: bool,
+}
+
+impl TrackArgs {
+    pub fn params(&self) -> TrackParams {
+        TrackParams {
+            centers: self.centers,
+            seed: self.seed,
+            affinity: match self.affinity {
+                AffinityArg::Max => AffinityKind::Max,
+                AffinityArg::Iir => AffinityKind::Iir,
+            },
+            rho_p: self.rho_p,
+            rho_m: self.rho_m,
+            alpha: self.alpha,
+            beta: self.beta,
+            mu: self.mu,
+            presmooth_steps: self.presmooth,
+            threshold: self.threshold,
+            max_iterations: self.max_iterations,
+            lloyd_iterations: self.lloyd_iterations,
+            over_relaxation: self.over_relaxation,
+            absolute_units: self.absolute_units,
+        }
+    }
+}
+
+#[derive(Args)]
+pub struct RefineArgs {
+    /// Irregular centers to remove in all [default: 1 % of the centers, at least 1]
+    #[arg(long)]
+    pub remove: Option<usize>,
+    /// n_go: batches the removal is split into, each followed by a global optimisation
+    #[arg(long, default_value_t = RefineParams::default().batches)]
+    pub batches: usize,
+    /// Remove irregular centers without the global optimisation
+    #[arg(long)]
+    pub no_optimise: bool,
+    /// β̂: weight of the centroid term in the global energy
+    #[arg(long, default_value_t = RefineParams::default().beta_hat)]
+    pub beta_hat: f64,
+    /// ρ_gp: largest distance at which ω_max is 0.5
+    #[arg(long, default_value_t = RefineParams::default().rho_gp)]
+    pub rho_gp: f64,
+    /// ρ_gm: largest motion dissimilarity at which ω is 0.5
+    #[arg(long, default_value_t = RefineParams::default().rho_gm)]
+    pub rho_gm: f64,
+    /// Global iterations per batch
+    #[arg(long, default_value_t = RefineParams::default().max_iterations)]
+    pub global_iterations: usize,
+}
+
+impl RefineArgs {
+    pub fn params(&self) -> RefineParams {
+        RefineParams {
+            remove: self.remove,
+            batches: self.batches,
+            optimise: !self.no_optimise,
+            beta_hat: self.beta_hat,
+            rho_gp: self.rho_gp,
+            rho_gm: self.rho_gm,
+            max_iterations: self.global_iterations,
+            ..Default::default()
+        }
+    }
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum OutputFormat {
+    /// Binary glTF with morph targets
+    Glb,
+    /// Center trajectories (as `voltrack track`)
+    Exr,
+    /// Per-vertex positions as an EXR vertex-animation texture plus a JSON sidecar
+    Vat,
+    /// Blender point cache (.pc2) with the base mesh as OBJ beside it
+    Pc2,
+    /// A directory of OBJ files sharing one connectivity
+    ObjSequence,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum BlendArg {
+    Dq,
+    Linear,
+}
+
+#[derive(Args)]
+pub struct ConvertArgs {
+    #[command(flatten)]
+    pub input: InputArgs,
+    /// Output file (.glb, .exr, .pc2) or directory (OBJ sequence)
+    #[arg(long, short = 'o')]
+    pub output: PathBuf,
+    /// Output format [default: from the extension; a directory means an OBJ sequence]
+    #[arg(long, value_enum)]
+    pub format: Option<OutputFormat>,
+    /// Per-vertex animation as an EXR texture (same as --format vat)
+    #[arg(long)]
+    pub vat: bool,
+    #[command(flatten)]
+    pub track: TrackArgs,
+    /// Skip irregular-center removal and the global optimisation
+    #[arg(long)]
+    pub no_refine: bool,
+    #[command(flatten)]
+    pub refine: RefineArgs,
+    /// Frames per second of the animation
+    #[arg(long, default_value_t = GltfExportOptions::default().fps)]
+    pub fps: f32,
+    /// Compact glTF: K principal components as morph targets [default: one target per frame up to 256 frames]
+    #[arg(long)]
+    pub basis: Option<usize>,
+    /// Centers each vertex follows
+    #[arg(long, default_value_t = DeformParams::default().neighbors)]
+    pub bind_neighbors: usize,
+    /// Blending of the centers' motions
+    #[arg(long, value_enum, default_value = "dq")]
+    pub blend: BlendArg,
+}
+
+impl ConvertArgs {
+    pub fn format(&self) -> Result<OutputFormat> {
+        if self.vat {
+            return Ok(OutputFormat::Vat);
+        }
+        if let Some(f) = self.format {
+            return Ok(f);
+        }
+        let ext = self.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+        Ok(match ext.as_str() {
+            "glb" => OutputFormat::Glb,
+            "exr" => OutputFormat::Exr,
+            "pc2" => OutputFormat::Pc2,
+            "" => OutputFormat::ObjSequence,
+            other => bail!("{}: cannot tell the output format from '.{other}'; use --format", self.output.display()),
+        })
+    }
+
+    pub fn deform_params(&self) -> DeformParams {
+        DeformParams {
+            neighbors: self.bind_neighbors,
+            blending: match self.blend {
+                BlendArg::Dq => Blending::DualQuaternion,
+                BlendArg::Linear => Blending::Linear,
+            },
+            ..Default::default()
+        }
+    }
+
+    pub fn gltf_options(&self) -> GltfExportOptions {
+        GltfExportOptions {
+            fps: self.fps,
+            basis: self.basis.map_or(BasisChoice::Auto, BasisChoice::Components),
+            ..Default::default()
+        }
+    }
+}

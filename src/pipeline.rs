@@ -1,0 +1,143 @@
+//! The stages strung together, as the commands use them: each function takes
+//! its inputs and options and returns a result the CLI prints or writes.
+
+use crate::deform::{deform, DynamicMesh};
+use crate::error::{Error, Result};
+use crate::math::Real;
+use crate::params::{DeformParams, RefineParams, TrackParams};
+use crate::progress::{Progress, Stage};
+use crate::refine::{global_affinity, refine, RefineResult, SequenceCells};
+use crate::track::{track, TrackResult, Trajectories};
+use crate::voxel::{voxelize_sequence, GridSpec, VoxelParams, VoxelSequence};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// PCAC, DFU and irregularity of one set of trajectories (method.md §6, §8).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Quality {
+    pub pcac: Real,
+    pub dfu: Real,
+    pub dfu_per_frame: Vec<Real>,
+    /// I_i per center, in the trajectories' order.
+    pub irregularity: Vec<Real>,
+}
+
+impl Quality {
+    /// The `k` largest I_i, largest first.
+    pub fn largest_irregularity(&self, k: usize) -> Vec<Real> {
+        let mut v = self.irregularity.clone();
+        v.sort_by(|a, b| b.total_cmp(a));
+        v.truncate(k);
+        v
+    }
+}
+
+/// Measures trajectories against the voxelised sequence they track.
+pub fn measure(traj: &Trajectories, seq: &VoxelSequence) -> Quality {
+    let counts: Vec<Vec<u32>> = SequenceCells::new(seq).update(traj, false).into_iter().map(|s| s.count).collect();
+    let (dfu, dfu_per_frame) = crate::metrics::dfu(&counts);
+    Quality { pcac: crate::metrics::pcac(traj), dfu, dfu_per_frame, irregularity: crate::metrics::irregularity(traj) }
+}
+
+/// Reads and voxelises the inputs.
+pub fn load(inputs: &[PathBuf], voxel: &VoxelParams, progress: Progress) -> Result<VoxelSequence> {
+    let paths = crate::io::discover_frames(inputs)?;
+    voxelize_sequence(&paths, voxel, progress)
+}
+
+/// Header attributes recording how trajectories were made.
+pub fn trajectory_attributes(seq: &VoxelSequence, voxel: &VoxelParams, track: &TrackParams, refine: Option<(&RefineParams, &[usize])>) -> Vec<(String, String)> {
+    let g = &seq.grid;
+    let json = |v: serde_json::Value| v.to_string();
+    let mut attrs = vec![
+        ("voltrack.resolution".into(), voxel.resolution.to_string()),
+        ("voltrack.voxel_size".into(), format!("{:e}", g.voxel_size)),
+        ("voltrack.grid".into(), json(serde_json::json!({"dims": g.dims, "origin": g.origin.coords.as_slice(), "voxel_size": g.voxel_size}))),
+        ("voltrack.frames".into(), seq.frames.len().to_string()),
+        ("voltrack.track".into(), serde_json::to_string(track).unwrap_or_default()),
+        ("voltrack.first_input".into(), seq.paths[0].display().to_string()),
+    ];
+    if let Some((r, removed)) = refine {
+        attrs.push(("voltrack.refine".into(), serde_json::to_string(r).unwrap_or_default()));
+        attrs.push(("voltrack.removed".into(), json(serde_json::json!(removed))));
+    }
+    attrs
+}
+
+/// The resolution trajectories were tracked at, from their attributes.
+pub fn resolution_of(attrs: &[(String, String)], path: &Path) -> Result<usize> {
+    attrs
+        .iter()
+        .find(|(k, _)| k == "voltrack.resolution")
+        .and_then(|(_, v)| v.parse().ok())
+        .ok_or_else(|| Error::parse(path, None, "no voltrack.resolution attribute: not written by voltrack track; pass --resolution"))
+}
+
+/// Checks that re-voxelised input lies on the grid the trajectories were made on.
+pub fn check_grid(attrs: &[(String, String)], grid: &GridSpec, traj: &Trajectories, seq: &VoxelSequence, path: &Path) -> Result<()> {
+    if traj.frames != seq.frames.len() {
+        return Err(Error::InvalidInput(format!(
+            "{} has {} frames but the input has {}",
+            path.display(),
+            traj.frames,
+            seq.frames.len()
+        )));
+    }
+    if let Some((_, v)) = attrs.iter().find(|(k, _)| k == "voltrack.voxel_size") {
+        let stored: Real = v.parse().unwrap_or(Real::NAN);
+        if (stored - grid.voxel_size).abs() > 1e-9 * grid.voxel_size.max(stored.abs()) {
+            return Err(Error::InvalidInput(format!(
+                "{} was tracked on voxels of {stored}, the input gives {}: not the same input or resolution",
+                path.display(),
+                grid.voxel_size
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Everything `convert` produces, with its timings.
+pub struct Conversion {
+    pub sequence: VoxelSequence,
+    pub tracked: TrackResult,
+    pub refined: Option<RefineResult>,
+    pub mesh: DynamicMesh,
+    pub seconds: Vec<(Stage, f64)>,
+}
+
+/// Voxelise, track, refine (unless `refine` is None) and deform: the whole
+/// pipeline up to export.
+pub fn convert(
+    inputs: &[PathBuf],
+    voxel: &VoxelParams,
+    track_params: &TrackParams,
+    refine_params: Option<&RefineParams>,
+    deform_params: &DeformParams,
+    progress: Progress,
+) -> Result<Conversion> {
+    let sequence = load(inputs, voxel, progress)?;
+    let first = sequence.first_mesh.clone().ok_or_else(|| {
+        Error::InvalidInput(format!("{}: voxel input has no mesh to deform; convert needs meshes", sequence.paths[0].display()))
+    })?;
+    let mut seconds = vec![(Stage::Read, sequence.read_seconds), (Stage::Voxelize, sequence.voxelize_seconds)];
+    let clock = Instant::now();
+    let tracked = track(&sequence, track_params, progress)?;
+    seconds.push((Stage::Track, clock.elapsed().as_secs_f64()));
+    let refined = match refine_params {
+        Some(p) => Some(refine(&tracked.trajectories, &sequence, p, progress)?),
+        None => None,
+    };
+    if let Some(r) = &refined {
+        seconds.push((Stage::Refine, r.seconds));
+    }
+    let clock = Instant::now();
+    progress.report(Stage::Deform, 0, 1);
+    let traj = refined.as_ref().map_or(&tracked.trajectories, |r| &r.trajectories);
+    let rp = refine_params.cloned().unwrap_or_default();
+    let scale = rp.length_scale(&sequence.bounds);
+    let omega = global_affinity(traj, &sequence, &mut SequenceCells::new(&sequence), rp.rho_gp * scale, rp.rho_gm * scale, rp.mu);
+    let mesh = deform(&first, traj, &omega, deform_params)?;
+    progress.report(Stage::Deform, 1, 1);
+    seconds.push((Stage::Deform, clock.elapsed().as_secs_f64()));
+    Ok(Conversion { sequence, tracked, refined, mesh, seconds })
+}

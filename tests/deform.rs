@@ -1,0 +1,68 @@
+//! Deforming the first-frame mesh by center trajectories.
+
+use voltrack::deform::{deform, DualQuaternion};
+use voltrack::math::{Point3, Real, Rotation3, Vector3};
+use voltrack::params::{Blending, DeformParams};
+use voltrack::refine::SparseAffinity;
+use voltrack::track::{Rigid, Trajectories};
+
+fn random_rigid(k: u32) -> Rigid {
+    let a = k as Real;
+    Rigid { rotation: *Rotation3::new(Vector3::new(0.3 * a.sin(), 0.7 * a.cos(), 0.2 + 0.1 * a)).matrix(), translation: Vector3::new(a, -0.5 * a, 0.25) }
+}
+
+#[test]
+fn dual_quaternions_reproduce_rigid_motions() {
+    for k in 0..10 {
+        let m = random_rigid(k);
+        let dq = DualQuaternion::from_rigid(&m);
+        for p in [Point3::new(0.3, -1.0, 2.0), Point3::origin(), Point3::new(-4.0, 5.0, 0.5)] {
+            assert!((dq.apply(&p) - m.apply(&p)).norm() < 1e-12);
+        }
+        // Blending a motion with itself (either sign) gives the motion.
+        let neg = DualQuaternion { real: -dq.real, dual: -dq.dual };
+        let b = DualQuaternion::blend([(dq, 0.3), (neg, 0.7)].into_iter());
+        assert!((b.apply(&Point3::new(1.0, 2.0, 3.0)) - m.apply(&Point3::new(1.0, 2.0, 3.0))).norm() < 1e-12);
+    }
+}
+
+#[test]
+fn a_rigidly_moving_mesh_follows_exactly() {
+    let mesh = voltrack::fixtures::torus(Point3::origin(), 1.0, 0.35, 24, 12);
+    // Centers spread over the torus, carried by one rigid motion per frame.
+    let centers0: Vec<Point3> = mesh.positions.iter().step_by(7).copied().collect();
+    let motions: Vec<Rigid> = (0..5).map(random_rigid).collect();
+    let frames: Vec<Vec<Point3>> = std::iter::once(centers0.clone()).chain(motions.iter().skip(1).map(|m| centers0.iter().map(|p| m.apply(p)).collect())).collect();
+    let traj = Trajectories::from_frames(frames);
+    let n = traj.centers;
+    let omega = SparseAffinity { lists: (0..n).map(|_| (0..n as u32).map(|j| (j, 1.0)).collect()).collect() };
+    for blending in [Blending::DualQuaternion, Blending::Linear] {
+        let dm = deform(&mesh, &traj, &omega, &DeformParams { blending, ..Default::default() }).unwrap();
+        assert_eq!(dm.frames.len(), 5);
+        assert_eq!(dm.frames[0], mesh.positions);
+        for f in 1..5 {
+            for (v, p) in dm.frames[f].iter().zip(&mesh.positions) {
+                assert!((v - motions[f].apply(p)).norm() < 1e-9, "{blending:?} frame {f}");
+            }
+        }
+    }
+}
+
+#[test]
+fn vertices_bind_only_to_centers_affine_to_their_nearest() {
+    // Two centers side by side that move apart: with ω = 0 between them, a
+    // vertex next to the first follows it alone.
+    let mesh = voltrack::fixtures::cube(Point3::new(0.0, 0.0, 0.0), 0.2);
+    let traj = Trajectories::from_frames(vec![
+        vec![Point3::new(0.0, 0.0, 0.0), Point3::new(0.5, 0.0, 0.0)],
+        vec![Point3::new(0.0, 1.0, 0.0), Point3::new(0.5, -1.0, 0.0)],
+    ]);
+    let apart = SparseAffinity { lists: vec![vec![(0, 1.0)], vec![(1, 1.0)]] };
+    let dm = deform(&mesh, &traj, &apart, &DeformParams::default()).unwrap();
+    for (v, p) in dm.frames[1].iter().zip(&mesh.positions) {
+        assert!((v - (p + Vector3::new(0.0, 1.0, 0.0))).norm() < 1e-9);
+    }
+    let together = SparseAffinity { lists: vec![vec![(0, 1.0), (1, 1.0)], vec![(0, 1.0), (1, 1.0)]] };
+    let dm = deform(&mesh, &traj, &together, &DeformParams::default()).unwrap();
+    assert!(dm.frames[1].iter().zip(&mesh.positions).any(|(v, p)| (v - (p + Vector3::new(0.0, 1.0, 0.0))).norm() > 1e-3));
+}

@@ -1,0 +1,103 @@
+//! Irregular-center removal and the global optimisation.
+
+use voltrack::math::{Point3, Real, Rotation3, Vector3};
+use voltrack::params::{RefineParams, TrackParams};
+use voltrack::refine::{global_affinity, most_irregular, optimise, refine, SequenceCells};
+use voltrack::track::{track, Rigid, Trajectories};
+use voltrack::voxel::{voxelize, GridSpec, Occupancy, VoxelSequence};
+
+/// Two boxes, one still and one sliding away, voxelised on one grid.
+fn two_bodies(frames: usize, resolution: usize) -> VoxelSequence {
+    let a = voltrack::fixtures::cube(Point3::new(0.0, 0.0, 0.0), 1.0);
+    let b = voltrack::fixtures::cube(Point3::new(1.6, 0.0, 0.0), 1.0);
+    let meshes: Vec<voltrack::TriangleMesh> = (0..frames)
+        .map(|f| {
+            let m = Rigid { rotation: *Rotation3::new(Vector3::new(0.0, 0.0, 0.05 * f as Real)).matrix(), translation: Vector3::new(0.08 * f as Real, 0.0, 0.0) };
+            let mut moved = b.clone();
+            moved.positions.iter_mut().for_each(|p| *p = m.apply(p));
+            voltrack::fixtures::merge(&[a.clone(), moved])
+        })
+        .collect();
+    let bounds = meshes.iter().map(|m| m.bounding_box()).reduce(|x, y| x.union(&y)).unwrap();
+    let grid = GridSpec::for_bounds(&bounds, resolution).unwrap();
+    let occ: Vec<Occupancy> = meshes.iter().map(|m| voxelize(m, &grid)).collect();
+    VoxelSequence {
+        grid,
+        paths: (0..frames).map(|f| format!("f{f}.obj").into()).collect(),
+        frames: occ,
+        bounds,
+        first_mesh: Some(meshes[0].clone()),
+        read_seconds: 0.0,
+        voxelize_seconds: 0.0,
+    }
+}
+
+#[test]
+fn accepted_iterations_lower_the_energy_monotonically() {
+    let seq = two_bodies(6, 40);
+    let tracked = track(&seq, &TrackParams { centers: 40, ..Default::default() }, Default::default()).unwrap();
+    let mut traj = tracked.trajectories.clone();
+    let p = RefineParams::default();
+    let scale = p.length_scale(&seq.bounds);
+    let mut cells = SequenceCells::new(&seq);
+    let omega = global_affinity(&traj, &seq, &mut cells, p.rho_gp * scale, p.rho_gm * scale, p.mu);
+    let history = optimise(&mut traj, &seq.grid, &mut cells, &omega, p.beta_hat, p.lambda, 10, p.max_halvings, |_| {});
+    assert!(history.len() >= 2, "at least one step was accepted");
+    for w in history.windows(2) {
+        assert!(w[1].energy < w[0].energy, "energy rose: {} -> {}", w[0].energy, w[1].energy);
+        assert!((w[1].energy - (w[1].smooth + p.beta_hat * w[1].data)).abs() <= 1e-9 * w[1].energy);
+    }
+    assert_ne!(traj, tracked.trajectories);
+}
+
+#[test]
+fn a_center_jumping_between_bodies_is_removed_first() {
+    let seq = two_bodies(6, 40);
+    let tracked = track(&seq, &TrackParams { centers: 40, ..Default::default() }, Default::default()).unwrap();
+    let mut traj: Trajectories = tracked.trajectories.clone();
+    // Center 7 alternates between a center of each body.
+    let (on_a, on_b) = {
+        let f0 = traj.frame(0);
+        let a = (0..traj.centers).min_by(|&i, &j| f0[i].x.total_cmp(&f0[j].x)).unwrap();
+        let b = (0..traj.centers).max_by(|&i, &j| f0[i].x.total_cmp(&f0[j].x)).unwrap();
+        (a, b)
+    };
+    let jumper = (0..traj.centers).find(|&i| i != on_a && i != on_b).unwrap();
+    for f in 0..traj.frames {
+        let src = if f % 2 == 0 { on_a } else { on_b };
+        let p = traj.get(f, src) + Vector3::new(0.0, 0.05, 0.0);
+        traj.set(f, jumper, p);
+    }
+    let irregularity = voltrack::metrics::irregularity(&traj);
+    assert_eq!(most_irregular(&irregularity, 1), vec![jumper]);
+    let res = refine(&traj, &seq, &RefineParams { remove: Some(1), batches: 1, ..Default::default() }, Default::default()).unwrap();
+    assert_eq!(res.removed, vec![jumper]);
+    assert_eq!(res.trajectories.centers, traj.centers - 1);
+    assert!(!res.kept.contains(&jumper));
+    assert!(res.batches[0].len() >= 2);
+}
+
+#[test]
+fn removal_spreads_over_batches() {
+    let seq = two_bodies(4, 32);
+    let tracked = track(&seq, &TrackParams { centers: 30, ..Default::default() }, Default::default()).unwrap();
+    let res = refine(
+        &tracked.trajectories,
+        &seq,
+        &RefineParams { remove: Some(7), batches: 3, optimise: false, ..Default::default() },
+        Default::default(),
+    )
+    .unwrap();
+    assert_eq!(res.removed.len(), 7);
+    let mut sorted = res.removed.clone();
+    sorted.sort();
+    sorted.dedup();
+    assert_eq!(sorted.len(), 7, "each removed once");
+    assert_eq!(res.kept.len(), 23);
+    // Removal alone leaves the remaining trajectories untouched.
+    for (k, &orig) in res.kept.iter().enumerate() {
+        for f in 0..res.trajectories.frames {
+            assert_eq!(res.trajectories.get(f, k), tracked.trajectories.get(f, orig));
+        }
+    }
+}
