@@ -7,6 +7,9 @@ use crate::track::Trajectories;
 use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
 
+/// Eigenvalues below this fraction of the largest belong to M's null space.
+const NULL_EIGENVALUE: Real = 1e-12;
+
 /// PCA compactness (lower = simpler trajectories). M is the 3F × N matrix
 /// with one column per center trajectory (rows x⁰ y⁰ z⁰ x¹ …), each row's
 /// mean over the centers subtracted; with V the eigenvectors of M Mᵀ by
@@ -43,7 +46,14 @@ pub fn pcac(traj: &Trajectories) -> Real {
     };
     let mut order: Vec<usize> = (0..eigenvalues.len()).collect();
     order.sort_by(|&a, &b| eigenvalues[b].total_cmp(&eigenvalues[a]));
-    let s: Vec<Real> = order.iter().map(|&k| coefficients.column(k).iter().map(|c| c.abs()).sum()).collect();
+    // Components of the null space have C = 0 exactly; computed, they carry
+    // rounding noise (amplified by √λ on the Gram route), which the weights k
+    // would count. Below 1e-12 of the largest eigenvalue is that noise.
+    let largest = order.first().map_or(0.0, |&k| eigenvalues[k]);
+    let s: Vec<Real> = order
+        .iter()
+        .map(|&k| if eigenvalues[k] > NULL_EIGENVALUE * largest { coefficients.column(k).iter().map(|c| c.abs()).sum() } else { 0.0 })
+        .collect();
     let total: Real = s.iter().sum();
     if total <= 0.0 {
         return 0.0;

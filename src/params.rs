@@ -46,7 +46,10 @@ pub struct TrackParams {
     pub threshold: Real,
     /// Iteration limit per frame. Default 1000; >= 1.
     pub max_iterations: usize,
-    /// Lloyd iterations placing the centers in frame 0. Default 100.
+    /// Most Lloyd iterations placing the centers in frame 0; they stop earlier
+    /// once no center moves farther than `threshold`. Default 1000 (the
+    /// reference runs 100, which leaves frame 0 unconverged: see
+    /// [`crate::track::lloyd::seed_centers`]); >= 1.
     pub lloyd_iterations: usize,
     /// Over-relaxation of those Lloyd iterations (c += ω (x̄ - c)).
     /// Default 1.8; in (0, 2).
@@ -70,7 +73,7 @@ impl Default for TrackParams {
             presmooth_steps: 10,
             threshold: 5.6e-5,
             max_iterations: 1000,
-            lloyd_iterations: 100,
+            lloyd_iterations: 1000,
             over_relaxation: 1.8,
             absolute_units: false,
         }

@@ -261,8 +261,17 @@ fn convert(args: ConvertArgs) -> Result<()> {
         OutputFormat::Glb => {
             let report = voltrack::export::gltf::write_dynamic_glb(out, &conv.mesh, &args.gltf_options())?;
             if let Some(k) = report.basis {
+                if args.basis.is_none() {
+                    notes.push(format!(
+                        "{} frames is past {} (where three.js and mobile GPUs fail with one morph target per frame): \
+                         wrote a compact basis instead; --basis K chooses it yourself",
+                        conv.mesh.frames.len(),
+                        voltrack::export::basis::AUTO_PER_FRAME_LIMIT
+                    ));
+                }
                 notes.push(format!(
-                    "compact basis of {k} components: reconstruction error max {:.4} %, mean {:.4} % of the diagonal",
+                    "compact basis of {k} components ({} morph targets): reconstruction error max {:.4} %, mean {:.4} % of the diagonal",
+                    report.targets,
                     100.0 * report.reconstruction_error_max,
                     100.0 * report.reconstruction_error_mean
                 ));

@@ -64,7 +64,7 @@ pub fn track(seq: &VoxelSequence, params: &TrackParams, progress: Progress) -> R
 
     let start = Instant::now();
     let voxels0 = &seq.frames[0].indices;
-    let centers0 = seed_centers(grid, voxels0, params.centers, params.seed, params.lloyd_iterations, params.over_relaxation);
+    let centers0 = seed_centers(grid, voxels0, params.centers, params.seed, params.lloyd_iterations, params.over_relaxation, params.threshold * scale);
     let mut traj = Trajectories::new(frames, params.centers);
     traj.frame_mut(0).copy_from_slice(&centers0);
     let mut owners = vec![NO_OWNER; voxels0.len()];
