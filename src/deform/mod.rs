@@ -75,10 +75,23 @@ fn typical_spacing(tree: &ImmutableKdTree<Real, 3>, points: &[[Real; 3]]) -> Rea
     d[d.len() / 2].max(Real::MIN_POSITIVE)
 }
 
-/// Each center's rigid motion from frame 0 to every frame, fitted over its
-/// affine neighbours: `motions[f][i]`.
+/// Each center's rigid motion from frame 0 to every frame: the rotation
+/// fitted over its affine neighbours, the translation chosen so that the
+/// center itself lands exactly on its tracked position (`motions[f][i]`).
+///
+/// Why anchor: the plain fit carries the neighbours' weighted centroid, not
+/// the center, so wherever a neighbourhood bends (a limb at a joint) vertices
+/// near the center would miss its tracked position by the bend's sagitta.
 pub fn center_motions(traj: &Trajectories, omega: &SparseAffinity) -> Vec<Vec<Rigid>> {
-    (0..traj.frames).map(|f| omega.fit_frames(traj, 0, f)).collect()
+    (0..traj.frames)
+        .map(|f| {
+            let mut motions = omega.fit_frames(traj, 0, f);
+            for (i, m) in motions.iter_mut().enumerate() {
+                m.translation = traj.get(f, i).coords - m.rotation * traj.get(0, i).coords;
+            }
+            motions
+        })
+        .collect()
 }
 
 /// The dynamic mesh: `mesh` (frame 0 as loaded) moved by the trajectories.

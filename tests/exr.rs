@@ -1,0 +1,249 @@
+//! OpenEXR output of trajectories and vertex-animation textures, read back
+//! with voltrack's own reader: exact positions, metadata (non-ASCII, JSON),
+//! byte-identical output across runs and thread counts, errors that name the
+//! file, and no temporary file left behind.
+
+use std::path::{Path, PathBuf};
+use voltrack::export::exr::{write_trajectories_exr, write_vat_exr};
+use voltrack::io::exr::read_trajectories_exr;
+use voltrack::math::{Point3, Real};
+use voltrack::track::Trajectories;
+
+/// A fresh, empty directory for one test, removed when dropped.
+struct Scratch(PathBuf);
+impl Scratch {
+    fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("voltrack-test-exr-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Scratch(dir)
+    }
+    fn join(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+}
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Every file under `dir`, recursively, relative names.
+fn files_under(dir: &Path) -> Vec<String> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap().flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            out.extend(files_under(&p).into_iter().map(|n| format!("{}/{n}", e.file_name().to_string_lossy())));
+        } else {
+            out.push(e.file_name().to_string_lossy().into_owned());
+        }
+    }
+    out.sort();
+    out
+}
+
+/// Fixed-seed positions with awkward values: negative zero, tiny, huge,
+/// values that are not representable in f32.
+fn trajectories(frames: usize, centers: usize) -> Trajectories {
+    let mut state = 0x1234_5678_9abc_def0_u64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as Real / (1u64 << 53) as Real
+    };
+    let mut t = Trajectories::new(frames, centers);
+    for f in 0..frames {
+        for i in 0..centers {
+            t.set(f, i, Point3::new(next() * 10.0 - 5.0, 0.1 * f as Real + 1e-3 * i as Real, -1.0 / (1.0 + next())));
+        }
+    }
+    t.set(0, 0, Point3::new(-0.0, 1e-40, 3.0e30));
+    t.set(frames - 1, centers - 1, Point3::new(1.0 / 3.0, -123456.789, Real::MIN_POSITIVE));
+    t
+}
+
+fn attributes() -> Vec<(String, String)> {
+    vec![
+        ("voltrack.resolution".into(), "256".into()),
+        ("voltrack.first_input".into(), "/données/Tänzer ü/φrame_0 😀.obj".into()),
+        ("voltrack.track".into(), r#"{"centers":13,"rho_p":0.07,"affinity":"max","nested":{"list":[1,2,3],"name":"ß"}}"#.into()),
+        ("voltrack.note".into(), "quotes \" and back\\slash\nand a second line".into()),
+        ("voltrack.removed".into(), "[4,9,17]".into()),
+    ]
+}
+
+fn value<'a>(meta: &'a [(String, String)], key: &str) -> Option<&'a str> {
+    meta.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+}
+
+#[test]
+fn trajectories_round_trip_exactly_after_f32_rounding() {
+    let dir = Scratch::new("roundtrip");
+    for (frames, centers) in [(1, 1), (7, 13), (40, 3), (2, 600)] {
+        let path = dir.join(&format!("c_{frames}_{centers}.exr"));
+        let t = trajectories(frames, centers);
+        write_trajectories_exr(&path, &t, &attributes()).unwrap();
+        let (back, meta) = read_trajectories_exr(&path).unwrap();
+        assert_eq!((back.frames, back.centers, back.positions.len()), (frames, centers, frames * centers));
+        for f in 0..frames {
+            for i in 0..centers {
+                let (a, b) = (t.get(f, i), back.get(f, i));
+                for k in 0..3 {
+                    assert_eq!(b[k].to_bits(), (a[k] as f32 as Real).to_bits(), "frame {f}, center {i}, axis {k}: {} vs {}", b[k], a[k]);
+                }
+            }
+        }
+        assert_eq!(value(&meta, "voltrack.resolution"), Some("256"));
+        assert_eq!(value(&meta, "version"), Some(env!("CARGO_PKG_VERSION")));
+    }
+}
+
+#[test]
+fn attributes_round_trip() {
+    let dir = Scratch::new("attributes");
+    let path = dir.join("c.exr");
+    write_trajectories_exr(&path, &trajectories(3, 4), &attributes()).unwrap();
+    let (_, meta) = read_trajectories_exr(&path).unwrap();
+    // Non-ASCII text (Latin-1 and beyond, including outside the BMP) survives
+    // EXR's Latin-1 text attributes.
+    assert_eq!(value(&meta, "voltrack.first_input"), Some("/données/Tänzer ü/φrame_0 😀.obj"));
+    assert_eq!(value(&meta, "voltrack.note"), Some("quotes \" and back\\slash\nand a second line"));
+    // JSON values come back as equivalent JSON.
+    for key in ["voltrack.track", "voltrack.removed"] {
+        let written: serde_json::Value = serde_json::from_str(value(&attributes(), key).unwrap()).unwrap();
+        let read: serde_json::Value = serde_json::from_str(value(&meta, key).unwrap()).unwrap();
+        assert_eq!(read, written, "{key}");
+    }
+    // Every attribute written is read, plus the version, and nothing else.
+    let mut keys: Vec<&str> = meta.iter().map(|(k, _)| k.as_str()).collect();
+    keys.sort();
+    let mut want: Vec<String> = attributes().into_iter().map(|(k, _)| k).chain(["version".to_string()]).collect();
+    want.sort();
+    assert_eq!(keys, want);
+    // No attributes at all is fine too.
+    let bare = dir.join("bare.exr");
+    write_trajectories_exr(&bare, &trajectories(2, 2), &[]).unwrap();
+    let (_, meta) = read_trajectories_exr(&bare).unwrap();
+    assert_eq!(meta, vec![("version".to_string(), env!("CARGO_PKG_VERSION").to_string())]);
+}
+
+#[test]
+fn output_is_byte_identical_across_runs_and_thread_counts() {
+    let dir = Scratch::new("determinism");
+    let t = trajectories(33, 257);
+    let frames: Vec<Vec<Point3>> = (0..t.frames).map(|f| t.frame(f).to_vec()).collect();
+    let write = |name: &str, threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let exr = dir.join(&format!("{name}.exr"));
+        let vat = dir.join(&format!("{name}_vat.exr"));
+        pool.install(|| {
+            write_trajectories_exr(&exr, &t, &attributes()).unwrap();
+            write_vat_exr(&vat, &frames).unwrap();
+        });
+        let json = std::fs::read(vat.with_extension("json")).unwrap();
+        (std::fs::read(exr).unwrap(), std::fs::read(vat).unwrap(), json)
+    };
+    let first = write("a", 1);
+    assert_eq!(first, write("b", 1), "two runs differ");
+    assert_eq!(first, write("c", 4), "1 and 4 threads differ");
+    assert_eq!(first, write("d", 2), "1 and 2 threads differ");
+}
+
+#[test]
+fn unreadable_files_give_errors_that_name_them() {
+    let dir = Scratch::new("errors");
+    let missing = dir.join("missing centers.exr");
+    let err = read_trajectories_exr(&missing).unwrap_err().to_string();
+    assert!(err.contains("missing centers.exr"), "{err}");
+
+    let cases: [(&str, Vec<u8>); 4] = [
+        ("text.exr", b"v 1 2 3\nf 1 2 3\n".to_vec()),
+        ("empty.exr", Vec::new()),
+        ("magic_only.exr", vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0]),
+        ("truncated.exr", {
+            let good = dir.join("good.exr");
+            write_trajectories_exr(&good, &trajectories(9, 40), &attributes()).unwrap();
+            let bytes = std::fs::read(&good).unwrap();
+            bytes[..bytes.len() / 2].to_vec()
+        }),
+    ];
+    for (name, bytes) in cases {
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        let err = read_trajectories_exr(&path).unwrap_err().to_string();
+        assert!(err.contains(name), "{name}: {err}");
+    }
+    // A directory is not a file either.
+    let err = read_trajectories_exr(&dir.0).unwrap_err().to_string();
+    assert!(err.contains(&*dir.0.to_string_lossy()), "{err}");
+}
+
+#[test]
+fn vertex_animation_texture_with_json_sidecar() {
+    let dir = Scratch::new("vat");
+    let path = dir.join("anim.exr");
+    let t = trajectories(6, 50);
+    let frames: Vec<Vec<Point3>> = (0..t.frames).map(|f| t.frame(f).to_vec()).collect();
+    write_vat_exr(&path, &frames).unwrap();
+    assert_eq!(files_under(&dir.0), vec!["anim.exr", "anim.json"]);
+
+    let (back, meta) = read_trajectories_exr(&path).unwrap();
+    assert_eq!((back.frames, back.centers), (6, 50));
+    for (a, b) in t.positions.iter().zip(&back.positions) {
+        assert!((0..3).all(|k| b[k] == a[k] as f32 as Real));
+    }
+    let info: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("anim.json")).unwrap()).unwrap();
+    assert_eq!(info["frames"], 6);
+    assert_eq!(info["vertices"], 50);
+    for k in 0..3 {
+        let lo = t.positions.iter().map(|p| p[k]).fold(Real::INFINITY, Real::min);
+        let hi = t.positions.iter().map(|p| p[k]).fold(Real::NEG_INFINITY, Real::max);
+        assert_eq!(info["bounds_min"][k].as_f64().unwrap(), lo, "axis {k}");
+        assert_eq!(info["bounds_max"][k].as_f64().unwrap(), hi, "axis {k}");
+    }
+    // The same description is in the EXR header.
+    let vat: serde_json::Value = serde_json::from_str(value(&meta, "vat").unwrap()).unwrap();
+    assert_eq!(vat, info);
+
+    // Frames of different lengths, no vertices, or a name that would collide
+    // with the sidecar: errors, nothing written.
+    let ragged = vec![frames[0].clone(), frames[1][..49].to_vec()];
+    assert!(write_vat_exr(&dir.join("ragged.exr"), &ragged).is_err());
+    assert!(write_vat_exr(&dir.join("none.exr"), &[vec![], vec![]]).is_err());
+    assert!(write_vat_exr(&dir.join("none.exr"), &[]).is_err());
+    assert!(write_vat_exr(&dir.join("clash.json"), &frames).is_err());
+    assert_eq!(files_under(&dir.0), vec!["anim.exr", "anim.json"]);
+}
+
+#[test]
+fn failed_writes_leave_nothing_behind() {
+    let dir = Scratch::new("failed");
+    let t = trajectories(4, 5);
+    let frames: Vec<Vec<Point3>> = (0..t.frames).map(|f| t.frame(f).to_vec()).collect();
+    // Into a directory that does not exist.
+    let nowhere = dir.join("no/such/dir/c.exr");
+    let err = write_trajectories_exr(&nowhere, &t, &[]).unwrap_err().to_string();
+    assert!(err.contains("c.exr"), "{err}");
+    assert!(write_vat_exr(&dir.join("missing/anim.exr"), &frames).is_err());
+    // Onto an existing directory: the temporary file is written, the rename fails.
+    let occupied = dir.join("occupied.exr");
+    std::fs::create_dir_all(occupied.join("inside")).unwrap();
+    assert!(write_trajectories_exr(&occupied, &t, &[]).is_err());
+    // Nothing to write: 0 centers or 0 frames.
+    assert!(write_trajectories_exr(&dir.join("empty.exr"), &Trajectories::new(3, 0), &[]).is_err());
+    assert!(write_trajectories_exr(&dir.join("empty.exr"), &Trajectories::new(0, 3), &[]).is_err());
+    // Below the parent of `nowhere`: a file where a directory should be.
+    std::fs::write(dir.join("plain"), b"x").unwrap();
+    assert!(write_trajectories_exr(&dir.join("plain/c.exr"), &t, &[]).is_err());
+    let left = files_under(&dir.0);
+    assert!(left.iter().all(|n| !n.contains(".partial")), "{left:?}");
+    // (The empty directory `occupied.exr/inside` holds no file.)
+    assert_eq!(left, vec!["plain".to_string()]);
+    // An existing file is replaced whole by a successful write.
+    let target = dir.join("replace.exr");
+    std::fs::write(&target, vec![0u8; 1 << 16]).unwrap();
+    write_trajectories_exr(&target, &t, &[]).unwrap();
+    assert_eq!(read_trajectories_exr(&target).unwrap().0.frames, 4);
+}
