@@ -8,8 +8,10 @@ fn main() {
     match cli::run() {
         Ok(()) => {}
         Err(err) => {
-            eprintln!("voltrack: error: {err}");
-            for cause in err.chain().skip(1) {
+            let message = err.to_string();
+            eprintln!("voltrack: error: {message}");
+            // Our errors often quote their cause already ("file: reason").
+            for cause in err.chain().skip(1).map(|c| c.to_string()).filter(|c| !message.contains(c.as_str())) {
                 eprintln!("  caused by: {cause}");
             }
             std::process::exit(match err.downcast_ref::<voltrack::Error>() {

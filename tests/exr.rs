@@ -180,6 +180,14 @@ fn unreadable_files_give_errors_that_name_them() {
     assert!(err.contains(&*dir.0.to_string_lossy()), "{err}");
 }
 
+/// The numbers of the array `key` in a JSON text, parsed exactly.
+fn json_numbers(json: &str, key: &str) -> Vec<Real> {
+    let at = json.find(&format!("\"{key}\"")).unwrap_or_else(|| panic!("no {key} in {json}"));
+    let open = at + json[at..].find('[').unwrap();
+    let close = open + json[open..].find(']').unwrap();
+    json[open + 1..close].split(',').map(|x| x.trim().parse().unwrap()).collect()
+}
+
 #[test]
 fn vertex_animation_texture_with_json_sidecar() {
     let dir = Scratch::new("vat");
@@ -194,14 +202,18 @@ fn vertex_animation_texture_with_json_sidecar() {
     for (a, b) in t.positions.iter().zip(&back.positions) {
         assert!((0..3).all(|k| b[k] == a[k] as f32 as Real));
     }
-    let info: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("anim.json")).unwrap()).unwrap();
+    let sidecar = std::fs::read_to_string(dir.join("anim.json")).unwrap();
+    let info: serde_json::Value = serde_json::from_str(&sidecar).unwrap();
     assert_eq!(info["frames"], 6);
     assert_eq!(info["vertices"], 50);
+    // The bounds, exactly: parsed from the text with Rust's correctly rounded
+    // parser (serde_json's default one may be off by an ulp, e.g. on 3e30).
+    let (min, max) = (json_numbers(&sidecar, "bounds_min"), json_numbers(&sidecar, "bounds_max"));
     for k in 0..3 {
         let lo = t.positions.iter().map(|p| p[k]).fold(Real::INFINITY, Real::min);
         let hi = t.positions.iter().map(|p| p[k]).fold(Real::NEG_INFINITY, Real::max);
-        assert_eq!(info["bounds_min"][k].as_f64().unwrap(), lo, "axis {k}");
-        assert_eq!(info["bounds_max"][k].as_f64().unwrap(), hi, "axis {k}");
+        assert_eq!(min[k], lo, "axis {k}");
+        assert_eq!(max[k], hi, "axis {k}");
     }
     // The same description is in the EXR header.
     let vat: serde_json::Value = serde_json::from_str(value(&meta, "vat").unwrap()).unwrap();
@@ -246,4 +258,17 @@ fn failed_writes_leave_nothing_behind() {
     std::fs::write(&target, vec![0u8; 1 << 16]).unwrap();
     write_trajectories_exr(&target, &t, &[]).unwrap();
     assert_eq!(read_trajectories_exr(&target).unwrap().0.frames, 4);
+}
+
+#[test]
+fn numeric_attribute_values_round_trip_as_written() {
+    let dir = Scratch::new("numeric");
+    let path = dir.join("c.exr");
+    let attrs: Vec<(String, String)> =
+        [("voltrack.voxel_size", "3e30"), ("voltrack.scale", "1e3"), ("voltrack.small", "5.6e-5")].iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
+    write_trajectories_exr(&path, &trajectories(2, 3), &attrs).unwrap();
+    let (_, meta) = read_trajectories_exr(&path).unwrap();
+    for (k, v) in &attrs {
+        assert_eq!(value(&meta, k), Some(v.as_str()), "{k}");
+    }
 }

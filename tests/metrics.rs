@@ -198,7 +198,9 @@ fn pcac_routes_agree_with_each_other_on_the_same_motion() {
         let t = random_trajectories(frames, centers, seed);
         assert!(centers >= 3 * frames);
         let once = pcac(&t);
-        for r in [2, 3, 5] {
+        // Enough copies that 3 r F > N.
+        let r0 = centers / (3 * frames) + 1;
+        for r in [r0, r0 + 1, r0 + 3] {
             let repeated: Vec<Vec<Point3>> = (0..frames).flat_map(|f| std::iter::repeat(t.frame(f).to_vec()).take(r)).collect();
             let tr = Trajectories::from_frames(repeated);
             assert!(tr.centers < 3 * tr.frames);

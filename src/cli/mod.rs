@@ -251,6 +251,8 @@ fn convert(args: ConvertArgs) -> Result<()> {
     let refine = (!args.no_refine).then(|| args.refine.params());
     let deform = args.deform_params();
     let format = args.format()?;
+    // Bad export options fail now, not after the whole pipeline has run.
+    args.gltf_options().validate()?;
     let bars = bars::Bars::new();
     let conv = pipeline::convert(&args.input.input, &voxel, &track, refine.as_ref(), &deform, bars.progress())?;
     let clock = std::time::Instant::now();

@@ -1,7 +1,7 @@
 //! Flags shared by several commands, each mapped onto a library parameter
 //! struct; defaults come from the structs' `Default`, never repeated here.
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use voltrack::export::gltf::{BasisChoice, GltfExportOptions};
@@ -208,7 +208,13 @@ impl ConvertArgs {
             "exr" => OutputFormat::Exr,
             "pc2" => OutputFormat::Pc2,
             "" => OutputFormat::ObjSequence,
-            other => bail!("{}: cannot tell the output format from '.{other}'; use --format", self.output.display()),
+            other => {
+                return Err(voltrack::Error::InvalidParameter(format!(
+                    "{}: cannot tell the output format from '.{other}'; use --format",
+                    self.output.display()
+                ))
+                .into())
+            }
         })
     }
 

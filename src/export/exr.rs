@@ -71,8 +71,10 @@ fn write_points_exr(
     let mut meta = serde_json::Map::new();
     meta.insert("version".into(), env!("CARGO_PKG_VERSION").into());
     for (k, v) in attributes {
-        // Values that are JSON themselves stay structured.
-        let value = serde_json::from_str(v).unwrap_or_else(|_| serde_json::Value::String(v.clone()));
+        // JSON objects and lists stay structured; everything else is kept as
+        // written (numbers re-printed by serde_json could change their text).
+        let structured = v.starts_with('{') || v.starts_with('[');
+        let value = structured.then(|| serde_json::from_str(v).ok()).flatten().unwrap_or_else(|| serde_json::Value::String(v.clone()));
         meta.insert(k.clone(), value);
     }
     let json = ascii_json(&serde_json::Value::Object(meta).to_string());

@@ -44,7 +44,11 @@ impl Default for GltfExportOptions {
 }
 
 impl GltfExportOptions {
-    fn check(&self) -> Result<()> {
+    /// Checks the options before any work is done.
+    pub fn validate(&self) -> Result<()> {
+        if self.basis == BasisChoice::Components(0) {
+            return Err(Error::InvalidParameter("a compact basis needs at least one component".into()));
+        }
         if !(self.fps.is_finite() && self.fps > 0.0) {
             return Err(Error::InvalidParameter(format!("the frame rate must be positive, not {}", self.fps)));
         }
@@ -85,7 +89,7 @@ pub struct GltfExportReport {
 /// says (the base mesh's loaded normals are not used: they would not match
 /// the recomputed ones of the other frames).
 pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOptions) -> Result<GltfExportReport> {
-    options.check()?;
+    options.validate()?;
     basis::check_frames(mesh)?;
     let frames = &mesh.frames;
     let diagonal = Aabb::from_points(frames.iter().flatten()).diagonal();

@@ -59,19 +59,24 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         }
     }
     if let Err(Error::InvalidMesh { message, .. }) = mesh.validate(path) {
-        let line = message
-            .strip_prefix("vertex ")
-            .and_then(|s| s.split(' ').next())
-            .and_then(|n| n.parse::<usize>().ok())
-            .and_then(|k| nth_line_with(bytes, "v", k));
-        return Err(Error::parse(path, line, message));
+        // tobj renumbers vertices in the order faces use them, so the mesh's
+        // vertex number is not the file's: find the file's own `v` line.
+        if let Some((line, k)) = first_non_finite_vertex(bytes) {
+            return Err(Error::parse(path, Some(line), format!("vertex {k} has a non-finite coordinate")));
+        }
+        return Err(Error::parse(path, None, message));
     }
     Ok(mesh)
 }
 
-/// 1-based line number of the k-th (1-based) line starting with `keyword`.
-fn nth_line_with(bytes: &[u8], keyword: &str, k: usize) -> Option<usize> {
-    lines(bytes).filter(|(_, l)| first_word(l) == keyword).nth(k - 1).map(|(n, _)| n)
+/// Line number and 1-based index among the `v` lines of the first vertex
+/// with a coordinate that is not a finite number.
+fn first_non_finite_vertex(bytes: &[u8]) -> Option<(usize, usize)> {
+    lines(bytes)
+        .filter(|(_, l)| first_word(l) == "v")
+        .enumerate()
+        .find(|(_, (_, l))| l.split_whitespace().skip(1).take(3).any(|c| !c.parse::<f64>().is_ok_and(f64::is_finite)))
+        .map(|(k, (line, _))| (line, k + 1))
 }
 
 fn lines(bytes: &[u8]) -> impl Iterator<Item = (usize, &str)> {

@@ -1,0 +1,382 @@
+//! The `voltrack` binary end to end on the committed bending-bar fixture, at
+//! small settings (each run well under a few seconds): every output format,
+//! the JSON of track / metrics / refine, and the error paths (exit codes,
+//! messages naming the file and line, nothing left behind).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const BIN: &str = env!("CARGO_BIN_EXE_voltrack");
+const SMALL: [&str; 4] = ["-r", "48", "-n", "120"];
+const FRAMES: usize = 8;
+
+fn fixture() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/bending_bar")
+}
+
+/// A fresh, empty directory for one test, removed when dropped.
+struct Scratch(PathBuf);
+impl Scratch {
+    fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("voltrack-test-cli-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Scratch(dir)
+    }
+    fn join(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+    /// Every file under the directory (recursively), relative, sorted.
+    fn files(&self) -> Vec<String> {
+        fn walk(dir: &Path, prefix: &str, out: &mut Vec<String>) {
+            for e in std::fs::read_dir(dir).unwrap().flatten() {
+                let name = format!("{prefix}{}", e.file_name().to_string_lossy());
+                if e.path().is_dir() {
+                    walk(&e.path(), &format!("{name}/"), out);
+                } else {
+                    out.push(name);
+                }
+            }
+        }
+        let mut out = Vec::new();
+        walk(&self.0, "", &mut out);
+        out.sort();
+        out
+    }
+}
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Runs the binary in `dir` with `args`.
+fn run(dir: &Scratch, args: &[&str]) -> Output {
+    Command::new(BIN).args(args).current_dir(&dir.0).env("RUST_LOG", "warn").output().expect("the voltrack binary runs")
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// Runs and expects success; returns stdout.
+fn ok(dir: &Scratch, args: &[&str]) -> String {
+    let out = run(dir, args);
+    assert!(out.status.success(), "voltrack {args:?} failed ({:?}):\n{}\n{}", out.status, text(&out.stdout), text(&out.stderr));
+    text(&out.stdout)
+}
+
+/// Runs and expects failure with `code`; returns stderr.
+fn fails(dir: &Scratch, args: &[&str], code: i32) -> String {
+    let out = run(dir, args);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(code), "voltrack {args:?}: stdout\n{}\nstderr\n{stderr}", text(&out.stdout));
+    assert!(!stderr.trim().is_empty(), "no message on stderr");
+    stderr
+}
+
+fn json(stdout: &str) -> serde_json::Value {
+    serde_json::from_str(stdout).unwrap_or_else(|e| panic!("not JSON ({e}):\n{stdout}"))
+}
+
+fn convert_args<'a>(out: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
+    let fixture: &'static str = Box::leak(fixture().to_string_lossy().into_owned().into_boxed_str());
+    let mut args = vec!["convert", fixture];
+    args.extend(SMALL);
+    args.extend(["-o", out]);
+    args.extend(extra);
+    args
+}
+
+/// `(frames, targets, interpolation)` of a GLB read with the gltf crate.
+fn glb_summary(path: &Path) -> (usize, usize, gltf::animation::Interpolation) {
+    let doc = gltf::Gltf::from_slice(&std::fs::read(path).unwrap()).expect("a valid GLB");
+    let primitive = doc.meshes().next().unwrap().primitives().next().unwrap();
+    let targets = primitive.morph_targets().count();
+    let sampler = doc.animations().next().unwrap().samplers().next().unwrap();
+    (sampler.input().count(), targets, sampler.interpolation())
+}
+
+#[test]
+fn help_lists_the_commands() {
+    let dir = Scratch::new("help");
+    let help = ok(&dir, &["--help"]);
+    for command in ["convert", "track", "refine", "metrics", "voxelize"] {
+        assert!(help.contains(command), "{help}");
+    }
+    assert!(ok(&dir, &["--version"]).contains(env!("CARGO_PKG_VERSION")));
+    let convert = ok(&dir, &["convert", "--help"]);
+    for flag in ["--resolution", "--centers", "--output", "--format", "--vat", "--basis", "--fps", "--no-refine"] {
+        assert!(convert.contains(flag), "convert --help lacks {flag}");
+    }
+}
+
+#[test]
+fn convert_to_glb() {
+    let dir = Scratch::new("glb");
+    std::fs::create_dir(dir.join("tmp")).unwrap();
+    let stdout = ok(&dir, &convert_args("tmp/x.glb", &[]));
+    assert!(stdout.contains("wrote tmp/x.glb"), "{stdout}");
+    assert!(stdout.contains(&format!("{FRAMES} frames")), "{stdout}");
+    let (frames, targets, interpolation) = glb_summary(&dir.join("tmp/x.glb"));
+    assert_eq!((frames, targets, interpolation), (FRAMES, FRAMES - 1, gltf::animation::Interpolation::Step));
+    assert_eq!(dir.files(), ["tmp/x.glb"]);
+}
+
+#[test]
+fn convert_to_glb_with_a_compact_basis() {
+    let dir = Scratch::new("glb-basis");
+    let stdout = ok(&dir, &convert_args("b.glb", &["--basis", "3", "--fps", "24"]));
+    assert!(stdout.contains("compact basis of 3 components"), "{stdout}");
+    let (frames, targets, interpolation) = glb_summary(&dir.join("b.glb"));
+    assert_eq!(frames, FRAMES);
+    assert!((3..=6).contains(&targets), "{targets}");
+    assert_eq!(interpolation, gltf::animation::Interpolation::Linear);
+    assert_eq!(dir.files(), ["b.glb"]);
+}
+
+#[test]
+fn convert_to_trajectories_exr() {
+    let dir = Scratch::new("exr");
+    // By extension, and by --format with another extension.
+    ok(&dir, &convert_args("c.exr", &[]));
+    ok(&dir, &convert_args("c.data", &["--format", "exr", "--no-refine"]));
+    assert_eq!(dir.files(), ["c.data", "c.exr"]);
+    let (traj, attrs) = voltrack::io::exr::read_trajectories_exr(&dir.join("c.exr")).unwrap();
+    assert_eq!(traj.frames, FRAMES);
+    // Refinement removes at least one of the 120 centers and records which.
+    let removed: Vec<usize> = serde_json::from_str(&attrs.iter().find(|(k, _)| k == "voltrack.removed").expect("voltrack.removed").1).unwrap();
+    assert!(!removed.is_empty() && removed.iter().all(|&i| i < 120));
+    assert_eq!(traj.centers, 120 - removed.len());
+    let (unrefined, attrs) = voltrack::io::exr::read_trajectories_exr(&dir.join("c.data")).unwrap();
+    assert_eq!((unrefined.frames, unrefined.centers), (FRAMES, 120));
+    assert!(attrs.iter().any(|(k, v)| k == "voltrack.resolution" && v == "48"));
+}
+
+#[test]
+fn convert_to_vertex_animation_texture() {
+    let dir = Scratch::new("vat");
+    ok(&dir, &convert_args("v.exr", &["--vat"]));
+    assert_eq!(dir.files(), ["v.exr", "v.json"]);
+    let info: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("v.json")).unwrap()).unwrap();
+    assert_eq!(info["frames"], FRAMES);
+    let vertices = info["vertices"].as_u64().unwrap() as usize;
+    let (texture, _) = voltrack::io::exr::read_trajectories_exr(&dir.join("v.exr")).unwrap();
+    assert_eq!((texture.frames, texture.centers), (FRAMES, vertices));
+    // Frame 0 of the texture is the first input mesh, as loaded.
+    let first = voltrack::io::read_mesh(&fixture().join("frame_0.obj")).unwrap();
+    assert_eq!(vertices, first.positions.len());
+    for (a, b) in texture.frame(0).iter().zip(&first.positions) {
+        assert!((a - b).norm() < 1e-6);
+    }
+    for k in 0..3 {
+        let lo = texture.positions.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min);
+        assert!((info["bounds_min"][k].as_f64().unwrap() - lo).abs() < 1e-6);
+    }
+}
+
+#[test]
+fn convert_to_point_cache() {
+    let dir = Scratch::new("pc2");
+    ok(&dir, &convert_args("anim.pc2", &["--fps", "25"]));
+    assert_eq!(dir.files(), ["anim.obj", "anim.pc2"]);
+    let bytes = std::fs::read(dir.join("anim.pc2")).unwrap();
+    assert_eq!(&bytes[..12], b"POINTCACHE2\0");
+    let int = |at: usize| i32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+    let points = int(16);
+    assert_eq!(int(28), FRAMES);
+    assert_eq!(bytes.len(), 32 + 12 * points * FRAMES);
+    let obj = std::fs::read_to_string(dir.join("anim.obj")).unwrap();
+    assert!(obj.contains("25 fps"));
+    assert_eq!(obj.lines().filter(|l| l.starts_with("v ")).count(), points);
+}
+
+#[test]
+fn convert_to_obj_sequence() {
+    let dir = Scratch::new("objseq");
+    ok(&dir, &convert_args("seq", &[]));
+    let want: Vec<String> = (0..FRAMES).map(|f| format!("seq/frame_{f:04}.obj")).collect();
+    assert_eq!(dir.files(), want);
+    let faces = |f: &str| -> Vec<String> {
+        std::fs::read_to_string(dir.join(f)).unwrap().lines().filter(|l| l.starts_with("f ")).map(String::from).collect()
+    };
+    let first = faces(&want[0]);
+    assert!(!first.is_empty());
+    assert!(want.iter().all(|f| faces(f) == first), "face lines differ between frames");
+    // The written sequence is itself a valid input.
+    ok(&dir, &["track", "seq", "-r", "32", "-n", "30", "-o", "again.exr"]);
+}
+
+#[test]
+fn track_metrics_and_refine() {
+    let dir = Scratch::new("track");
+    let input = fixture().to_string_lossy().into_owned();
+    let mut args = vec!["track", &input];
+    args.extend(SMALL);
+    args.extend(["-o", "c.exr", "--json"]);
+    let tracked = json(&ok(&dir, &args));
+    assert_eq!(tracked["frames"], FRAMES);
+    assert_eq!(tracked["centers"], 120);
+    let (pcac, dfu) = (tracked["pcac"].as_f64().unwrap(), tracked["dfu"].as_f64().unwrap());
+    assert!(pcac > 0.0 && pcac.is_finite(), "{pcac}");
+    assert!(dfu > 0.0 && dfu < 1.0, "{dfu}");
+    assert_eq!(dir.files(), ["c.exr"]);
+
+    let metrics = json(&ok(&dir, &["metrics", "c.exr", "--input", &input, "--json", "--plot", "curve.svg"]));
+    assert_eq!(metrics["frames"], FRAMES);
+    assert_eq!(metrics["centers"], 120);
+    assert_eq!(metrics["dfu_per_frame"].as_array().unwrap().len(), FRAMES);
+    let irregularity = metrics["irregularity"].as_array().unwrap();
+    assert_eq!(irregularity.len(), 120);
+    assert!(irregularity.iter().all(|v| v.as_f64().is_some_and(|x| x >= 0.0)));
+    // The stored (f32) trajectories measure as the tracked (f64) ones did.
+    assert!((metrics["pcac"].as_f64().unwrap() - pcac).abs() < 1e-4 * pcac, "{} vs {pcac}", metrics["pcac"]);
+    assert!((metrics["dfu"].as_f64().unwrap() - dfu).abs() < 1e-3, "{} vs {dfu}", metrics["dfu"]);
+    let svg = std::fs::read_to_string(dir.join("curve.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>") && svg.contains("<polyline"));
+    assert!(!svg.contains("NaN"));
+    // Without --json: a human summary.
+    let human = ok(&dir, &["metrics", "c.exr", "--input", &input]);
+    assert!(human.contains("PCAC") && human.contains("DFU"), "{human}");
+
+    let refined = json(&ok(&dir, &["refine", "c.exr", "--input", &input, "-o", "r.exr", "--json", "--remove", "3"]));
+    let removed: Vec<usize> = serde_json::from_value(refined["removed"].clone()).unwrap();
+    assert_eq!(removed.len(), 3, "{removed:?}");
+    let mut unique = removed.clone();
+    unique.sort();
+    unique.dedup();
+    assert_eq!(unique.len(), 3);
+    assert!(removed.iter().all(|&i| i < 120));
+    for key in ["before", "after"] {
+        assert!(refined[key]["pcac"].as_f64().is_some() && refined[key]["dfu"].as_f64().is_some(), "{key}");
+    }
+    let (traj, attrs) = voltrack::io::exr::read_trajectories_exr(&dir.join("r.exr")).unwrap();
+    assert_eq!((traj.frames, traj.centers), (FRAMES, 117));
+    let stored: Vec<usize> = serde_json::from_str(&attrs.iter().find(|(k, _)| k == "voltrack.removed").unwrap().1).unwrap();
+    assert_eq!(stored, removed);
+    // The refined file is measurable in turn.
+    let again = json(&ok(&dir, &["metrics", "r.exr", "--input", &input, "--json"]));
+    assert_eq!(again["centers"], 117);
+    assert_eq!(dir.files(), ["c.exr", "curve.svg", "r.exr"]);
+}
+
+#[test]
+fn missing_input_is_named_and_nothing_is_written() {
+    let dir = Scratch::new("missing");
+    let stderr = fails(&dir, &["convert", "no_such_frames.obj", "-o", "out.glb"], 1);
+    assert!(stderr.contains("no_such_frames.obj"), "{stderr}");
+    let stderr = fails(&dir, &["track", "no_such_dir", "-o", "c.exr"], 1);
+    assert!(stderr.contains("no_such_dir"), "{stderr}");
+    let input = fixture().to_string_lossy().into_owned();
+    let stderr = fails(&dir, &["metrics", "absent.exr", "--input", &input], 1);
+    assert!(stderr.contains("absent.exr"), "{stderr}");
+    let stderr = fails(&dir, &["refine", "absent.exr", "--input", &input, "-o", "r.exr"], 1);
+    assert!(stderr.contains("absent.exr"), "{stderr}");
+    // A pattern that matches nothing, an empty directory.
+    let stderr = fails(&dir, &["convert", "frames_*.obj", "-o", "out.glb"], 1);
+    assert!(stderr.contains("frames_*.obj"), "{stderr}");
+    std::fs::create_dir(dir.join("empty")).unwrap();
+    let stderr = fails(&dir, &["convert", "empty", "-o", "out.glb"], 1);
+    assert!(stderr.contains("empty"), "{stderr}");
+    assert!(dir.files().is_empty(), "{:?}", dir.files());
+}
+
+#[test]
+fn unwritable_outputs_fail_and_leave_nothing() {
+    let dir = Scratch::new("unwritable");
+    std::fs::write(dir.join("plain"), b"a file").unwrap();
+    std::fs::create_dir(dir.join("taken.glb")).unwrap();
+    // A parent directory that does not exist, a parent that is a file, and an
+    // output that is an existing directory.
+    for out in ["no/such/dir/x.glb", "plain/x.glb", "taken.glb"] {
+        let stderr = fails(&dir, &convert_args(out, &["--no-refine"]), 1);
+        assert!(stderr.contains(out.split('/').next().unwrap()), "{out}: {stderr}");
+    }
+    let input = fixture().to_string_lossy().into_owned();
+    let stderr = fails(&dir, &["track", &input, "-r", "32", "-n", "20", "-o", "missing/c.exr"], 1);
+    assert!(stderr.contains("missing"), "{stderr}");
+    let stderr = fails(&dir, &convert_args("no/such/v.exr", &["--vat", "--no-refine"]), 1);
+    assert!(stderr.contains("v.exr") || stderr.contains("no/such"), "{stderr}");
+    assert_eq!(dir.files(), ["plain"], "something was left behind");
+    assert!(dir.join("taken.glb").is_dir());
+}
+
+#[test]
+fn invalid_parameters_exit_with_2() {
+    let dir = Scratch::new("params");
+    let input = fixture().to_string_lossy().into_owned();
+    let cases: [(Vec<&str>, &str); 6] = [
+        (vec!["convert", &input, "-r", "32", "--centers", "0", "-o", "x.glb"], "centers"),
+        (vec!["track", &input, "-r", "32", "-n", "0", "-o", "c.exr"], "centers"),
+        (vec!["track", &input, "-r", "1", "-n", "10", "-o", "c.exr"], "resolution"),
+        (vec!["track", &input, "-r", "32", "-n", "10", "--mu", "1.5", "-o", "c.exr"], "mu"),
+        (vec!["convert", &input, "-r", "32", "-n", "20", "--no-refine", "--basis", "0", "-o", "x.glb"], "component"),
+        (vec!["convert", &input, "-r", "32", "-n", "20", "--no-refine", "--fps", "0", "-o", "x.pc2"], "frame rate"),
+    ];
+    for (args, what) in cases {
+        let stderr = fails(&dir, &args, 2);
+        assert!(stderr.contains(what), "{args:?}: {stderr}");
+    }
+    // Flags clap rejects: also 2.
+    fails(&dir, &["convert", &input, "--no-such-flag", "-o", "x.glb"], 2);
+    fails(&dir, &["convert", &input, "-n", "many", "-o", "x.glb"], 2);
+    fails(&dir, &["convert", &input, "--format", "fbx", "-o", "x.fbx"], 2);
+    fails(&dir, &["convert", &input], 2);
+    assert!(dir.files().is_empty(), "{:?}", dir.files());
+    // A failed run leaves an existing output as it was.
+    std::fs::write(dir.join("keep.glb"), b"previous result").unwrap();
+    fails(&dir, &["convert", &input, "-r", "32", "-n", "20", "--no-refine", "--basis", "0", "-o", "keep.glb"], 2);
+    assert_eq!(std::fs::read(dir.join("keep.glb")).unwrap(), b"previous result");
+    assert_eq!(dir.files(), ["keep.glb"]);
+}
+
+#[test]
+fn unknown_output_extension_is_a_bad_parameter() {
+    let dir = Scratch::new("extension");
+    let stderr = fails(&dir, &convert_args("x.txt", &[]), 2);
+    assert!(stderr.contains("x.txt") && stderr.contains("--format"), "{stderr}");
+    assert!(dir.files().is_empty());
+}
+
+#[test]
+fn unknown_output_extension_fails_early_naming_the_file() {
+    let dir = Scratch::new("extension-early");
+    let out = run(&dir, &convert_args("x.txt", &[]));
+    assert!(!out.status.success());
+    let stderr = text(&out.stderr);
+    assert!(stderr.contains("x.txt") && stderr.contains("--format"), "{stderr}");
+    assert!(dir.files().is_empty());
+}
+
+#[test]
+fn malformed_obj_is_named_with_its_line() {
+    let dir = Scratch::new("garbage");
+    std::fs::create_dir(dir.join("seq")).unwrap();
+    std::fs::copy(fixture().join("frame_0.obj"), dir.join("seq/frame_0.obj")).unwrap();
+    // Line 4 of frame_1.obj is the bad one.
+    std::fs::write(dir.join("seq/frame_1.obj"), "# broken\nv 0 0 0\nv 1 0 0\nv 1 oops 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n").unwrap();
+    let stderr = fails(&dir, &["convert", "seq", "-r", "32", "-n", "20", "-o", "x.glb"], 1);
+    assert!(stderr.contains("frame_1.obj:4"), "{stderr}");
+    // A face referring past the vertices, on line 5.
+    std::fs::write(dir.join("seq/frame_1.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 9\n").unwrap();
+    let stderr = fails(&dir, &["track", "seq", "-r", "32", "-n", "20", "-o", "c.exr"], 1);
+    assert!(stderr.contains("frame_1.obj:5"), "{stderr}");
+    // A non-EXR given as trajectories.
+    let input = fixture().to_string_lossy().into_owned();
+    std::fs::write(dir.join("fake.exr"), "not an image").unwrap();
+    let stderr = fails(&dir, &["metrics", "fake.exr", "--input", &input], 1);
+    assert!(stderr.contains("fake.exr"), "{stderr}");
+    assert_eq!(dir.files(), ["fake.exr", "seq/frame_0.obj", "seq/frame_1.obj"]);
+}
+
+#[test]
+fn non_finite_vertex_is_named_at_its_own_line() {
+    let dir = Scratch::new("nan");
+    std::fs::create_dir(dir.join("seq")).unwrap();
+    std::fs::copy(fixture().join("frame_0.obj"), dir.join("seq/frame_0.obj")).unwrap();
+    // The NaN is on line 1 (the file's vertex 1), but the first face does not
+    // use it, so tobj puts it 4th in its own vertex order.
+    std::fs::write(dir.join("seq/frame_1.obj"), "v 0 0 nan\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 2 3 4\nf 1 2 3\n").unwrap();
+    let stderr = fails(&dir, &["track", "seq", "-r", "32", "-n", "20", "-o", "c.exr"], 1);
+    assert!(stderr.contains("frame_1.obj:1:"), "{stderr}");
+}

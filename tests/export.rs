@@ -1,0 +1,551 @@
+//! The dynamic-mesh exports read back independently: GLB with the gltf crate
+//! (every frame rebuilt from base + Σ weight · target), PC2 byte by byte with
+//! the OBJ beside it, and the OBJ sequence line by line.
+
+use gltf::animation::Interpolation;
+use std::path::{Path, PathBuf};
+use voltrack::deform::DynamicMesh;
+use voltrack::export::gltf::{write_dynamic_glb, BasisChoice, GltfExportOptions, GltfExportReport};
+use voltrack::fixtures;
+use voltrack::math::{Point3, Real, Rotation3, Vector3};
+use voltrack::mesh::Aabb;
+
+/// A fresh, empty directory for one test, removed when dropped.
+struct Scratch(PathBuf);
+impl Scratch {
+    fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("voltrack-test-export-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Scratch(dir)
+    }
+    fn join(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+}
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// The bundled example's frame-0 mesh carried through its true motion.
+fn bending_bar() -> DynamicMesh {
+    let base = fixtures::bending_bar(0);
+    let frames = (0..fixtures::BENDING_BAR_FRAMES).map(|f| base.positions.iter().map(|p| fixtures::bending_bar_motion(f, p)).collect()).collect();
+    DynamicMesh { base, frames }
+}
+
+/// A torus with UVs moved per frame by `motion(f, p)`.
+fn torus(frames: usize, motion: impl Fn(usize, &Point3) -> Point3) -> DynamicMesh {
+    let mut base = fixtures::torus(Point3::origin(), 1.0, 0.3, 24, 12);
+    base.uvs = Some((0..base.positions.len()).map(|v| [(v / 12) as f32 / 24.0, (v % 12) as f32 / 12.0]).collect());
+    let frames = (0..frames).map(|f| base.positions.iter().map(|p| motion(f, p)).collect()).collect();
+    DynamicMesh { base, frames }
+}
+
+/// Rigid rotation about z plus a lift along z: displacements of rank 3
+/// ((cos θ − 1)(x, y, 0), sin θ (−y, x, 0), (0, 0, h)).
+fn turning(f: usize, p: &Point3) -> Point3 {
+    let angle = 0.8 * (f as Real * 0.05).sin() + 0.002 * f as Real;
+    Rotation3::from_axis_angle(&Vector3::z_axis(), angle) * p + Vector3::new(0.0, 0.0, 0.003 * f as Real)
+}
+
+/// A non-rigid, non-low-rank wobble: each vertex moves on its own.
+fn wobble(f: usize, p: &Point3) -> Point3 {
+    let t = f as Real;
+    p + Vector3::new((1.3 * t + 7.0 * p.x).sin(), (0.7 * t + 5.0 * p.y * p.z).cos() - 1.0, (0.31 * t * p.x + p.y).sin()) * 0.05
+}
+
+fn diagonal(mesh: &DynamicMesh) -> Real {
+    Aabb::from_points(mesh.frames.iter().flatten()).diagonal()
+}
+
+/// What a GLB holds, read with the gltf crate.
+struct Glb {
+    base: Vec<[f32; 3]>,
+    normals: Option<Vec<[f32; 3]>>,
+    uvs: Option<Vec<[f32; 2]>>,
+    indices: Vec<u32>,
+    /// POSITION (and NORMAL) deltas per target.
+    targets: Vec<Vec<[f32; 3]>>,
+    normal_targets: Vec<Option<Vec<[f32; 3]>>>,
+    /// (min, max) of the base POSITION accessor, then of every target's.
+    position_bounds: Vec<(Vec<f32>, Vec<f32>)>,
+    target_names: Option<Vec<String>>,
+    default_weights: Option<Vec<f32>>,
+    /// Keyframe times and one weight vector per keyframe.
+    times: Vec<f32>,
+    time_bounds: Option<(Vec<f32>, Vec<f32>)>,
+    weights: Vec<Vec<f32>>,
+    interpolation: Option<Interpolation>,
+    animations: usize,
+}
+
+impl Glb {
+    fn read(path: &Path) -> Glb {
+        let bytes = std::fs::read(path).unwrap();
+        // The GLB header: magic, version 2, total length.
+        assert_eq!(&bytes[..4], b"glTF");
+        assert_eq!(u32::from_le_bytes(bytes[4..8].try_into().unwrap()), 2);
+        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize, bytes.len());
+        let doc = gltf::Gltf::from_slice(&bytes).expect("a valid glTF");
+        let blob = doc.blob.as_deref().expect("a BIN chunk");
+        assert_eq!(doc.meshes().count(), 1);
+        let mesh = doc.meshes().next().unwrap();
+        assert_eq!(mesh.primitives().count(), 1);
+        let primitive = mesh.primitives().next().unwrap();
+        assert_eq!(primitive.mode(), gltf::mesh::Mode::Triangles);
+        let reader = primitive.reader(|_| Some(blob));
+        let bounds = |a: gltf::Accessor| -> (Vec<f32>, Vec<f32>) {
+            (
+                serde_json::from_value(a.min().expect("POSITION min")).unwrap(),
+                serde_json::from_value(a.max().expect("POSITION max")).unwrap(),
+            )
+        };
+        let mut position_bounds = vec![bounds(primitive.get(&gltf::Semantic::Positions).unwrap())];
+        position_bounds.extend(primitive.morph_targets().map(|t| bounds(t.positions().expect("target POSITION"))));
+        let (mut targets, mut normal_targets) = (Vec::new(), Vec::new());
+        for (p, n, _) in reader.read_morph_targets() {
+            targets.push(p.expect("position deltas").collect());
+            normal_targets.push(n.map(|n| n.collect()));
+        }
+        let target_names = mesh.extras().as_ref().map(|e| {
+            let v: serde_json::Value = serde_json::from_str(e.get()).unwrap();
+            serde_json::from_value(v["targetNames"].clone()).expect("targetNames: a list of strings")
+        });
+        let mut glb = Glb {
+            base: reader.read_positions().unwrap().collect(),
+            normals: reader.read_normals().map(|n| n.collect()),
+            uvs: reader.read_tex_coords(0).map(|t| t.into_f32().collect()),
+            indices: reader.read_indices().unwrap().into_u32().collect(),
+            targets,
+            normal_targets,
+            position_bounds,
+            target_names,
+            default_weights: mesh.weights().map(<[f32]>::to_vec),
+            times: Vec::new(),
+            time_bounds: None,
+            weights: Vec::new(),
+            interpolation: None,
+            animations: doc.animations().count(),
+        };
+        if let Some(animation) = doc.animations().next() {
+            assert_eq!(animation.channels().count(), 1);
+            let channel = animation.channels().next().unwrap();
+            assert_eq!(channel.target().property(), gltf::animation::Property::MorphTargetWeights);
+            assert_eq!(channel.target().node().mesh().map(|m| m.index()), Some(mesh.index()));
+            let sampler = channel.sampler();
+            glb.interpolation = Some(sampler.interpolation());
+            let input = sampler.input();
+            glb.time_bounds = Some((serde_json::from_value(input.min().unwrap()).unwrap(), serde_json::from_value(input.max().unwrap()).unwrap()));
+            let reader = channel.reader(|_| Some(blob));
+            glb.times = match reader.read_inputs().unwrap() {
+                gltf::accessor::Iter::Standard(it) => it.collect(),
+                gltf::accessor::Iter::Sparse(it) => it.collect(),
+            };
+            let flat: Vec<f32> = match reader.read_outputs().unwrap() {
+                gltf::animation::util::ReadOutputs::MorphTargetWeights(w) => w.into_f32().collect(),
+                _ => panic!("not a morph-weights channel"),
+            };
+            assert_eq!(flat.len(), glb.times.len() * glb.targets.len());
+            glb.weights = flat.chunks(glb.targets.len().max(1)).map(<[f32]>::to_vec).collect();
+        }
+        glb
+    }
+
+    /// Positions at keyframe k: base + Σ_t weights[k][t] · target_t, in f64.
+    fn frame(&self, k: usize) -> Vec<Point3> {
+        (0..self.base.len())
+            .map(|v| {
+                let mut p = Point3::new(self.base[v][0] as Real, self.base[v][1] as Real, self.base[v][2] as Real);
+                for (t, &w) in self.targets.iter().zip(&self.weights[k]) {
+                    for a in 0..3 {
+                        p[a] += w as Real * t[v][a] as Real;
+                    }
+                }
+                p
+            })
+            .collect()
+    }
+
+    /// Largest and mean vertex distance between the rebuilt frames and `mesh`.
+    fn errors(&self, mesh: &DynamicMesh) -> (Real, Real) {
+        assert_eq!(self.weights.len(), mesh.frames.len());
+        let (mut max, mut sum, mut n): (Real, Real, usize) = (0.0, 0.0, 0);
+        for (k, frame) in mesh.frames.iter().enumerate() {
+            for (p, q) in self.frame(k).iter().zip(frame) {
+                let d = (p - q).norm();
+                max = max.max(d);
+                sum += d;
+                n += 1;
+            }
+        }
+        (max, sum / n as Real)
+    }
+}
+
+/// Exact per-component bounds of f32 data, as glTF requires for POSITION.
+fn exact_bounds(data: &[[f32; 3]]) -> (Vec<f32>, Vec<f32>) {
+    let lo = (0..3).map(|k| data.iter().map(|p| p[k]).fold(f32::INFINITY, f32::min)).collect();
+    let hi = (0..3).map(|k| data.iter().map(|p| p[k]).fold(f32::NEG_INFINITY, f32::max)).collect();
+    (lo, hi)
+}
+
+/// Checks what every animated GLB must satisfy against `mesh` and the report.
+fn check_common(glb: &Glb, mesh: &DynamicMesh, report: &GltfExportReport, path: &Path, fps: f32) {
+    assert_eq!(report.bytes, std::fs::metadata(path).unwrap().len());
+    assert_eq!(glb.targets.len(), report.targets);
+    // Base = frame 0 in f32, one connectivity.
+    assert_eq!(glb.base.len(), mesh.base.positions.len());
+    for (b, p) in glb.base.iter().zip(&mesh.frames[0]) {
+        assert_eq!(*b, [p.x as f32, p.y as f32, p.z as f32]);
+    }
+    let triangles: Vec<u32> = mesh.base.triangles.iter().flatten().copied().collect();
+    assert_eq!(glb.indices, triangles);
+    // min/max exact for the base POSITION and every target's.
+    assert_eq!(glb.position_bounds.len(), 1 + glb.targets.len());
+    assert_eq!(glb.position_bounds[0], exact_bounds(&glb.base));
+    for (t, b) in glb.targets.iter().zip(&glb.position_bounds[1..]) {
+        assert_eq!(*b, exact_bounds(t));
+    }
+    if let Some(uv) = &mesh.base.uvs {
+        assert_eq!(glb.uvs.as_ref(), Some(uv));
+    }
+    if report.targets == 0 {
+        assert_eq!(glb.animations, 0);
+        return;
+    }
+    // One target name per target, distinct; default weights = frame 0's, all 0.
+    let names = glb.target_names.as_ref().expect("mesh.extras.targetNames");
+    assert_eq!(names.len(), glb.targets.len());
+    let mut unique = names.clone();
+    unique.sort();
+    unique.dedup();
+    assert_eq!(unique.len(), names.len(), "{names:?}");
+    assert_eq!(glb.default_weights.as_deref(), Some(&vec![0.0; report.targets][..]));
+    // One keyframe per frame at f / fps, with the input accessor's bounds.
+    let times: Vec<f32> = (0..mesh.frames.len()).map(|f| (f as f64 / fps as f64) as f32).collect();
+    assert_eq!(glb.times, times);
+    assert_eq!(glb.time_bounds, Some((vec![times[0]], vec![*times.last().unwrap()])));
+    assert!(glb.weights[0].iter().all(|&w| w == 0.0));
+    assert!(glb.weights.iter().flatten().all(|&w| (0.0..=1.0).contains(&w)), "weights outside [0, 1]");
+}
+
+fn options(basis: BasisChoice) -> GltfExportOptions {
+    GltfExportOptions { basis, ..Default::default() }
+}
+
+#[test]
+fn per_frame_glb_replays_every_frame() {
+    let dir = Scratch::new("per-frame");
+    let fps = 24.0;
+    for (name, mesh) in [("bar", bending_bar()), ("wobble", torus(12, wobble))] {
+        let path = dir.join(&format!("{name}.glb"));
+        let opts = GltfExportOptions { fps, ..options(BasisChoice::PerFrame) };
+        let report = write_dynamic_glb(&path, &mesh, &opts).unwrap();
+        assert_eq!((report.targets, report.basis), (mesh.frames.len() - 1, None));
+        assert_eq!((report.reconstruction_error_max, report.reconstruction_error_mean), (0.0, 0.0));
+        let glb = Glb::read(&path);
+        check_common(&glb, &mesh, &report, &path, fps);
+        assert_eq!(glb.interpolation, Some(Interpolation::Step));
+        let names = glb.target_names.as_ref().unwrap();
+        assert_eq!(names[0], "frame_0001");
+        assert_eq!(names.last().unwrap(), &format!("frame_{:04}", mesh.frames.len() - 1));
+        // One-hot weights: keyframe f shows target f − 1 only.
+        for (f, w) in glb.weights.iter().enumerate() {
+            for (t, &x) in w.iter().enumerate() {
+                assert_eq!(x, if t + 1 == f { 1.0 } else { 0.0 });
+            }
+        }
+        let (max, _) = glb.errors(&mesh);
+        assert!(max < 1e-5 * diagonal(&mesh), "{name}: {max}");
+        // Normals: unit length in every rebuilt frame (they follow the geometry).
+        let normals = glb.normals.as_ref().expect("normals by default");
+        for f in 0..mesh.frames.len() {
+            for (v, n) in normals.iter().enumerate() {
+                let mut m = Vector3::new(n[0] as Real, n[1] as Real, n[2] as Real);
+                if f > 0 {
+                    let d = glb.normal_targets[f - 1].as_ref().expect("NORMAL deltas")[v];
+                    m += Vector3::new(d[0] as Real, d[1] as Real, d[2] as Real);
+                }
+                assert!((m.norm() - 1.0).abs() < 1e-5, "{name}: frame {f}, vertex {v}: |n| = {}", m.norm());
+            }
+        }
+    }
+}
+
+#[test]
+fn compact_basis_reports_the_error_of_the_file() {
+    let dir = Scratch::new("components");
+    for (name, mesh, k) in [("bar", bending_bar(), 2), ("wobble", torus(30, wobble), 4), ("turning", torus(40, turning), 2)] {
+        let path = dir.join(&format!("{name}.glb"));
+        let report = write_dynamic_glb(&path, &mesh, &options(BasisChoice::Components(k))).unwrap();
+        assert_eq!(report.basis, Some(k), "{name}");
+        // Each component is one target, or two (positive and negative parts).
+        assert!(report.targets >= k && report.targets <= 2 * k, "{name}: {} targets", report.targets);
+        let glb = Glb::read(&path);
+        check_common(&glb, &mesh, &report, &path, 30.0);
+        assert_eq!(glb.interpolation, Some(Interpolation::Linear));
+        let names = glb.target_names.as_ref().unwrap();
+        assert!(names.iter().all(|n| n.starts_with("pc_")), "{names:?}");
+        let d = diagonal(&mesh);
+        let (max, mean) = glb.errors(&mesh);
+        assert!(
+            (max / d - report.reconstruction_error_max).abs() < 1e-5,
+            "{name}: file {} vs reported {}",
+            max / d,
+            report.reconstruction_error_max
+        );
+        assert!((mean / d - report.reconstruction_error_mean).abs() < 1e-5, "{name}: mean {} vs {}", mean / d, report.reconstruction_error_mean);
+        assert!(report.reconstruction_error_mean <= report.reconstruction_error_max);
+    }
+    // The rank-3 turning motion is reproduced by three components.
+    let mesh = torus(40, turning);
+    let report = write_dynamic_glb(&dir.join("t3.glb"), &mesh, &options(BasisChoice::Components(3))).unwrap();
+    assert!(report.reconstruction_error_max < 1e-9, "{}", report.reconstruction_error_max);
+}
+
+#[test]
+fn components_beyond_the_rank_are_not_written() {
+    let dir = Scratch::new("rank");
+    // A translation along one direction, back and forth: rank 1.
+    let mesh = torus(20, |f, p| p + Vector3::new(1.0, 2.0, -0.5) * (0.7 * f as Real).sin());
+    let path = dir.join("shift.glb");
+    let report = write_dynamic_glb(&path, &mesh, &options(BasisChoice::Components(5))).unwrap();
+    assert_eq!(report.basis, Some(1));
+    assert_eq!(report.targets, 2, "a signed coefficient: positive and negative target");
+    assert!(report.reconstruction_error_max < 1e-9);
+    let glb = Glb::read(&path);
+    check_common(&glb, &mesh, &report, &path, 30.0);
+    assert!(glb.errors(&mesh).0 < 1e-5 * diagonal(&mesh));
+    // Zero components is a parameter error, and writes nothing.
+    let err = write_dynamic_glb(&dir.join("zero.glb"), &mesh, &options(BasisChoice::Components(0))).unwrap_err();
+    assert!(matches!(err, voltrack::Error::InvalidParameter(_)), "{err}");
+    assert!(!dir.join("zero.glb").exists());
+}
+
+#[test]
+fn auto_picks_a_compact_basis_for_long_low_rank_motion() {
+    let dir = Scratch::new("auto");
+    let mesh = torus(300, turning);
+    let path = dir.join("long.glb");
+    let report = write_dynamic_glb(&path, &mesh, &GltfExportOptions::default()).unwrap();
+    let k = report.basis.expect("past 256 frames Auto picks a compact basis");
+    assert!(k <= 3, "{k} components for a rank-3 motion");
+    assert!(report.targets <= 2 * k);
+    assert!(report.reconstruction_error_max <= GltfExportOptions::default().max_basis_error);
+    let glb = Glb::read(&path);
+    check_common(&glb, &mesh, &report, &path, 30.0);
+    assert_eq!(glb.interpolation, Some(Interpolation::Linear));
+    let (max, _) = glb.errors(&mesh);
+    assert!((max / diagonal(&mesh) - report.reconstruction_error_max).abs() < 1e-5, "{max}");
+    // Up to 256 frames Auto keeps one target per frame.
+    let short = torus(256, turning);
+    let report = write_dynamic_glb(&dir.join("short.glb"), &short, &GltfExportOptions::default()).unwrap();
+    assert_eq!((report.basis, report.targets), (None, 255));
+}
+
+#[test]
+fn auto_keeps_per_frame_targets_when_a_basis_would_not_be_smaller() {
+    let dir = Scratch::new("auto-full");
+    // 300 frames of independent random displacements of a 60-vertex mesh: the
+    // displacements span all 180 dimensions, a basis within tolerance needs
+    // nearly all of them, two targets each: more than one target per frame.
+    let base = fixtures::torus(Point3::origin(), 1.0, 0.3, 10, 6);
+    let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+    let mut noise = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as Real / (1u64 << 53) as Real - 0.5
+    };
+    let frames = (0..300)
+        .map(|f| base.positions.iter().map(|p| if f == 0 { *p } else { p + Vector3::new(noise(), noise(), noise()) * 0.1 }).collect())
+        .collect();
+    let mesh = DynamicMesh { base, frames };
+    let path = dir.join("full.glb");
+    let report = write_dynamic_glb(&path, &mesh, &GltfExportOptions::default()).unwrap();
+    assert_eq!((report.basis, report.targets), (None, 299), "{report:?}");
+    let glb = Glb::read(&path);
+    check_common(&glb, &mesh, &report, &path, 30.0);
+    assert_eq!(glb.interpolation, Some(Interpolation::Step));
+    assert!(glb.errors(&mesh).0 < 1e-5 * diagonal(&mesh));
+}
+
+#[test]
+fn glb_edge_cases() {
+    let dir = Scratch::new("edge");
+    // One frame: a static mesh, no targets, no animation.
+    let mut one = bending_bar();
+    one.frames.truncate(1);
+    let path = dir.join("one.glb");
+    let report = write_dynamic_glb(&path, &one, &GltfExportOptions::default()).unwrap();
+    assert_eq!(report.targets, 0);
+    let glb = Glb::read(&path);
+    check_common(&glb, &one, &report, &path, 30.0);
+    assert!(glb.targets.is_empty() && glb.default_weights.is_none());
+    // Without normals: no NORMAL attribute nor NORMAL deltas.
+    let mesh = torus(5, wobble);
+    let path = dir.join("flat.glb");
+    let report = write_dynamic_glb(&path, &mesh, &GltfExportOptions { normals: false, ..options(BasisChoice::PerFrame) }).unwrap();
+    let glb = Glb::read(&path);
+    check_common(&glb, &mesh, &report, &path, 30.0);
+    assert!(glb.normals.is_none() && glb.normal_targets.iter().all(Option::is_none));
+    // Bad options and inconsistent meshes are errors and write nothing.
+    let bad = dir.join("bad.glb");
+    for fps in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        assert!(write_dynamic_glb(&bad, &mesh, &GltfExportOptions { fps, ..Default::default() }).is_err(), "fps {fps}");
+    }
+    assert!(write_dynamic_glb(&bad, &mesh, &GltfExportOptions { max_basis_error: -1.0, ..Default::default() }).is_err());
+    let mut ragged = mesh.clone();
+    ragged.frames[2].pop();
+    assert!(write_dynamic_glb(&bad, &ragged, &GltfExportOptions::default()).is_err());
+    let mut nan = mesh.clone();
+    nan.frames[3][7].y = Real::NAN;
+    assert!(write_dynamic_glb(&bad, &nan, &GltfExportOptions::default()).is_err());
+    let empty = DynamicMesh { base: mesh.base.clone(), frames: vec![] };
+    assert!(write_dynamic_glb(&bad, &empty, &GltfExportOptions::default()).is_err());
+    assert!(write_dynamic_glb(&dir.join("missing/x.glb"), &mesh, &GltfExportOptions::default()).is_err());
+    let left: Vec<_> = std::fs::read_dir(&dir.0).unwrap().flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect();
+    let mut left = left;
+    left.sort();
+    assert_eq!(left, ["flat.glb", "one.glb"]);
+}
+
+#[test]
+fn glb_bytes_do_not_depend_on_threads() {
+    let dir = Scratch::new("threads");
+    let mesh = torus(40, wobble);
+    for basis in [BasisChoice::PerFrame, BasisChoice::Components(3)] {
+        let write = |name: &str, threads: usize| {
+            let path = dir.join(name);
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| write_dynamic_glb(&path, &mesh, &options(basis))).unwrap();
+            std::fs::read(path).unwrap()
+        };
+        let one = write("a.glb", 1);
+        assert_eq!(one, write("b.glb", 1), "{basis:?}: two runs differ");
+        assert_eq!(one, write("c.glb", 4), "{basis:?}: 1 and 4 threads differ");
+    }
+}
+
+fn i32_at(bytes: &[u8], at: usize) -> i32 {
+    i32::from_le_bytes(bytes[at..at + 4].try_into().unwrap())
+}
+fn f32_at(bytes: &[u8], at: usize) -> f32 {
+    f32::from_le_bytes(bytes[at..at + 4].try_into().unwrap())
+}
+
+/// `v`, `vt` and `f` lines of an OBJ as numbers / text.
+fn obj_lines(text: &str) -> (Vec<[f32; 3]>, Vec<String>, Vec<String>) {
+    let mut v = Vec::new();
+    let (mut vt, mut f) = (Vec::new(), Vec::new());
+    for line in text.lines() {
+        if let Some(rest) = line.strip_prefix("v ") {
+            let c: Vec<f32> = rest.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            assert_eq!(c.len(), 3, "{line}");
+            v.push([c[0], c[1], c[2]]);
+        } else if line.starts_with("vt ") {
+            vt.push(line.to_string());
+        } else if line.starts_with("f ") {
+            f.push(line.to_string());
+        } else {
+            assert!(line.starts_with('#') || line.trim().is_empty(), "unexpected OBJ line {line}");
+        }
+    }
+    (v, vt, f)
+}
+
+/// Vertex indices of `f` lines (1-based in the file, 0-based here).
+fn face_indices(faces: &[String]) -> Vec<[u32; 3]> {
+    faces
+        .iter()
+        .map(|l| {
+            let idx: Vec<u32> = l[2..].split_whitespace().map(|c| c.split('/').next().unwrap().parse::<u32>().unwrap() - 1).collect();
+            [idx[0], idx[1], idx[2]]
+        })
+        .collect()
+}
+
+#[test]
+fn point_cache_header_counts_and_positions() {
+    let dir = Scratch::new("pc2");
+    // The bar plus one vertex no triangle uses, which both files leave out.
+    let mut mesh = bending_bar();
+    let unused = mesh.base.positions.len();
+    mesh.base.positions.push(Point3::new(9.0, 9.0, 9.0));
+    mesh.frames.iter_mut().for_each(|f| f.push(Point3::new(9.0, 9.0, 9.0)));
+    let path = dir.join("bar.pc2");
+    voltrack::export::pc2::write_pc2(&path, &mesh, 25.0).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let points = unused; // every other vertex is used
+    let samples = mesh.frames.len();
+    let mut header = b"POINTCACHE2\0".to_vec();
+    header.extend(1i32.to_le_bytes());
+    header.extend((points as i32).to_le_bytes());
+    header.extend(0f32.to_le_bytes());
+    header.extend(1f32.to_le_bytes());
+    header.extend((samples as i32).to_le_bytes());
+    assert_eq!(&bytes[..32], &header[..]);
+    assert_eq!((i32_at(&bytes, 16), i32_at(&bytes, 28)), (points as i32, samples as i32));
+    assert_eq!(bytes.len(), 32 + 12 * points * samples);
+    for (f, frame) in mesh.frames.iter().enumerate() {
+        for v in 0..points {
+            for k in 0..3 {
+                assert_eq!(f32_at(&bytes, 32 + 12 * (f * points + v) + 4 * k), frame[v][k] as f32, "frame {f}, vertex {v}");
+            }
+        }
+    }
+    // The OBJ beside it: frame 0, the same vertices in the same order, the
+    // same triangles, and the frame rate in its header.
+    let text = std::fs::read_to_string(dir.join("bar.obj")).unwrap();
+    assert!(text.lines().next().unwrap().contains("bar.pc2") && text.contains("25 fps") && text.contains(&format!("{samples} frames")), "{}", text.lines().next().unwrap());
+    let (v, vt, f) = obj_lines(&text);
+    assert_eq!(v.len(), points);
+    assert!(vt.is_empty());
+    for (a, p) in v.iter().zip(&mesh.frames[0]) {
+        assert_eq!(*a, [p.x as f32, p.y as f32, p.z as f32]);
+    }
+    assert_eq!(face_indices(&f), mesh.base.triangles);
+    // Bad frame rates and a name that would overwrite the OBJ are refused.
+    for fps in [0.0, -2.0, f32::NAN] {
+        assert!(voltrack::export::pc2::write_pc2(&dir.join("x.pc2"), &mesh, fps).is_err());
+    }
+    assert!(voltrack::export::pc2::write_pc2(&dir.join("x.obj"), &mesh, 30.0).is_err());
+    assert!(!dir.join("x.pc2").exists() && !dir.join("x.obj").exists());
+}
+
+#[test]
+fn obj_sequence_shares_one_connectivity() {
+    let dir = Scratch::new("objseq");
+    for (name, mesh) in [("bar", bending_bar()), ("torus", torus(11, wobble))] {
+        let out = dir.join(name);
+        let paths = voltrack::export::obj::write_obj_sequence(&out, &mesh).unwrap();
+        let want: Vec<PathBuf> = (0..mesh.frames.len()).map(|f| out.join(format!("frame_{f:04}.obj"))).collect();
+        assert_eq!(paths, want);
+        let mut listed: Vec<PathBuf> = std::fs::read_dir(&out).unwrap().flatten().map(|e| e.path()).collect();
+        listed.sort();
+        assert_eq!(listed, want, "only the frames are in the directory");
+        let (_, vt0, f0) = obj_lines(&std::fs::read_to_string(&paths[0]).unwrap());
+        assert_eq!(f0.len(), mesh.base.triangles.len());
+        assert_eq!(face_indices(&f0), mesh.base.triangles);
+        if let Some(uv) = &mesh.base.uvs {
+            assert_eq!(vt0.len(), uv.len());
+            assert!(f0.iter().all(|l| l.matches('/').count() == 3), "{}", f0[0]);
+        }
+        for (path, frame) in paths.iter().zip(&mesh.frames) {
+            let (v, vt, f) = obj_lines(&std::fs::read_to_string(path).unwrap());
+            assert_eq!(f, f0, "{}: face lines differ", path.display());
+            assert_eq!(vt, vt0, "{}: texture coordinates differ", path.display());
+            assert_eq!(v.len(), frame.len());
+            for (a, p) in v.iter().zip(frame) {
+                assert_eq!(*a, [p.x as f32, p.y as f32, p.z as f32]);
+            }
+        }
+    }
+    // A file where the directory should go: an error naming it.
+    std::fs::write(dir.join("taken"), b"x").unwrap();
+    let err = voltrack::export::obj::write_obj_sequence(&dir.join("taken"), &bending_bar()).unwrap_err().to_string();
+    assert!(err.contains("taken"), "{err}");
+}
