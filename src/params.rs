@@ -113,11 +113,7 @@ impl TrackParams {
 
     /// Factor from this struct's lengths to the input's units.
     pub fn length_scale(&self, bounds: &crate::mesh::Aabb) -> Real {
-        if self.absolute_units {
-            1.0
-        } else {
-            bounds.longest_side()
-        }
+        length_scale(self.absolute_units, bounds)
     }
 }
 
@@ -200,12 +196,9 @@ impl RefineParams {
         Ok(())
     }
 
+    /// Factor from this struct's lengths to the input's units.
     pub fn length_scale(&self, bounds: &crate::mesh::Aabb) -> Real {
-        if self.absolute_units {
-            1.0
-        } else {
-            bounds.longest_side()
-        }
+        length_scale(self.absolute_units, bounds)
     }
 }
 
@@ -234,5 +227,15 @@ pub struct DeformParams {
 impl Default for DeformParams {
     fn default() -> Self {
         DeformParams { neighbors: 4, min_affinity: 0.5, blending: Blending::DualQuaternion }
+    }
+}
+
+/// Lengths are fractions of the bounding box's longest side (method.md §9)
+/// unless given in the input's units.
+fn length_scale(absolute_units: bool, bounds: &crate::mesh::Aabb) -> Real {
+    if absolute_units {
+        1.0
+    } else {
+        bounds.longest_side()
     }
 }

@@ -14,41 +14,8 @@ fn fixture() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/bending_bar")
 }
 
-/// A fresh, empty directory for one test, removed when dropped.
-struct Scratch(PathBuf);
-impl Scratch {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("voltrack-test-cli-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Scratch(dir)
-    }
-    fn join(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-    /// Every file under the directory (recursively), relative, sorted.
-    fn files(&self) -> Vec<String> {
-        fn walk(dir: &Path, prefix: &str, out: &mut Vec<String>) {
-            for e in std::fs::read_dir(dir).unwrap().flatten() {
-                let name = format!("{prefix}{}", e.file_name().to_string_lossy());
-                if e.path().is_dir() {
-                    walk(&e.path(), &format!("{name}/"), out);
-                } else {
-                    out.push(name);
-                }
-            }
-        }
-        let mut out = Vec::new();
-        walk(&self.0, "", &mut out);
-        out.sort();
-        out
-    }
-}
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+mod common;
+use common::Scratch;
 
 /// Runs the binary in `dir` with `args`.
 fn run(dir: &Scratch, args: &[&str]) -> Output {
@@ -99,7 +66,7 @@ fn glb_summary(path: &Path) -> (usize, usize, gltf::animation::Interpolation) {
 
 #[test]
 fn help_lists_the_commands() {
-    let dir = Scratch::new("help");
+    let dir = Scratch::new("cli", "help");
     let help = ok(&dir, &["--help"]);
     for command in ["convert", "track", "refine", "metrics", "voxelize"] {
         assert!(help.contains(command), "{help}");
@@ -113,7 +80,7 @@ fn help_lists_the_commands() {
 
 #[test]
 fn convert_to_glb() {
-    let dir = Scratch::new("glb");
+    let dir = Scratch::new("cli", "glb");
     std::fs::create_dir(dir.join("tmp")).unwrap();
     let stdout = ok(&dir, &convert_args("tmp/x.glb", &[]));
     assert!(stdout.contains("wrote tmp/x.glb"), "{stdout}");
@@ -125,7 +92,7 @@ fn convert_to_glb() {
 
 #[test]
 fn convert_to_glb_with_a_compact_basis() {
-    let dir = Scratch::new("glb-basis");
+    let dir = Scratch::new("cli", "glb-basis");
     let stdout = ok(&dir, &convert_args("b.glb", &["--basis", "3", "--fps", "24"]));
     assert!(stdout.contains("compact basis of 3 components"), "{stdout}");
     let (frames, targets, interpolation) = glb_summary(&dir.join("b.glb"));
@@ -137,7 +104,7 @@ fn convert_to_glb_with_a_compact_basis() {
 
 #[test]
 fn convert_to_trajectories_exr() {
-    let dir = Scratch::new("exr");
+    let dir = Scratch::new("cli", "exr");
     // By extension, and by --format with another extension.
     ok(&dir, &convert_args("c.exr", &[]));
     ok(&dir, &convert_args("c.data", &["--format", "exr", "--no-refine"]));
@@ -155,7 +122,7 @@ fn convert_to_trajectories_exr() {
 
 #[test]
 fn convert_to_vertex_animation_texture() {
-    let dir = Scratch::new("vat");
+    let dir = Scratch::new("cli", "vat");
     ok(&dir, &convert_args("v.exr", &["--vat"]));
     assert_eq!(dir.files(), ["v.exr", "v.json"]);
     let info: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("v.json")).unwrap()).unwrap();
@@ -177,7 +144,7 @@ fn convert_to_vertex_animation_texture() {
 
 #[test]
 fn convert_to_point_cache() {
-    let dir = Scratch::new("pc2");
+    let dir = Scratch::new("cli", "pc2");
     ok(&dir, &convert_args("anim.pc2", &["--fps", "25"]));
     assert_eq!(dir.files(), ["anim.obj", "anim.pc2"]);
     let bytes = std::fs::read(dir.join("anim.pc2")).unwrap();
@@ -193,7 +160,7 @@ fn convert_to_point_cache() {
 
 #[test]
 fn convert_to_obj_sequence() {
-    let dir = Scratch::new("objseq");
+    let dir = Scratch::new("cli", "objseq");
     ok(&dir, &convert_args("seq", &[]));
     let want: Vec<String> = (0..FRAMES).map(|f| format!("seq/frame_{f:04}.obj")).collect();
     assert_eq!(dir.files(), want);
@@ -209,7 +176,7 @@ fn convert_to_obj_sequence() {
 
 #[test]
 fn track_metrics_and_refine() {
-    let dir = Scratch::new("track");
+    let dir = Scratch::new("cli", "track");
     let input = fixture().to_string_lossy().into_owned();
     let mut args = vec!["track", &input];
     args.extend(SMALL);
@@ -262,7 +229,7 @@ fn track_metrics_and_refine() {
 
 #[test]
 fn missing_input_is_named_and_nothing_is_written() {
-    let dir = Scratch::new("missing");
+    let dir = Scratch::new("cli", "missing");
     let stderr = fails(&dir, &["convert", "no_such_frames.obj", "-o", "out.glb"], 1);
     assert!(stderr.contains("no_such_frames.obj"), "{stderr}");
     let stderr = fails(&dir, &["track", "no_such_dir", "-o", "c.exr"], 1);
@@ -283,7 +250,7 @@ fn missing_input_is_named_and_nothing_is_written() {
 
 #[test]
 fn unwritable_outputs_fail_and_leave_nothing() {
-    let dir = Scratch::new("unwritable");
+    let dir = Scratch::new("cli", "unwritable");
     std::fs::write(dir.join("plain"), b"a file").unwrap();
     std::fs::create_dir(dir.join("taken.glb")).unwrap();
     // A parent directory that does not exist, a parent that is a file, and an
@@ -303,7 +270,7 @@ fn unwritable_outputs_fail_and_leave_nothing() {
 
 #[test]
 fn invalid_parameters_exit_with_2() {
-    let dir = Scratch::new("params");
+    let dir = Scratch::new("cli", "params");
     let input = fixture().to_string_lossy().into_owned();
     let cases: [(Vec<&str>, &str); 6] = [
         (vec!["convert", &input, "-r", "32", "--centers", "0", "-o", "x.glb"], "centers"),
@@ -332,7 +299,7 @@ fn invalid_parameters_exit_with_2() {
 
 #[test]
 fn unknown_output_extension_is_a_bad_parameter() {
-    let dir = Scratch::new("extension");
+    let dir = Scratch::new("cli", "extension");
     let stderr = fails(&dir, &convert_args("x.txt", &[]), 2);
     assert!(stderr.contains("x.txt") && stderr.contains("--format"), "{stderr}");
     assert!(dir.files().is_empty());
@@ -340,7 +307,7 @@ fn unknown_output_extension_is_a_bad_parameter() {
 
 #[test]
 fn unknown_output_extension_fails_early_naming_the_file() {
-    let dir = Scratch::new("extension-early");
+    let dir = Scratch::new("cli", "extension-early");
     let out = run(&dir, &convert_args("x.txt", &[]));
     assert!(!out.status.success());
     let stderr = text(&out.stderr);
@@ -350,7 +317,7 @@ fn unknown_output_extension_fails_early_naming_the_file() {
 
 #[test]
 fn malformed_obj_is_named_with_its_line() {
-    let dir = Scratch::new("garbage");
+    let dir = Scratch::new("cli", "garbage");
     std::fs::create_dir(dir.join("seq")).unwrap();
     std::fs::copy(fixture().join("frame_0.obj"), dir.join("seq/frame_0.obj")).unwrap();
     // Line 4 of frame_1.obj is the bad one.
@@ -371,7 +338,7 @@ fn malformed_obj_is_named_with_its_line() {
 
 #[test]
 fn non_finite_vertex_is_named_at_its_own_line() {
-    let dir = Scratch::new("nan");
+    let dir = Scratch::new("cli", "nan");
     std::fs::create_dir(dir.join("seq")).unwrap();
     std::fs::copy(fixture().join("frame_0.obj"), dir.join("seq/frame_0.obj")).unwrap();
     // The NaN is on line 1 (the file's vertex 1), but the first face does not

@@ -10,24 +10,8 @@ use voltrack::fixtures;
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
 use voltrack::mesh::Aabb;
 
-/// A fresh, empty directory for one test, removed when dropped.
-struct Scratch(PathBuf);
-impl Scratch {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("voltrack-test-export-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Scratch(dir)
-    }
-    fn join(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+mod common;
+use common::Scratch;
 
 /// The bundled example's frame-0 mesh carried through its true motion.
 fn bending_bar() -> DynamicMesh {
@@ -238,7 +222,7 @@ fn options(basis: BasisChoice) -> GltfExportOptions {
 
 #[test]
 fn per_frame_glb_replays_every_frame() {
-    let dir = Scratch::new("per-frame");
+    let dir = Scratch::new("export", "per-frame");
     let fps = 24.0;
     for (name, mesh) in [("bar", bending_bar()), ("wobble", torus(12, wobble))] {
         let path = dir.join(&format!("{name}.glb"));
@@ -277,7 +261,7 @@ fn per_frame_glb_replays_every_frame() {
 
 #[test]
 fn compact_basis_reports_the_error_of_the_file() {
-    let dir = Scratch::new("components");
+    let dir = Scratch::new("export", "components");
     for (name, mesh, k) in [("bar", bending_bar(), 2), ("wobble", torus(30, wobble), 4), ("turning", torus(40, turning), 2)] {
         let path = dir.join(&format!("{name}.glb"));
         let report = write_dynamic_glb(&path, &mesh, &options(BasisChoice::Components(k))).unwrap();
@@ -308,7 +292,7 @@ fn compact_basis_reports_the_error_of_the_file() {
 
 #[test]
 fn components_beyond_the_rank_are_not_written() {
-    let dir = Scratch::new("rank");
+    let dir = Scratch::new("export", "rank");
     // A translation along one direction, back and forth: rank 1.
     let mesh = torus(20, |f, p| p + Vector3::new(1.0, 2.0, -0.5) * (0.7 * f as Real).sin());
     let path = dir.join("shift.glb");
@@ -327,7 +311,7 @@ fn components_beyond_the_rank_are_not_written() {
 
 #[test]
 fn auto_picks_a_compact_basis_for_long_low_rank_motion() {
-    let dir = Scratch::new("auto");
+    let dir = Scratch::new("export", "auto");
     let mesh = torus(300, turning);
     let path = dir.join("long.glb");
     let report = write_dynamic_glb(&path, &mesh, &GltfExportOptions::default()).unwrap();
@@ -348,7 +332,7 @@ fn auto_picks_a_compact_basis_for_long_low_rank_motion() {
 
 #[test]
 fn auto_keeps_per_frame_targets_when_a_basis_would_not_be_smaller() {
-    let dir = Scratch::new("auto-full");
+    let dir = Scratch::new("export", "auto-full");
     // 300 frames of independent random displacements of a 60-vertex mesh: the
     // displacements span all 180 dimensions, a basis within tolerance needs
     // nearly all of them, two targets each: more than one target per frame.
@@ -375,7 +359,7 @@ fn auto_keeps_per_frame_targets_when_a_basis_would_not_be_smaller() {
 
 #[test]
 fn glb_edge_cases() {
-    let dir = Scratch::new("edge");
+    let dir = Scratch::new("export", "edge");
     // One frame: a static mesh, no targets, no animation.
     let mut one = bending_bar();
     one.frames.truncate(1);
@@ -415,7 +399,7 @@ fn glb_edge_cases() {
 
 #[test]
 fn glb_bytes_do_not_depend_on_threads() {
-    let dir = Scratch::new("threads");
+    let dir = Scratch::new("export", "threads");
     let mesh = torus(40, wobble);
     for basis in [BasisChoice::PerFrame, BasisChoice::Components(3)] {
         let write = |name: &str, threads: usize| {
@@ -470,7 +454,7 @@ fn face_indices(faces: &[String]) -> Vec<[u32; 3]> {
 
 #[test]
 fn point_cache_header_counts_and_positions() {
-    let dir = Scratch::new("pc2");
+    let dir = Scratch::new("export", "pc2");
     // The bar plus one vertex no triangle uses, which both files leave out.
     let mut mesh = bending_bar();
     let unused = mesh.base.positions.len();
@@ -518,7 +502,7 @@ fn point_cache_header_counts_and_positions() {
 
 #[test]
 fn obj_sequence_shares_one_connectivity() {
-    let dir = Scratch::new("objseq");
+    let dir = Scratch::new("export", "objseq");
     for (name, mesh) in [("bar", bending_bar()), ("torus", torus(11, wobble))] {
         let out = dir.join(name);
         let paths = voltrack::export::obj::write_obj_sequence(&out, &mesh).unwrap();

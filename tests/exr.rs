@@ -3,30 +3,14 @@
 //! byte-identical output across runs and thread counts, errors that name the
 //! file, and no temporary file left behind.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use voltrack::export::exr::{write_trajectories_exr, write_vat_exr};
 use voltrack::io::exr::read_trajectories_exr;
 use voltrack::math::{Point3, Real};
 use voltrack::track::Trajectories;
 
-/// A fresh, empty directory for one test, removed when dropped.
-struct Scratch(PathBuf);
-impl Scratch {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("voltrack-test-exr-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Scratch(dir)
-    }
-    fn join(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+mod common;
+use common::Scratch;
 
 /// Every file under `dir`, recursively, relative names.
 fn files_under(dir: &Path) -> Vec<String> {
@@ -80,7 +64,7 @@ fn value<'a>(meta: &'a [(String, String)], key: &str) -> Option<&'a str> {
 
 #[test]
 fn trajectories_round_trip_exactly_after_f32_rounding() {
-    let dir = Scratch::new("roundtrip");
+    let dir = Scratch::new("exr", "roundtrip");
     for (frames, centers) in [(1, 1), (7, 13), (40, 3), (2, 600)] {
         let path = dir.join(&format!("c_{frames}_{centers}.exr"));
         let t = trajectories(frames, centers);
@@ -102,7 +86,7 @@ fn trajectories_round_trip_exactly_after_f32_rounding() {
 
 #[test]
 fn attributes_round_trip() {
-    let dir = Scratch::new("attributes");
+    let dir = Scratch::new("exr", "attributes");
     let path = dir.join("c.exr");
     write_trajectories_exr(&path, &trajectories(3, 4), &attributes()).unwrap();
     let (_, meta) = read_trajectories_exr(&path).unwrap();
@@ -131,7 +115,7 @@ fn attributes_round_trip() {
 
 #[test]
 fn output_is_byte_identical_across_runs_and_thread_counts() {
-    let dir = Scratch::new("determinism");
+    let dir = Scratch::new("exr", "determinism");
     let t = trajectories(33, 257);
     let frames: Vec<Vec<Point3>> = (0..t.frames).map(|f| t.frame(f).to_vec()).collect();
     let write = |name: &str, threads: usize| {
@@ -153,7 +137,7 @@ fn output_is_byte_identical_across_runs_and_thread_counts() {
 
 #[test]
 fn unreadable_files_give_errors_that_name_them() {
-    let dir = Scratch::new("errors");
+    let dir = Scratch::new("exr", "errors");
     let missing = dir.join("missing centers.exr");
     let err = read_trajectories_exr(&missing).unwrap_err().to_string();
     assert!(err.contains("missing centers.exr"), "{err}");
@@ -190,7 +174,7 @@ fn json_numbers(json: &str, key: &str) -> Vec<Real> {
 
 #[test]
 fn vertex_animation_texture_with_json_sidecar() {
-    let dir = Scratch::new("vat");
+    let dir = Scratch::new("exr", "vat");
     let path = dir.join("anim.exr");
     let t = trajectories(6, 50);
     let frames: Vec<Vec<Point3>> = (0..t.frames).map(|f| t.frame(f).to_vec()).collect();
@@ -231,7 +215,7 @@ fn vertex_animation_texture_with_json_sidecar() {
 
 #[test]
 fn failed_writes_leave_nothing_behind() {
-    let dir = Scratch::new("failed");
+    let dir = Scratch::new("exr", "failed");
     let t = trajectories(4, 5);
     let frames: Vec<Vec<Point3>> = (0..t.frames).map(|f| t.frame(f).to_vec()).collect();
     // Into a directory that does not exist.
@@ -262,7 +246,7 @@ fn failed_writes_leave_nothing_behind() {
 
 #[test]
 fn numeric_attribute_values_round_trip_as_written() {
-    let dir = Scratch::new("numeric");
+    let dir = Scratch::new("exr", "numeric");
     let path = dir.join("c.exr");
     let attrs: Vec<(String, String)> =
         [("voltrack.voxel_size", "3e30"), ("voltrack.scale", "1e3"), ("voltrack.small", "5.6e-5")].iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
