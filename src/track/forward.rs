@@ -131,6 +131,11 @@ impl<'a> Tracker<'a> {
                 *c = next;
             }
             let moved_most = moved.iter().copied().fold(0.0, Real::max);
+            if t.iterations % 100 == 0 {
+                let over = moved.iter().filter(|&&m| m * m >= self.threshold2).count();
+                let over10 = moved.iter().filter(|&&m| m * m >= 100.0 * self.threshold2).count();
+                log::debug!("iteration {}: {over} centers move more than the threshold, {over10} more than 10x, largest {moved_most:.2e}", t.iterations);
+            }
             if moved_most * moved_most < self.threshold2 {
                 break;
             }
