@@ -10,7 +10,7 @@
 
 use std::time::Instant;
 use voltrack::params::{AffinityKind, RefineParams, TrackParams};
-use voltrack::pipeline::{measure, Quality};
+use voltrack::pipeline::{measure, measure_with_counts, Quality};
 use voltrack::voxel::{voxelize_sequence, VoxelParams};
 
 fn env(key: &str, default: usize) -> usize {
@@ -44,7 +44,8 @@ fn main() {
             let per_frame = clock.elapsed().as_secs_f64() / seq.frames.len() as f64;
             results.push((tracked, per_frame));
         }
-        let (qm, qi) = (measure(&results[0].0.trajectories, &seq), measure(&results[1].0.trajectories, &seq));
+        let forward = |r: &voltrack::track::TrackResult| measure_with_counts(&r.trajectories, &r.cell_counts);
+        let (qm, qi) = (forward(&results[0].0), forward(&results[1].0));
         table1.push(format!(
             "| {name} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} |",
             seq.frames.len(),

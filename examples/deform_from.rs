@@ -3,8 +3,7 @@
 //! tracking again: `cargo run --release --example deform_from -- centers.exr
 //! INPUT_DIR out.glb [neighbors]`.
 
-use voltrack::params::{DeformParams, RefineParams};
-use voltrack::refine::{global_affinity, SequenceCells};
+use voltrack::params::DeformParams;
 use voltrack::voxel::VoxelParams;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -15,14 +14,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (traj, attrs) = voltrack::io::exr::read_trajectories_exr(args[0].as_ref())?;
     let resolution = voltrack::pipeline::resolution_of(&attrs, args[0].as_ref())?;
     let seq = voltrack::pipeline::load(&[args[1].clone().into()], &VoxelParams { resolution, ..Default::default() }, Default::default())?;
-    let rp = RefineParams::default();
-    let scale = rp.length_scale(&seq.bounds);
-    let omega = global_affinity(&traj, &seq, &mut SequenceCells::new(&seq), rp.rho_gp * scale, rp.rho_gm * scale, rp.mu);
     let mut params = DeformParams::default();
     if let Some(k) = args.get(3) {
         params.neighbors = k.parse()?;
     }
-    let mesh = voltrack::deform::deform(seq.first_mesh.as_ref().ok_or("no mesh")?, &traj, &omega, &params)?;
+    let first = seq.first_mesh.as_ref().ok_or("no mesh")?;
+    let mesh = voltrack::pipeline::deform_sequence(first, &traj, &seq, None, &params)?;
     let report = voltrack::export::gltf::write_dynamic_glb(args[2].as_ref(), &mesh, &Default::default())?;
     println!("wrote {} ({} targets)", args[2], report.targets);
     Ok(())

@@ -94,23 +94,4 @@ impl TriangleMesh {
             })
             .sum()
     }
-
-    /// Per-vertex area-weighted normals.
-    pub fn vertex_normals(&self) -> Vec<Vector3> {
-        let mut n = vec![Vector3::zeros(); self.positions.len()];
-        for t in &self.triangles {
-            let [a, b, c] = t.map(|i| self.positions[i as usize]);
-            let fnorm = (b - a).cross(&(c - a));
-            for &i in t {
-                n[i as usize] += fnorm;
-            }
-        }
-        for v in &mut n {
-            let l = v.norm();
-            if l > 0.0 {
-                *v /= l;
-            }
-        }
-        n
-    }
 }

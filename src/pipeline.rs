@@ -4,6 +4,7 @@
 use crate::deform::{deform, DynamicMesh};
 use crate::error::{Error, Result};
 use crate::math::Real;
+use crate::mesh::TriangleMesh;
 use crate::params::{DeformParams, RefineParams, TrackParams};
 use crate::progress::{Progress, Stage};
 use crate::refine::{global_affinity, refine, RefineResult, SequenceCells};
@@ -35,7 +36,13 @@ impl Quality {
 /// Measures trajectories against the voxelised sequence they track.
 pub fn measure(traj: &Trajectories, seq: &VoxelSequence) -> Quality {
     let counts: Vec<Vec<u32>> = SequenceCells::new(seq).update(traj, false).into_iter().map(|s| s.count).collect();
-    let (dfu, dfu_per_frame) = crate::metrics::dfu(&counts);
+    measure_with_counts(traj, &counts)
+}
+
+/// [`measure`] when the cells' voxel counts per frame are already known
+/// (the tracker returns them for its final positions).
+pub fn measure_with_counts(traj: &Trajectories, counts: &[Vec<u32>]) -> Quality {
+    let (dfu, dfu_per_frame) = crate::metrics::dfu(counts);
     Quality { pcac: crate::metrics::pcac(traj), dfu, dfu_per_frame, irregularity: crate::metrics::irregularity(traj) }
 }
 
@@ -58,10 +65,18 @@ pub fn trajectory_attributes(seq: &VoxelSequence, voxel: &VoxelParams, track: &T
         ("voltrack.first_input".into(), seq.paths[0].display().to_string()),
     ];
     if let Some((r, removed)) = refine {
-        attrs.push(("voltrack.refine".into(), serde_json::to_string(r).unwrap_or_default()));
-        attrs.push(("voltrack.removed".into(), json(serde_json::json!(removed))));
+        attrs.extend(refine_attributes(r, removed));
     }
     attrs
+}
+
+/// Header attributes recording a refinement: its parameters and the original
+/// indices of the removed centers.
+pub fn refine_attributes(params: &RefineParams, removed: &[usize]) -> [(String, String); 2] {
+    [
+        ("voltrack.refine".into(), serde_json::to_string(params).unwrap_or_default()),
+        ("voltrack.removed".into(), serde_json::json!(removed).to_string()),
+    ]
 }
 
 /// The resolution trajectories were tracked at, from their attributes.
@@ -133,11 +148,24 @@ pub fn convert(
     let clock = Instant::now();
     progress.report(Stage::Deform, 0, 1);
     let traj = refined.as_ref().map_or(&tracked.trajectories, |r| &r.trajectories);
-    let rp = refine_params.cloned().unwrap_or_default();
-    let scale = rp.length_scale(&sequence.bounds);
-    let omega = global_affinity(traj, &sequence, &mut SequenceCells::new(&sequence), rp.rho_gp * scale, rp.rho_gm * scale, rp.mu);
-    let mesh = deform(&first, traj, &omega, deform_params)?;
+    let mesh = deform_sequence(&first, traj, &sequence, refine_params, deform_params)?;
     progress.report(Stage::Deform, 1, 1);
     seconds.push((Stage::Deform, clock.elapsed().as_secs_f64()));
     Ok(Conversion { sequence, tracked, refined, mesh, seconds })
+}
+
+/// Deforms `first` (frame 0 as loaded) by trajectories tracked on `seq`,
+/// with the global affinity ω of the final trajectories (its ρ_gp, ρ_gm and
+/// μ from `refine_params`, or their defaults when refinement was skipped).
+pub fn deform_sequence(
+    first: &TriangleMesh,
+    traj: &Trajectories,
+    seq: &VoxelSequence,
+    refine_params: Option<&RefineParams>,
+    deform_params: &DeformParams,
+) -> Result<DynamicMesh> {
+    let rp = refine_params.cloned().unwrap_or_default();
+    let scale = rp.length_scale(&seq.bounds);
+    let omega = global_affinity(traj, seq, &mut SequenceCells::new(seq), rp.rho_gp * scale, rp.rho_gm * scale, rp.mu);
+    deform(first, traj, &omega, deform_params)
 }

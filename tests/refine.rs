@@ -4,7 +4,9 @@ use voltrack::math::{Point3, Real, Rotation3, Vector3};
 use voltrack::params::{RefineParams, TrackParams};
 use voltrack::refine::{global_affinity, most_irregular, optimise, refine, SequenceCells};
 use voltrack::track::{track, Rigid, Trajectories};
-use voltrack::voxel::{voxelize, GridSpec, Occupancy, VoxelSequence};
+use voltrack::voxel::VoxelSequence;
+
+mod common;
 
 /// Two boxes, one still and one sliding away, voxelised on one grid.
 fn two_bodies(frames: usize, resolution: usize) -> VoxelSequence {
@@ -18,18 +20,7 @@ fn two_bodies(frames: usize, resolution: usize) -> VoxelSequence {
             voltrack::fixtures::merge(&[a.clone(), moved])
         })
         .collect();
-    let bounds = meshes.iter().map(|m| m.bounding_box()).reduce(|x, y| x.union(&y)).unwrap();
-    let grid = GridSpec::for_bounds(&bounds, resolution).unwrap();
-    let occ: Vec<Occupancy> = meshes.iter().map(|m| voxelize(m, &grid)).collect();
-    VoxelSequence {
-        grid,
-        paths: (0..frames).map(|f| format!("f{f}.obj").into()).collect(),
-        frames: occ,
-        bounds,
-        first_mesh: Some(meshes[0].clone()),
-        read_seconds: 0.0,
-        voxelize_seconds: 0.0,
-    }
+    common::voxel_sequence(&meshes, resolution)
 }
 
 #[test]

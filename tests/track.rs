@@ -6,7 +6,9 @@ use voltrack::params::{sigma_for, AffinityKind, TrackParams};
 use voltrack::track::affinity::{motion_dissimilarity2, Affinity};
 use voltrack::track::assign::{Assignment, CellMoments, CenterIndex, NO_OWNER};
 use voltrack::track::{fit_rigid, track, Rigid};
-use voltrack::voxel::{voxelize, GridSpec, Occupancy, VoxelSequence};
+use voltrack::voxel::{GridSpec, VoxelSequence};
+
+mod common;
 
 /// A small deterministic generator (tests need no rand crate).
 struct Lcg(u64);
@@ -175,18 +177,7 @@ fn rigid_sequence(mesh: &voltrack::TriangleMesh, motions: &[Rigid], resolution: 
             c
         })
         .collect();
-    let bounds = moved.iter().map(|m| m.bounding_box()).reduce(|a, b| a.union(&b)).unwrap();
-    let grid = GridSpec::for_bounds(&bounds, resolution).unwrap();
-    let frames: Vec<Occupancy> = moved.iter().map(|m| voxelize(m, &grid)).collect();
-    VoxelSequence {
-        grid,
-        paths: (0..frames.len()).map(|f| format!("frame{f}.obj").into()).collect(),
-        frames,
-        bounds,
-        first_mesh: Some(mesh.clone()),
-        read_seconds: 0.0,
-        voxelize_seconds: 0.0,
-    }
+    common::voxel_sequence(&moved, resolution)
 }
 
 fn screw(frames: usize) -> Vec<Rigid> {

@@ -142,7 +142,7 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
     let bars = bars::Bars::new();
     let seq = pipeline::load(&input.input, &voxel, bars.progress())?;
     let tracked = voltrack::track::track(&seq, &params, bars.progress())?;
-    let before = pipeline::measure(&tracked.trajectories, &seq);
+    let before = pipeline::measure_with_counts(&tracked.trajectories, &tracked.cell_counts);
     let (traj, refined, refine_params) = match refine {
         Some(r) => {
             let rp = r.params();
@@ -197,9 +197,8 @@ fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: 
     let before = pipeline::measure(&traj, &seq);
     let res = voltrack::refine::refine(&traj, &seq, &params, bars.progress())?;
     let after = pipeline::measure(&res.trajectories, &seq);
-    let mut out_attrs: Vec<(String, String)> = attrs.into_iter().filter(|(k, _)| k != "voltrack.version").collect();
-    out_attrs.push(("voltrack.refine".into(), serde_json::to_string(&params)?));
-    out_attrs.push(("voltrack.removed".into(), serde_json::to_string(&res.removed)?));
+    let mut out_attrs = attrs;
+    out_attrs.extend(pipeline::refine_attributes(&params, &res.removed));
     voltrack::export::exr::write_trajectories_exr(&output, &res.trajectories, &out_attrs)?;
     bars.finish();
     if json {

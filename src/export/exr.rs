@@ -69,7 +69,6 @@ fn write_points_exr(
         return Err(Error::InvalidInput(format!("{width} × {height} is beyond what OpenEXR can store")));
     }
     let mut meta = serde_json::Map::new();
-    meta.insert("version".into(), env!("CARGO_PKG_VERSION").into());
     for (k, v) in attributes {
         // JSON objects and lists stay structured; everything else is kept as
         // written (numbers re-printed by serde_json could change their text).
@@ -77,6 +76,9 @@ fn write_points_exr(
         let value = structured.then(|| serde_json::from_str(v).ok()).flatten().unwrap_or_else(|| serde_json::Value::String(v.clone()));
         meta.insert(k.clone(), value);
     }
+    // Last, so attributes carried over from an older file (`voltrack refine`
+    // passes its input's on) never claim that file's version.
+    meta.insert("version".into(), env!("CARGO_PKG_VERSION").into());
     let json = ascii_json(&serde_json::Value::Object(meta).to_string());
     let mut layer_attributes = LayerAttributes::named(name);
     layer_attributes.software_name = Some(Text::new_or_panic(concat!("voltrack ", env!("CARGO_PKG_VERSION"))));

@@ -3,12 +3,11 @@
 //! motions fitted with it, then ω from the largest motion dissimilarity.
 
 use super::cells::SequenceCells;
-use crate::math::{Point3, Real};
+use crate::math::Real;
 use crate::params::sigma_for;
-use crate::track::affinity::motion_dissimilarity2;
+use crate::track::affinity::{motion_dissimilarity2, within_reach};
 use crate::track::{cell_moments, fit_rigid, Rigid, Trajectories};
 use crate::voxel::VoxelSequence;
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 /// Sparse symmetric-in-spirit, directed-in-fact weights: `lists[i]` holds
@@ -43,14 +42,10 @@ impl SparseAffinity {
 /// finds every candidate.
 pub fn max_distance_affinity(traj: &Trajectories, rho_gp: Real, mu: Real) -> SparseAffinity {
     let sigma = sigma_for(rho_gp);
-    let radius2 = -mu.ln() / sigma;
-    let first: Vec<[Real; 3]> = traj.frame(0).iter().map(|p| [p.x, p.y, p.z]).collect();
-    let tree = ImmutableKdTree::<Real, 3>::new_from_slice(&first).expect("finite centers");
-    let lists = (0..traj.centers)
+    let lists = within_reach(traj.frame(0), sigma, mu)
         .into_par_iter()
-        .map(|i| {
-            let mut js: Vec<u32> = tree.query(&first[i]).within::<SquaredEuclidean<Real>>(radius2).execute().into_iter().map(|r| r.item).collect();
-            js.sort_unstable();
+        .enumerate()
+        .map(|(i, js)| {
             js.into_iter()
                 .filter_map(|j| {
                     let d2 = (0..traj.frames).map(|f| (traj.get(f, i) - traj.get(f, j as usize)).norm_squared()).fold(0.0, Real::max);
@@ -97,9 +92,4 @@ pub fn global_affinity(traj: &Trajectories, seq: &VoxelSequence, cells: &mut Seq
         })
         .collect();
     SparseAffinity { lists }
-}
-
-/// Positions after applying per-center motions to `points`.
-pub fn apply_all(motions: &[Rigid], points: &[Point3]) -> Vec<Point3> {
-    motions.iter().zip(points).map(|(m, p)| m.apply(p)).collect()
 }

@@ -69,20 +69,10 @@ impl Affinity {
 
     /// Lists of every j with exp(-σ_p d²) · extra(i, j) >= μ.
     fn positional_lists(&self, centers: &[Point3], extra: impl Fn(usize, usize) -> Real + Sync) -> Vec<Vec<Neighbor>> {
-        let radius2 = -self.mu.ln() / self.sigma_p;
-        let points: Vec<[Real; 3]> = centers.iter().map(|p| [p.x, p.y, p.z]).collect();
-        let tree = ImmutableKdTree::<Real, 3>::new_from_slice(&points).expect("finite centers");
-        (0..centers.len())
+        within_reach(centers, self.sigma_p, self.mu)
             .into_par_iter()
-            .map(|i| {
-                let mut found: Vec<u32> = tree
-                    .query(&points[i])
-                    .within::<SquaredEuclidean<Real>>(radius2)
-                    .execute()
-                    .into_iter()
-                    .map(|r| r.item)
-                    .collect();
-                found.sort_unstable();
+            .enumerate()
+            .map(|(i, found)| {
                 found
                     .into_iter()
                     .filter_map(|j| {
@@ -144,6 +134,23 @@ impl Affinity {
             }
         }
     }
+}
+
+/// For each center, every center (itself included, ascending) whose Gaussian
+/// weight exp(-σ d²) at their distance in `centers` is at least μ: the only
+/// candidates of a weight that is that Gaussian times factors <= 1.
+pub fn within_reach(centers: &[Point3], sigma: Real, mu: Real) -> Vec<Vec<u32>> {
+    let radius2 = -mu.ln() / sigma;
+    let points: Vec<[Real; 3]> = centers.iter().map(|p| [p.x, p.y, p.z]).collect();
+    let tree = ImmutableKdTree::<Real, 3>::new_from_slice(&points).expect("finite centers");
+    points
+        .par_iter()
+        .map(|p| {
+            let mut found: Vec<u32> = tree.query(p).within::<SquaredEuclidean<Real>>(radius2).execute().into_iter().map(|r| r.item).collect();
+            found.sort_unstable();
+            found
+        })
+        .collect()
 }
 
 /// Every center's rigid fit from `prev` to `cur` over its weighted neighbours.

@@ -64,14 +64,14 @@ pub fn track(seq: &VoxelSequence, params: &TrackParams, progress: Progress) -> R
 
     let start = Instant::now();
     let voxels0 = &seq.frames[0].indices;
-    let centers0 = seed_centers(grid, voxels0, params.centers, params.seed, params.lloyd_iterations, params.over_relaxation, params.threshold * scale);
+    let (centers0, lloyd_steps) = seed_centers(grid, voxels0, params.centers, params.seed, params.lloyd_iterations, params.over_relaxation, params.threshold * scale);
     let mut traj = Trajectories::new(frames, params.centers);
     traj.frame_mut(0).copy_from_slice(&centers0);
     let mut owners = vec![NO_OWNER; voxels0.len()];
     let stats0 = assign(grid, voxels0, &CenterIndex::new(&centers0), &mut owners, false);
     let mut cell_counts = vec![stats0.count];
     let affinity = Affinity::initial(&centers0, params.affinity, params.rho_p * scale, params.rho_m * scale, params.alpha, params.mu);
-    let mut timings = vec![FrameTiming { total: start.elapsed().as_secs_f64(), iterations: params.lloyd_iterations, ..Default::default() }];
+    let mut timings = vec![FrameTiming { total: start.elapsed().as_secs_f64(), iterations: lloyd_steps, ..Default::default() }];
     log::info!("frame 0: {} centers placed, {:.1} neighbours each", params.centers, affinity.mean_neighbors());
     progress.report(Stage::Track, 1, frames);
 

@@ -8,14 +8,15 @@ use crate::voxel::GridSpec;
 
 /// Centers after at most `iterations` Lloyd steps c += ω (x̄ - c) from a
 /// seeded random choice of `n` distinct voxels (`n` <= voxels.len()),
-/// stopping once no center moves farther than `threshold`.
+/// stopping once no center moves farther than `threshold`. Returns the
+/// centers and the number of steps taken.
 ///
 /// Why converge rather than stop at the reference's 100 steps: an unconverged
 /// frame 0 keeps relaxing during tracking (each tracked frame moves centers
 /// halfway to their centroids), which shows as drift from the true motion. On
 /// pentagonal_prism at R = 256 with 200 centers, 100 steps left centers up to
 /// 5.7 voxels off the prism's rigid motion; converged, 1.3.
-pub fn seed_centers(grid: &GridSpec, voxels: &[u32], n: usize, seed: u64, iterations: usize, omega: Real, threshold: Real) -> Vec<Point3> {
+pub fn seed_centers(grid: &GridSpec, voxels: &[u32], n: usize, seed: u64, iterations: usize, omega: Real, threshold: Real) -> (Vec<Point3>, usize) {
     assert!(n >= 1 && n <= voxels.len());
     // Partial Fisher-Yates over the voxel list.
     let mut rng = SplitMix64::new(seed);
@@ -27,7 +28,9 @@ pub fn seed_centers(grid: &GridSpec, voxels: &[u32], n: usize, seed: u64, iterat
     let mut centers: Vec<Point3> = order[..n].iter().map(|&v| grid.voxel_center(v as usize)).collect();
     let mut cells = Assignment::new(grid, voxels, vec![NO_OWNER; voxels.len()]);
     let mut moved = Vec::new();
-    for _ in 0..iterations {
+    let mut steps = 0;
+    while steps < iterations {
+        steps += 1;
         let stats = cells.update(&CenterIndex::new(&centers), &moved, false);
         moved.clear();
         for (i, c) in centers.iter_mut().enumerate() {
@@ -39,5 +42,5 @@ pub fn seed_centers(grid: &GridSpec, voxels: &[u32], n: usize, seed: u64, iterat
             break;
         }
     }
-    centers
+    (centers, steps)
 }

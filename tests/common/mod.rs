@@ -1,5 +1,8 @@
 //! Helpers shared by the integration tests.
 
+// Each test file is its own crate and uses only some of these.
+#![allow(dead_code)]
+
 use std::path::{Path, PathBuf};
 
 /// A fresh, empty directory for one test, removed when dropped.
@@ -19,7 +22,6 @@ impl Scratch {
     }
 
     /// Every file under the directory (recursively), relative, sorted.
-    #[allow(dead_code)] // not every test file lists files
     pub fn files(&self) -> Vec<String> {
         fn walk(dir: &Path, prefix: &str, out: &mut Vec<String>) {
             for e in std::fs::read_dir(dir).unwrap().flatten() {
@@ -41,5 +43,21 @@ impl Scratch {
 impl Drop for Scratch {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// A sequence voxelised in memory from one mesh per frame, on the common grid
+/// of their bounding box (frame f named `frame{f}.obj`).
+pub fn voxel_sequence(meshes: &[voltrack::TriangleMesh], resolution: usize) -> voltrack::voxel::VoxelSequence {
+    let bounds = meshes.iter().map(|m| m.bounding_box()).reduce(|a, b| a.union(&b)).unwrap();
+    let grid = voltrack::voxel::GridSpec::for_bounds(&bounds, resolution).unwrap();
+    voltrack::voxel::VoxelSequence {
+        frames: meshes.iter().map(|m| voltrack::voxel::voxelize(m, &grid)).collect(),
+        grid,
+        paths: (0..meshes.len()).map(|f| format!("frame{f}.obj").into()).collect(),
+        bounds,
+        first_mesh: Some(meshes[0].clone()),
+        read_seconds: 0.0,
+        voxelize_seconds: 0.0,
     }
 }
