@@ -23,6 +23,7 @@ fn main() {
         &TrackParams::default(),
         Some(&RefineParams::default()),
         &DeformParams::default(),
+        None,
         Default::default(),
     )
     .expect("converting");

@@ -29,8 +29,11 @@ pub enum Error {
     InvalidParameter(String),
     #[error("{}: cannot write: {message}", path.display())]
     Write { path: PathBuf, message: String },
-    #[error("interrupted")]
-    Interrupted,
+    /// Stopped on request (Ctrl-C). `saved` names the checkpoint file and the
+    /// frames it holds when tracking state was saved.
+    #[error("interrupted{}", saved.as_ref().map(|(p, k)| format!(
+        "; the first {k} tracked frames are saved in {}: run the same command with --resume to continue", p.display())).unwrap_or_default())]
+    Interrupted { saved: Option<(PathBuf, usize)> },
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

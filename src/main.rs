@@ -16,7 +16,7 @@ fn main() {
             }
             std::process::exit(match err.downcast_ref::<voltrack::Error>() {
                 Some(voltrack::Error::InvalidParameter(_)) => 2,
-                Some(voltrack::Error::Interrupted) => 130,
+                Some(voltrack::Error::Interrupted { .. }) => 130,
                 _ => 1,
             });
         }

@@ -8,7 +8,7 @@ use crate::mesh::TriangleMesh;
 use crate::params::{DeformParams, RefineParams, TrackParams};
 use crate::progress::{Progress, Stage};
 use crate::refine::{global_affinity, refine, RefineResult, SequenceCells};
-use crate::track::{track, TrackResult, Trajectories};
+use crate::track::{track_with_checkpoints, Checkpointing, TrackResult, Trajectories};
 use crate::voxel::{voxelize_sequence, GridSpec, VoxelParams, VoxelSequence};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -120,14 +120,16 @@ pub struct Conversion {
     pub seconds: Vec<(Stage, f64)>,
 }
 
-/// Voxelise, track, refine (unless `refine` is None) and deform: the whole
-/// pipeline up to export.
+/// Voxelise, track (saving and resuming through `checkpoint` when given),
+/// refine (unless `refine` is None) and deform: the whole pipeline up to
+/// export.
 pub fn convert(
     inputs: &[PathBuf],
     voxel: &VoxelParams,
     track_params: &TrackParams,
     refine_params: Option<&RefineParams>,
     deform_params: &DeformParams,
+    checkpoint: Option<&Checkpointing>,
     progress: Progress,
 ) -> Result<Conversion> {
     let sequence = load(inputs, voxel, progress)?;
@@ -136,10 +138,10 @@ pub fn convert(
     })?;
     let mut seconds = vec![(Stage::Read, sequence.read_seconds), (Stage::Voxelize, sequence.voxelize_seconds)];
     let clock = Instant::now();
-    let tracked = track(&sequence, track_params, progress)?;
+    let tracked = track_with_checkpoints(&sequence, track_params, checkpoint, progress)?;
     seconds.push((Stage::Track, clock.elapsed().as_secs_f64()));
     let refined = match refine_params {
-        Some(p) => Some(refine(&tracked.trajectories, &sequence, p, progress)?),
+        Some(p) => Some(refine_tracked(&tracked.trajectories, &sequence, p, checkpoint, progress)?),
         None => None,
     };
     if let Some(r) = &refined {
@@ -152,6 +154,15 @@ pub fn convert(
     progress.report(Stage::Deform, 1, 1);
     seconds.push((Stage::Deform, clock.elapsed().as_secs_f64()));
     Ok(Conversion { sequence, tracked, refined, mesh, seconds })
+}
+
+/// [`refine`] after [`track_with_checkpoints`]: when interrupted, says that
+/// the checkpoint holds the finished tracking, so a resumed run starts here.
+pub fn refine_tracked(traj: &Trajectories, seq: &VoxelSequence, params: &RefineParams, checkpoint: Option<&Checkpointing>, progress: Progress) -> Result<RefineResult> {
+    refine(traj, seq, params, progress).map_err(|e| match e {
+        Error::Interrupted { saved: None } => Error::Interrupted { saved: checkpoint.map(|c| (c.path(), seq.frames.len())) },
+        e => e,
+    })
 }
 
 /// Deforms `first` (frame 0 as loaded) by trajectories tracked on `seq`,

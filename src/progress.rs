@@ -26,9 +26,14 @@ impl Stage {
     }
 }
 
-/// Receives `(stage, done, total)` as work advances; `done == total` ends a stage.
+/// Receives `(stage, done, total)` as work advances; `done == total` ends a
+/// stage. It can also ask the work to stop (Ctrl-C): long stages poll
+/// [`ProgressSink::cancelled`] and return [`crate::Error::Interrupted`].
 pub trait ProgressSink: Sync {
     fn report(&self, stage: Stage, done: usize, total: usize);
+    fn cancelled(&self) -> bool {
+        false
+    }
 }
 
 impl<F: Fn(Stage, usize, usize) + Sync> ProgressSink for F {
@@ -49,6 +54,10 @@ impl<'a> Progress<'a> {
         if let Some(sink) = self.0 {
             sink.report(stage, done, total);
         }
+    }
+    /// Whether the caller asked the work to stop.
+    pub fn cancelled(&self) -> bool {
+        self.0.is_some_and(|sink| sink.cancelled())
     }
 }
 

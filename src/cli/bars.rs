@@ -1,20 +1,37 @@
-//! Progress bars on a terminal, nothing when stderr is piped.
+//! Progress bars on a terminal, nothing when stderr is piped; and Ctrl-C,
+//! which the library sees through the same progress callback.
 
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
 use voltrack::progress::ProgressSink;
 use voltrack::{Progress, Stage};
 
+/// Set by the first SIGINT/SIGTERM; a second one exits at once with 130.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Makes Ctrl-C (and SIGTERM) ask the library to stop at its next safe point,
+/// where it saves a checkpoint if it keeps one; the second press quits.
+pub fn handle_interrupts() -> std::io::Result<()> {
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        // The shutdown goes first so that it only fires once the flag is set.
+        signal_hook::flag::register_conditional_shutdown(signal, 130, &INTERRUPTED)?;
+        signal_hook::flag::register(signal, &INTERRUPTED)?;
+    }
+    Ok(())
+}
+
 pub struct Bars {
     multi: Option<MultiProgress>,
     current: Mutex<Option<(Stage, ProgressBar)>>,
+    announced: AtomicBool,
 }
 
 impl Bars {
     pub fn new() -> Self {
         let multi = std::io::stderr().is_terminal().then(|| MultiProgress::with_draw_target(ProgressDrawTarget::stderr()));
-        Bars { multi, current: Mutex::new(None) }
+        Bars { multi, current: Mutex::new(None), announced: AtomicBool::new(false) }
     }
 
     pub fn progress(&self) -> Progress<'_> {
@@ -29,6 +46,18 @@ impl Bars {
 }
 
 impl ProgressSink for Bars {
+    fn cancelled(&self) -> bool {
+        let stop = INTERRUPTED.load(Ordering::Relaxed);
+        if stop && !self.announced.swap(true, Ordering::Relaxed) {
+            let say = || eprintln!("voltrack: stopping at the next safe point (Ctrl-C again quits at once)");
+            match &self.multi {
+                Some(multi) => multi.suspend(say),
+                None => say(),
+            }
+        }
+        stop
+    }
+
     fn report(&self, stage: Stage, done: usize, total: usize) {
         let Some(multi) = &self.multi else { return };
         let mut cur = self.current.lock().unwrap();

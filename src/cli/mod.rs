@@ -80,6 +80,7 @@ enum Command {
 
 pub fn run() -> Result<()> {
     let cli = Cli::parse();
+    bars::handle_interrupts().context("installing the Ctrl-C handler")?;
     match cli.command {
         Command::Convert(args) => convert(args),
         Command::Voxelize { input, output, json } => voxelize(input, output, json),
@@ -141,12 +142,12 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
     let params = track.params();
     let bars = bars::Bars::new();
     let seq = pipeline::load(&input.input, &voxel, bars.progress())?;
-    let tracked = voltrack::track::track(&seq, &params, bars.progress())?;
+    let tracked = voltrack::track::track_with_checkpoints(&seq, &params, track.checkpointing().as_ref(), bars.progress())?;
     let before = pipeline::measure_with_counts(&tracked.trajectories, &tracked.cell_counts);
     let (traj, refined, refine_params) = match refine {
         Some(r) => {
             let rp = r.params();
-            let res = voltrack::refine::refine(&tracked.trajectories, &seq, &rp, bars.progress())?;
+            let res = pipeline::refine_tracked(&tracked.trajectories, &seq, &rp, track.checkpointing().as_ref(), bars.progress())?;
             (res.trajectories.clone(), Some(res), Some(rp))
         }
         None => (tracked.trajectories.clone(), None, None),
@@ -253,7 +254,8 @@ fn convert(args: ConvertArgs) -> Result<()> {
     // Bad export options fail now, not after the whole pipeline has run.
     args.gltf_options().validate()?;
     let bars = bars::Bars::new();
-    let conv = pipeline::convert(&args.input.input, &voxel, &track, refine.as_ref(), &deform, bars.progress())?;
+    let checkpoint = args.track.checkpointing();
+    let conv = pipeline::convert(&args.input.input, &voxel, &track, refine.as_ref(), &deform, checkpoint.as_ref(), bars.progress())?;
     let clock = std::time::Instant::now();
     bars.progress().report(Stage::Export, 0, 1);
     let out = &args.output;

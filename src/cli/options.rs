@@ -6,6 +6,7 @@ use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use voltrack::export::gltf::{BasisChoice, GltfExportOptions};
 use voltrack::params::{AffinityKind, Blending, DeformParams, RefineParams, TrackParams};
+use voltrack::track::Checkpointing;
 use voltrack::voxel::VoxelParams;
 
 #[derive(Args)]
@@ -74,9 +75,23 @@ pub struct TrackArgs {
     /// Take lengths (ρ, thresholds) in the input's units, not as fractions of the bounding box's longest side
     #[arg(long)]
     pub absolute_units: bool,
+    /// Save the tracking state in this folder every few frames, on Ctrl-C and at the end, so an interrupted run can --resume
+    #[arg(long, value_name = "DIR")]
+    pub checkpoint: Option<PathBuf>,
+    /// Frames between checkpoints
+    #[arg(long, value_name = "FRAMES", default_value_t = Checkpointing::new("").every, requires = "checkpoint")]
+    pub checkpoint_every: usize,
+    /// Continue from the checkpoint in --checkpoint DIR (same command, same input); start over if there is none yet
+    #[arg(long, requires = "checkpoint")]
+    pub resume: bool,
 }
 
 impl TrackArgs {
+    pub fn checkpointing(&self) -> Option<Checkpointing> {
+        let dir = self.checkpoint.clone()?;
+        Some(Checkpointing { dir, every: self.checkpoint_every, resume: self.resume })
+    }
+
     pub fn params(&self) -> TrackParams {
         TrackParams {
             centers: self.centers,

@@ -78,8 +78,9 @@ pub fn evaluate(traj: &Trajectories, grid: &GridSpec, cells: &mut SequenceCells,
 }
 
 /// Gradient descent with λ halved until the energy drops; stops after
-/// `max_iterations`, or when no halving helps. Returns the energy before
-/// and after every accepted step.
+/// `max_iterations`, when no halving helps, or when `on_iteration` (called
+/// with the iterations done) returns false. Returns the energy before and
+/// after every accepted step.
 pub fn optimise(
     traj: &mut Trajectories,
     grid: &GridSpec,
@@ -89,7 +90,7 @@ pub fn optimise(
     lambda0: Real,
     max_iterations: usize,
     max_halvings: usize,
-    mut on_iteration: impl FnMut(usize),
+    mut on_iteration: impl FnMut(usize) -> bool,
 ) -> Vec<Iteration> {
     let mut current = evaluate(traj, grid, cells, omega, beta_hat);
     let mut history = vec![Iteration { energy: current.energy, smooth: current.smooth, data: current.data, lambda: 0.0 }];
@@ -108,14 +109,17 @@ pub fn optimise(
             }
             lambda *= 0.5;
         }
-        on_iteration(it + 1);
         let Some((trial, e)) = accepted else {
+            on_iteration(it + 1);
             log::debug!("global optimisation: no step lowers the energy after {it} iterations");
             break;
         };
         *traj = trial;
         history.push(Iteration { energy: e.energy, smooth: e.smooth, data: e.data, lambda });
         current = e;
+        if !on_iteration(it + 1) {
+            break;
+        }
     }
     history
 }

@@ -11,7 +11,7 @@ pub use cells::SequenceCells;
 pub use global::{evaluate, optimise, Iteration};
 pub use irregular::most_irregular;
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::params::RefineParams;
 use crate::progress::{Progress, Stage};
 use crate::track::Trajectories;
@@ -69,9 +69,15 @@ pub fn refine(traj: &Trajectories, seq: &VoxelSequence, params: &RefineParams, p
             params.lambda,
             params.max_iterations,
             params.max_halvings,
-            |it| progress.report(Stage::Refine, done + it, steps),
+            |it| {
+                progress.report(Stage::Refine, done + it, steps);
+                !progress.cancelled()
+            },
         );
         batches.push(history);
+        if progress.cancelled() {
+            return Err(Error::Interrupted { saved: None });
+        }
     }
     progress.report(Stage::Refine, steps, steps);
     Ok(RefineResult { trajectories: current, removed, kept, batches, seconds: start.elapsed().as_secs_f64() })

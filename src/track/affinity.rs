@@ -45,26 +45,23 @@ pub struct Affinity {
     sigma_m: Real,
     alpha: Real,
     mu: Real,
-    lists: Vec<Vec<Neighbor>>,
+    pub(super) lists: Vec<Vec<Neighbor>>,
     /// IIR only: a_IIR for every ordered pair, row-major.
-    iir: Vec<f32>,
+    pub(super) iir: Vec<f32>,
 }
 
 impl Affinity {
     /// Frame 0: positional weights only. `rho_p`, `rho_m` in the input's units.
     pub fn initial(centers: &[Point3], kind: AffinityKind, rho_p: Real, rho_m: Real, alpha: Real, mu: Real) -> Self {
-        let sigma_p = sigma_for(rho_p);
-        let mut a = Affinity {
-            kind,
-            sigma_p,
-            sigma_m: sigma_for(rho_m),
-            alpha,
-            mu,
-            lists: Vec::new(),
-            iir: if kind == AffinityKind::Iir { vec![1.0; centers.len() * centers.len()] } else { Vec::new() },
-        };
+        let iir = if kind == AffinityKind::Iir { vec![1.0; centers.len() * centers.len()] } else { Vec::new() };
+        let mut a = Affinity::restore(kind, rho_p, rho_m, alpha, mu, Vec::new(), iir);
         a.lists = a.positional_lists(centers, |_, _| 1.0);
         a
+    }
+
+    /// The state saved by a checkpoint, put back (see `super::checkpoint`).
+    pub(super) fn restore(kind: AffinityKind, rho_p: Real, rho_m: Real, alpha: Real, mu: Real, lists: Vec<Vec<Neighbor>>, iir: Vec<f32>) -> Self {
+        Affinity { kind, sigma_p: sigma_for(rho_p), sigma_m: sigma_for(rho_m), alpha, mu, lists, iir }
     }
 
     /// Lists of every j with exp(-σ_p d²) · extra(i, j) >= μ.

@@ -3,6 +3,7 @@
 //! predictions until no center moves more than the threshold.
 
 use super::affinity::{fit_all, Affinity};
+use super::checkpoint::{self, Checkpointing, Snapshot};
 use super::assign::{assign, carry_owners, Assignment, CellMoments, CellStats, CenterIndex, NO_OWNER};
 use super::lloyd::seed_centers;
 use super::rigid::Rigid;
@@ -48,6 +49,14 @@ struct Tracker<'a> {
 
 /// Tracks `params.centers` centers through every frame of `seq`.
 pub fn track(seq: &VoxelSequence, params: &TrackParams, progress: Progress) -> Result<TrackResult> {
+    track_with_checkpoints(seq, params, None, progress)
+}
+
+/// [`track`], saving its state to `checkpoint` every few frames, when
+/// cancelled through `progress` (then returning [`Error::Interrupted`]) and at
+/// the end; with `checkpoint.resume` it continues from the saved state. The
+/// result is bit-identical to an uninterrupted [`track`].
+pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpoint: Option<&Checkpointing>, progress: Progress) -> Result<TrackResult> {
     params.validate()?;
     let frames = seq.frames.len();
     let n0 = seq.frames[0].len();
@@ -58,22 +67,45 @@ pub fn track(seq: &VoxelSequence, params: &TrackParams, progress: Progress) -> R
             params.centers
         )));
     }
+    if checkpoint.is_some_and(|c| c.every == 0) {
+        return Err(Error::InvalidParameter("the checkpoint interval must be at least 1 frame".into()));
+    }
+    let fingerprint = checkpoint.map(|_| checkpoint::fingerprint(seq, params));
     let scale = params.length_scale(&seq.bounds);
     let grid = &seq.grid;
     progress.report(Stage::Track, 0, frames);
 
-    let start = Instant::now();
-    let voxels0 = &seq.frames[0].indices;
-    let (centers0, lloyd_steps) = seed_centers(grid, voxels0, params.centers, params.seed, params.lloyd_iterations, params.over_relaxation, params.threshold * scale);
-    let mut traj = Trajectories::new(frames, params.centers);
-    traj.frame_mut(0).copy_from_slice(&centers0);
-    let mut owners = vec![NO_OWNER; voxels0.len()];
-    let stats0 = assign(grid, voxels0, &CenterIndex::new(&centers0), &mut owners, false);
-    let mut cell_counts = vec![stats0.count];
-    let affinity = Affinity::initial(&centers0, params.affinity, params.rho_p * scale, params.rho_m * scale, params.alpha, params.mu);
-    let mut timings = vec![FrameTiming { total: start.elapsed().as_secs_f64(), iterations: lloyd_steps, ..Default::default() }];
-    log::info!("frame 0: {} centers placed, {:.1} neighbours each", params.centers, affinity.mean_neighbors());
-    progress.report(Stage::Track, 1, frames);
+    let resume = match checkpoint {
+        Some(c) if c.resume && c.path().exists() => Some(c),
+        Some(c) if c.resume => {
+            // So that one command line can be rerun until it completes.
+            log::warn!("no checkpoint in {} yet: tracking starts from the first frame", c.dir.display());
+            None
+        }
+        _ => None,
+    };
+    let (mut traj, mut cell_counts, mut timings, affinity, owners, first) = match resume {
+        Some(c) => {
+            let r = checkpoint::load(c, fingerprint.expect("fingerprinted"), seq, params)?;
+            log::info!("resuming from {} after {} of {frames} frames", c.path().display(), r.frames_done);
+            (r.trajectories, r.cell_counts, r.timings, r.affinity, r.owners, r.frames_done)
+        }
+        None => {
+            let start = Instant::now();
+            let voxels0 = &seq.frames[0].indices;
+            let (centers0, lloyd_steps) =
+                seed_centers(grid, voxels0, params.centers, params.seed, params.lloyd_iterations, params.over_relaxation, params.threshold * scale);
+            let mut traj = Trajectories::new(frames, params.centers);
+            traj.frame_mut(0).copy_from_slice(&centers0);
+            let mut owners = vec![NO_OWNER; voxels0.len()];
+            let stats0 = assign(grid, voxels0, &CenterIndex::new(&centers0), &mut owners, false);
+            let affinity = Affinity::initial(&centers0, params.affinity, params.rho_p * scale, params.rho_m * scale, params.alpha, params.mu);
+            let timing = FrameTiming { total: start.elapsed().as_secs_f64(), iterations: lloyd_steps, ..Default::default() };
+            log::info!("frame 0: {} centers placed, {:.1} neighbours each", params.centers, affinity.mean_neighbors());
+            (traj, vec![stats0.count], vec![timing], affinity, owners, 1)
+        }
+    };
+    progress.report(Stage::Track, first, frames);
 
     let mut tracker = Tracker {
         grid,
@@ -81,27 +113,48 @@ pub fn track(seq: &VoxelSequence, params: &TrackParams, progress: Progress) -> R
         threshold2: (params.threshold * scale).powi(2),
         affinity,
         owners,
-        prev_voxels: voxels0,
+        prev_voxels: &seq.frames[first - 1].indices,
     };
-    for f in 1..frames {
+    // Frames held by the checkpoint file.
+    let mut saved = if resume.is_some() { first } else { 0 };
+    let save = |tracker: &Tracker, traj: &Trajectories, cell_counts: &[Vec<u32>], timings: &[FrameTiming]| -> Result<()> {
+        let (Some(c), Some(fp)) = (checkpoint, fingerprint) else { return Ok(()) };
+        let frames_done = cell_counts.len();
+        let snapshot = Snapshot { frames_done, trajectories: traj, cell_counts, timings, affinity: &tracker.affinity, owners: &tracker.owners };
+        checkpoint::save(c, fp, &snapshot)?;
+        log::debug!("checkpoint: {frames_done} frames saved in {}", c.path().display());
+        Ok(())
+    };
+    for f in first..frames {
         let guess: Vec<Point3> = if f == 1 {
             traj.frame(0).to_vec()
         } else {
             traj.frame(f - 1).iter().zip(traj.frame(f - 2)).map(|(a, b)| a + (a - b)).collect()
         };
-        let (centers, counts, timing) = tracker.track_frame(traj.frame(f - 1), guess, &seq.frames[f].indices);
+        let Some((centers, counts, timing)) = tracker.track_frame(traj.frame(f - 1), guess, &seq.frames[f].indices, progress) else {
+            // Frame f was abandoned; the state is still that after frame f - 1.
+            if saved < f {
+                save(&tracker, &traj, &cell_counts, &timings)?;
+            }
+            return Err(Error::Interrupted { saved: checkpoint.map(|c| (c.path(), f)) });
+        };
         traj.frame_mut(f).copy_from_slice(&centers);
         cell_counts.push(counts);
         log::debug!("frame {f}: {} iterations, {:.3} s", timing.iterations, timing.total);
         timings.push(timing);
         progress.report(Stage::Track, f + 1, frames);
+        if checkpoint.is_some_and(|c| (f + 1) % c.every == 0 || f + 1 == frames) {
+            save(&tracker, &traj, &cell_counts, &timings)?;
+            saved = f + 1;
+        }
     }
     Ok(TrackResult { trajectories: traj, cell_counts, timings, scale })
 }
 
 impl<'a> Tracker<'a> {
     /// One frame: returns the centers, their cells' voxel counts and the timing.
-    fn track_frame(&mut self, prev: &[Point3], mut cur: Vec<Point3>, voxels: &'a [u32]) -> (Vec<Point3>, Vec<u32>, FrameTiming) {
+    /// None when `progress` asks to stop; the state is then left as it was.
+    fn track_frame(&mut self, prev: &[Point3], mut cur: Vec<Point3>, voxels: &'a [u32], progress: Progress) -> Option<(Vec<Point3>, Vec<u32>, FrameTiming)> {
         let start = Instant::now();
         let mut t = FrameTiming::default();
         let beta = self.params.beta;
@@ -115,6 +168,9 @@ impl<'a> Tracker<'a> {
             t.fit += clock.elapsed().as_secs_f64();
         }
         for _ in 0..self.params.max_iterations {
+            if progress.cancelled() {
+                return None;
+            }
             t.iterations += 1;
             let clock = Instant::now();
             let stats = cells.update(&CenterIndex::new(&cur), &moved, false);
@@ -151,7 +207,7 @@ impl<'a> Tracker<'a> {
         self.owners = cells.owners;
         self.prev_voxels = voxels;
         t.total = start.elapsed().as_secs_f64();
-        (cur, stats.count, t)
+        Some((cur, stats.count, t))
     }
 }
 

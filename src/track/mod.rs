@@ -5,12 +5,14 @@
 
 pub mod affinity;
 pub mod assign;
+pub mod checkpoint;
 mod forward;
 pub mod lloyd;
 pub mod rigid;
 mod rng;
 mod trajectories;
 
-pub use forward::{cell_moments, predict, track, FrameTiming, TrackResult};
+pub use checkpoint::Checkpointing;
+pub use forward::{cell_moments, predict, track, track_with_checkpoints, FrameTiming, TrackResult};
 pub use rigid::{fit_rigid, Rigid};
 pub use trajectories::Trajectories;

@@ -1,0 +1,242 @@
+//! Saving and resuming the tracker between frames, for long runs and Ctrl-C.
+//!
+//! A checkpoint holds everything the frame loop carries from one frame to the
+//! next: the trajectories so far, each frame's cell counts and timings, the
+//! affinity state and the voxel owners of the last tracked frame. Floats are
+//! stored as their bits, so a resumed run continues with exactly the numbers
+//! the interrupted one had and ends byte-identical to an uninterrupted run.
+//! A fingerprint of the voxels and parameters keeps a checkpoint from
+//! resuming a different run.
+
+use super::affinity::{Affinity, Neighbor};
+use super::forward::FrameTiming;
+use super::Trajectories;
+use crate::error::{Error, Result};
+use crate::math::Point3;
+use crate::params::{AffinityKind, TrackParams};
+use crate::voxel::VoxelSequence;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Where and how often tracking saves its state.
+#[derive(Clone, Debug)]
+pub struct Checkpointing {
+    /// Folder of the checkpoint file ([`CHECKPOINT_FILE`]); created if missing.
+    pub dir: PathBuf,
+    /// Save after every this many tracked frames (and when interrupted, and
+    /// when tracking ends). Default 10; >= 1.
+    pub every: usize,
+    /// Continue from the checkpoint in `dir` (which must match the input and
+    /// parameters) instead of starting over; without one, start over.
+    /// Default false.
+    pub resume: bool,
+}
+
+impl Checkpointing {
+    pub fn new(dir: impl Into<PathBuf>) -> Self {
+        Checkpointing { dir: dir.into(), every: 10, resume: false }
+    }
+
+    /// The checkpoint file inside `dir`.
+    pub fn path(&self) -> PathBuf {
+        self.dir.join(CHECKPOINT_FILE)
+    }
+}
+
+/// Name of the checkpoint file inside the checkpoint folder.
+pub const CHECKPOINT_FILE: &str = "track.ckpt";
+const MAGIC: &[u8; 16] = b"voltrack-track\0\x01";
+
+/// What the tracker has done so far, borrowed for saving.
+pub(super) struct Snapshot<'a> {
+    pub frames_done: usize,
+    pub trajectories: &'a Trajectories,
+    pub cell_counts: &'a [Vec<u32>],
+    pub timings: &'a [FrameTiming],
+    pub affinity: &'a Affinity,
+    pub owners: &'a [u32],
+}
+
+/// A checkpoint read back.
+pub(super) struct Restored {
+    pub frames_done: usize,
+    /// Frames `0..frames_done` filled in; the rest at the origin.
+    pub trajectories: Trajectories,
+    pub cell_counts: Vec<Vec<u32>>,
+    pub timings: Vec<FrameTiming>,
+    pub affinity: Affinity,
+    pub owners: Vec<u32>,
+}
+
+/// 64-bit FNV-1a over the tool version, the parameters, the grid and every
+/// frame's occupied voxels: two runs with the same fingerprint track the same
+/// way.
+pub(super) fn fingerprint(seq: &VoxelSequence, params: &TrackParams) -> u64 {
+    let mut h = Fnv(0xcbf2_9ce4_8422_2325);
+    h.bytes(env!("CARGO_PKG_VERSION").as_bytes());
+    h.bytes(serde_json::to_string(params).expect("parameters serialise").as_bytes());
+    let g = &seq.grid;
+    for d in g.dims {
+        h.bytes(&(d as u64).to_le_bytes());
+    }
+    for c in [g.origin.x, g.origin.y, g.origin.z, g.voxel_size] {
+        h.bytes(&c.to_bits().to_le_bytes());
+    }
+    for frame in &seq.frames {
+        h.bytes(&(frame.indices.len() as u64).to_le_bytes());
+        for &v in &frame.indices {
+            h.bytes(&v.to_le_bytes());
+        }
+    }
+    h.0
+}
+
+struct Fnv(u64);
+
+impl Fnv {
+    fn bytes(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0 ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+}
+
+/// Writes the checkpoint atomically (a kill mid-write leaves the previous one).
+pub(super) fn save(ckpt: &Checkpointing, fingerprint: u64, s: &Snapshot) -> Result<()> {
+    std::fs::create_dir_all(&ckpt.dir).map_err(|e| Error::io(&ckpt.dir, e))?;
+    let traj = s.trajectories;
+    crate::export::write_atomic(&ckpt.path(), |w| {
+        w.write_all(MAGIC)?;
+        put_u64(w, fingerprint)?;
+        for n in [traj.frames, traj.centers, s.frames_done] {
+            put_u64(w, n as u64)?;
+        }
+        for p in &traj.positions[..s.frames_done * traj.centers] {
+            put_reals(w, p.coords.as_slice())?;
+        }
+        for counts in &s.cell_counts[..s.frames_done] {
+            put_u32s(w, counts)?;
+        }
+        for t in &s.timings[..s.frames_done] {
+            put_reals(w, &[t.total, t.assign, t.fit, t.affinity])?;
+            put_u64(w, t.iterations as u64)?;
+        }
+        let a = s.affinity;
+        put_u64(w, a.lists.len() as u64)?;
+        for list in &a.lists {
+            put_u64(w, list.len() as u64)?;
+            for n in list {
+                put_u32s(w, &[n.j])?;
+                put_reals(w, &[n.w, n.max_d2, n.max_m2])?;
+            }
+        }
+        put_u64(w, a.iir.len() as u64)?;
+        for v in &a.iir {
+            w.write_all(&v.to_bits().to_le_bytes())?;
+        }
+        put_u32s(w, s.owners)
+    })
+}
+
+/// Reads the checkpoint of `ckpt` back, checking it belongs to this run.
+pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, seq: &VoxelSequence, params: &TrackParams) -> Result<Restored> {
+    let path = ckpt.path();
+    let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+    let mut r = Reader { bytes: &bytes, at: 0, path: &path };
+    if r.take(MAGIC.len())? != MAGIC {
+        return Err(Error::parse(&path, None, "not a voltrack tracking checkpoint (or one of another format version)"));
+    }
+    if r.u64()? != fingerprint {
+        return Err(Error::InvalidInput(format!(
+            "{}: the checkpoint was saved for different input, resolution or tracking parameters; \
+             run the same command as before, or drop --resume to start over",
+            path.display()
+        )));
+    }
+    let (frames, centers, frames_done) = (r.usize()?, r.usize()?, r.usize()?);
+    if frames != seq.frames.len() || centers != params.centers || frames_done == 0 || frames_done > frames {
+        return Err(Error::parse(&path, None, format!("inconsistent header: {frames_done} of {frames} frames, {centers} centers")));
+    }
+    let mut trajectories = Trajectories::new(frames, centers);
+    for p in &mut trajectories.positions[..frames_done * centers] {
+        *p = Point3::new(r.real()?, r.real()?, r.real()?);
+    }
+    let cell_counts = (0..frames_done).map(|_| r.u32s(centers)).collect::<Result<_>>()?;
+    let timings = (0..frames_done)
+        .map(|_| Ok(FrameTiming { total: r.real()?, assign: r.real()?, fit: r.real()?, affinity: r.real()?, iterations: r.usize()? }))
+        .collect::<Result<_>>()?;
+    if r.usize()? != centers {
+        return Err(Error::parse(&path, None, "affinity lists do not match the number of centers"));
+    }
+    let lists = (0..centers)
+        .map(|_| {
+            let len = r.usize()?;
+            (0..len)
+                .map(|_| {
+                    let j = r.u32()?;
+                    if j as usize >= centers {
+                        return Err(Error::parse(&path, None, format!("neighbour {j} out of range")));
+                    }
+                    Ok(Neighbor { j, w: r.real()?, max_d2: r.real()?, max_m2: r.real()? })
+                })
+                .collect::<Result<Vec<_>>>()
+        })
+        .collect::<Result<_>>()?;
+    let iir_len = r.usize()?;
+    let expected = if params.affinity == AffinityKind::Iir { centers * centers } else { 0 };
+    if iir_len != expected {
+        return Err(Error::parse(&path, None, "affinity filter state does not match the affinity kind"));
+    }
+    let iir = (0..iir_len).map(|_| Ok(f32::from_bits(r.u32()?))).collect::<Result<_>>()?;
+    let owners = r.u32s(seq.frames[frames_done - 1].len())?;
+    if r.at != bytes.len() {
+        return Err(Error::parse(&path, None, "trailing bytes after the tracker state"));
+    }
+    let scale = params.length_scale(&seq.bounds);
+    let affinity = Affinity::restore(params.affinity, params.rho_p * scale, params.rho_m * scale, params.alpha, params.mu, lists, iir);
+    Ok(Restored { frames_done, trajectories, cell_counts, timings, affinity, owners })
+}
+
+fn put_u64(w: &mut impl Write, v: u64) -> std::io::Result<()> {
+    w.write_all(&v.to_le_bytes())
+}
+
+fn put_reals(w: &mut impl Write, v: &[crate::math::Real]) -> std::io::Result<()> {
+    v.iter().try_for_each(|x| w.write_all(&x.to_bits().to_le_bytes()))
+}
+
+fn put_u32s(w: &mut impl Write, v: &[u32]) -> std::io::Result<()> {
+    v.iter().try_for_each(|x| w.write_all(&x.to_le_bytes()))
+}
+
+/// Reads little-endian values, failing with the file's name when it ends early.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+    path: &'a Path,
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize) -> Result<&'a [u8]> {
+        let end = self.at.checked_add(n).filter(|&e| e <= self.bytes.len());
+        let end = end.ok_or_else(|| Error::parse(self.path, None, "checkpoint is truncated"))?;
+        let s = &self.bytes[self.at..end];
+        self.at = end;
+        Ok(s)
+    }
+    fn u64(&mut self) -> Result<u64> {
+        Ok(u64::from_le_bytes(self.take(8)?.try_into().expect("8 bytes")))
+    }
+    fn usize(&mut self) -> Result<usize> {
+        usize::try_from(self.u64()?).map_err(|_| Error::parse(self.path, None, "count out of range"))
+    }
+    fn u32(&mut self) -> Result<u32> {
+        Ok(u32::from_le_bytes(self.take(4)?.try_into().expect("4 bytes")))
+    }
+    fn u32s(&mut self, n: usize) -> Result<Vec<u32>> {
+        (0..n).map(|_| self.u32()).collect()
+    }
+    fn real(&mut self) -> Result<crate::math::Real> {
+        Ok(crate::math::Real::from_bits(self.u64()?))
+    }
+}
