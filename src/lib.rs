@@ -17,6 +17,7 @@ pub mod plot;
 pub mod metrics;
 pub mod progress;
 pub mod refine;
+pub mod report;
 pub mod track;
 pub mod voxel;
 

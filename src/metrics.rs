@@ -1,5 +1,13 @@
 //! Quality measures of a tracking result (method.md §6, §8), computed as the
-//! reference computes them.
+//! reference computes them, and of the dynamic mesh against its input
+//! ([`surface`]).
+
+pub mod surface;
+
+pub use surface::{
+    closest_point_on_triangle, fit_to_inputs, point_triangle_distance_squared, surface_fit, DistanceSummary, FrameFit, SequenceFit, Surface,
+    SurfaceIndex,
+};
 
 use crate::math::Real;
 use crate::plot::{line_plot, Axis, Series};
@@ -145,13 +153,13 @@ pub fn irregularity_curves_svg(curves: &[(&str, &[Real])]) -> String {
         .map(|(label, values)| {
             let mut v: Vec<Real> = values.iter().copied().filter(|x| x.is_finite()).collect();
             v.sort_by(|a, b| b.total_cmp(a));
-            Series { label: label.to_string(), points: v.iter().enumerate().map(|(r, &x)| (r as Real, x)).collect() }
+            Series::new(*label, v.iter().enumerate().map(|(r, &x)| (r as Real, x)).collect())
         })
         .collect();
     line_plot(
         "Irregularity curve",
-        &Axis { label: "rank (most irregular first)".into(), log: false },
-        &Axis { label: "I_i (squared length, log scale)".into(), log: true },
+        &Axis::linear("rank (most irregular first)").integer(),
+        &Axis::log("I_i (squared length, log scale)"),
         &series,
     )
 }

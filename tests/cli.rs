@@ -73,7 +73,7 @@ fn help_lists_the_commands() {
     }
     assert!(ok(&dir, &["--version"]).contains(env!("CARGO_PKG_VERSION")));
     let convert = ok(&dir, &["convert", "--help"]);
-    for flag in ["--resolution", "--centers", "--output", "--format", "--vat", "--basis", "--fps", "--no-refine"] {
+    for flag in ["--resolution", "--centers", "--output", "--format", "--vat", "--basis", "--fps", "--no-refine", "--report", "--checkpoint", "--resume"] {
         assert!(convert.contains(flag), "convert --help lacks {flag}");
     }
 }
@@ -88,6 +88,20 @@ fn convert_to_glb() {
     let (frames, targets, interpolation) = glb_summary(&dir.join("tmp/x.glb"));
     assert_eq!((frames, targets, interpolation), (FRAMES, FRAMES - 1, gltf::animation::Interpolation::Step));
     assert_eq!(dir.files(), ["tmp/x.glb"]);
+}
+
+#[test]
+fn convert_with_a_report() {
+    let dir = Scratch::new("cli", "report");
+    let stdout = ok(&dir, &convert_args("x.glb", &["--report", "x.html"]));
+    assert!(stdout.contains("fit to the input: mean") && stdout.contains("report: x.html"), "{stdout}");
+    let html = std::fs::read_to_string(dir.join("x.html")).unwrap();
+    assert!(html.starts_with("<!DOCTYPE html>") && html.matches("<svg").count() >= 5, "a report with its plots");
+    assert_eq!(dir.files(), ["x.glb", "x.html"]);
+    // A report that cannot be written fails before any work.
+    let stderr = fails(&dir, &convert_args("y.glb", &["--report", "no/such/dir/y.html"]), 1);
+    assert!(stderr.contains("no/such/dir/y.html"), "{stderr}");
+    assert_eq!(dir.files(), ["x.glb", "x.html"]);
 }
 
 #[test]

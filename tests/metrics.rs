@@ -425,3 +425,243 @@ fn irregularity_curve_is_well_formed_svg() {
     assert_eq!(polylines(&svg).len(), 2);
     assert!(svg.contains("before &lt;refine&gt; &amp; after"));
 }
+
+// ---------------------------------------------------------------------------
+// Surface fit: exact point-to-triangle distances through the hierarchy.
+
+use voltrack::fixtures;
+use voltrack::metrics::{point_triangle_distance_squared, surface_fit, DistanceSummary, Surface, SurfaceIndex};
+use voltrack::TriangleMesh;
+
+/// Distance to every triangle, smallest taken: what the index must equal.
+fn brute_force_distance(p: &Point3, mesh: &TriangleMesh) -> Real {
+    mesh.triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+            point_triangle_distance_squared(p, &a, &b, &c)
+        })
+        .fold(Real::INFINITY, Real::min)
+        .sqrt()
+}
+
+#[test]
+fn point_triangle_distance_in_each_region() {
+    let (a, b, c) = (Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.0, 0.0), Point3::new(0.0, 1.0, 0.0));
+    // (query, closest point on the triangle): vertex, edge and face regions.
+    let cases = [
+        (Point3::new(-1.0, -1.0, 0.5), a),
+        (Point3::new(2.0, -0.5, 0.0), b),
+        (Point3::new(-0.5, 2.0, 1.0), c),
+        (Point3::new(0.5, -1.0, 1.0), Point3::new(0.5, 0.0, 0.0)),
+        (Point3::new(-2.0, 0.3, 0.0), Point3::new(0.0, 0.3, 0.0)),
+        (Point3::new(1.0, 1.0, 0.5), Point3::new(0.5, 0.5, 0.0)),
+        (Point3::new(0.2, 0.3, -0.7), Point3::new(0.2, 0.3, 0.0)),
+        (Point3::new(0.25, 0.25, 0.0), Point3::new(0.25, 0.25, 0.0)),
+    ];
+    // The same cases after a rigid motion, and with the corners relabelled.
+    let motion = nalgebra::Isometry3::new(Vector3::new(0.3, -2.0, 5.0), Vector3::new(0.4, -1.1, 0.7));
+    for (p, closest) in cases {
+        let want = (p - closest).norm_squared();
+        for (q, x, y, z) in [(p, a, b, c), (p, c, a, b), (p, b, a, c)] {
+            assert!(close(point_triangle_distance_squared(&q, &x, &y, &z), want, 1e-14), "{p:?}");
+            let m = |v: &Point3| motion * v;
+            assert!(close(point_triangle_distance_squared(&m(&q), &m(&x), &m(&y), &m(&z)), want, 1e-12), "{p:?} moved");
+        }
+        let got = voltrack::metrics::closest_point_on_triangle(&p, &a, &b, &c);
+        assert!((got - closest).norm() < 1e-14, "{p:?}: closest {got:?}, want {closest:?}");
+    }
+    // Degenerate triangles are their edges: collinear corners, and one point.
+    let (x0, x1, x2) = (Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.0, 0.0), Point3::new(3.0, 0.0, 0.0));
+    assert_eq!(point_triangle_distance_squared(&Point3::new(2.0, 1.0, 0.0), &x0, &x1, &x2), 1.0);
+    assert_eq!(point_triangle_distance_squared(&Point3::new(5.0, 0.0, 0.0), &x0, &x2, &x1), 4.0);
+    assert_eq!(point_triangle_distance_squared(&Point3::new(0.0, 3.0, 4.0), &x1, &x1, &x1), 26.0);
+}
+
+/// A triangle soup: many small random triangles and a few huge ones, which a
+/// search that does not bound each triangle individually would get wrong or slow.
+fn random_soup(rng: &mut Rng, small: usize) -> TriangleMesh {
+    let mut m = TriangleMesh::default();
+    for k in 0..small + 3 {
+        let size = if k < small { 0.05 } else { 4.0 };
+        let center = rng.point();
+        for _ in 0..3 {
+            m.positions.push(center + rng.point().coords * size);
+        }
+        let i = 3 * k as u32;
+        m.triangles.push([i, i + 1, i + 2]);
+    }
+    m
+}
+
+#[test]
+fn surface_index_matches_brute_force() {
+    let mut rng = Rng(2024);
+    let mut meshes: Vec<(String, TriangleMesh)> = fixtures::shapes().into_iter().map(|(n, m)| (n.to_string(), m)).collect();
+    meshes.push(("soup".into(), random_soup(&mut rng, 400)));
+    meshes.push(("bending bar".into(), fixtures::bending_bar(5)));
+    meshes.push(("one triangle".into(), TriangleMesh { positions: vec![Point3::origin(), Point3::new(1.0, 0.0, 0.0), Point3::new(0.0, 0.0, 1.0)], triangles: vec![[0, 1, 2]], ..Default::default() }));
+    for (name, mesh) in &meshes {
+        let index = SurfaceIndex::new(&mesh.positions, &mesh.triangles);
+        let scale = mesh.bounding_box().diagonal();
+        // Points near the surface (vertices jittered), inside, and far away.
+        let mut queries: Vec<Point3> = mesh.positions.iter().step_by(7).map(|v| v + rng.point().coords * 0.02 * scale).collect();
+        queries.extend((0..200).map(|_| Point3::from(rng.point().coords * scale)));
+        queries.extend((0..50).map(|_| Point3::from(rng.point().coords * 20.0 * scale)));
+        for p in &queries {
+            let (got, want) = (index.distance(p), brute_force_distance(p, mesh));
+            assert!((got - want).abs() <= 1e-12 * want.max(scale), "{name}: {p:?}: {got} vs brute force {want}");
+        }
+        // A vertex is on the surface.
+        assert_eq!(index.distance(&mesh.positions[mesh.triangles[0][1] as usize]), 0.0, "{name}");
+    }
+    assert_eq!(SurfaceIndex::new(&[], &[]).distance(&Point3::origin()), Real::INFINITY);
+}
+
+#[test]
+fn weighted_summary_by_hand() {
+    let s = DistanceSummary::of_weighted(&[(1.0, 1.0), (3.0, 2.0), (2.0, 1.0)]);
+    assert_eq!(s, DistanceSummary { mean: 2.25, p95: 3.0, max: 3.0 });
+    // 95 % of the weight on the smallest value: it is the 95th percentile.
+    let s = DistanceSummary::of_weighted(&[(10.0, 1.0), (0.0, 99.0)]);
+    assert_eq!((s.p95, s.max), (0.0, 10.0));
+    assert!(close(s.mean, 0.1, 1e-15));
+    let values: Vec<(Real, Real)> = (1..=100).rev().map(|v| (v as Real, 1.0)).collect();
+    assert_eq!(DistanceSummary::of_weighted(&values), DistanceSummary { mean: 50.5, p95: 95.0, max: 100.0 });
+    // Weights that sum to zero count equally; no samples give zeros.
+    assert_eq!(DistanceSummary::of_weighted(&[(1.0, 0.0), (3.0, 0.0)]).mean, 2.0);
+    assert_eq!(DistanceSummary::of_weighted(&[]), DistanceSummary::default());
+}
+
+/// A square sheet of `n` × `n` cells in the plane z = `z`, side 1.
+fn sheet(n: u32, z: Real) -> TriangleMesh {
+    let mut m = TriangleMesh::default();
+    for j in 0..=n {
+        for i in 0..=n {
+            m.positions.push(Point3::new(i as Real / n as Real, j as Real / n as Real, z));
+        }
+    }
+    let v = |i: u32, j: u32| j * (n + 1) + i;
+    for j in 0..n {
+        for i in 0..n {
+            m.triangles.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
+            m.triangles.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
+        }
+    }
+    m
+}
+
+#[test]
+fn surface_fit_known_cases() {
+    let fit = |result: &TriangleMesh, input: &TriangleMesh, diagonal: Real| surface_fit(Surface::from(result), Surface::from(input), diagonal);
+    // Identical surfaces: nothing anywhere.
+    let sphere = fixtures::sphere(Point3::origin(), 1.0, 24, 12);
+    let same = fit(&sphere, &sphere, 2.0);
+    for s in [same.result_to_input, same.input_to_result, same.two_sided] {
+        assert_eq!(s, DistanceSummary::default());
+    }
+    // A sheet lifted by 0.01 against a differently meshed sheet: 0.01
+    // everywhere, which is 0.5 % of a diagonal of 2.
+    let lifted = fit(&sheet(7, 0.01), &sheet(5, 0.0), 2.0);
+    for s in [lifted.result_to_input, lifted.input_to_result, lifted.two_sided] {
+        for v in [s.mean, s.p95, s.max] {
+            assert!(close(v, 0.5, 1e-12), "{lifted:?}");
+        }
+    }
+    // The same sphere scaled by 1.1 as the result: each of its vertices lies
+    // radially outside a vertex of the inscribed input, which is its nearest
+    // point, so result -> input is 0.1 (up to the fixture's f32 rounding of
+    // the vertices); the input's vertices are inside the larger polyhedron,
+    // nearer than 0.1 to its faces.
+    let mut larger = sphere.clone();
+    larger.positions.iter_mut().for_each(|p| *p *= 1.1);
+    let shell = fit(&larger, &sphere, 1.0);
+    for v in [shell.result_to_input.mean, shell.result_to_input.p95, shell.result_to_input.max] {
+        assert!(close(v, 10.0, 1e-6), "{shell:?}");
+    }
+    assert!(shell.input_to_result.max < 10.0 && shell.input_to_result.mean > 5.0, "{shell:?}");
+    // Part of the input missing from the result shows only input -> result,
+    // and the two-sided mean weighs both directions alike.
+    let cube = fixtures::cube(Point3::new(4.0, 0.0, 0.0), 1.0);
+    let both = fixtures::merge(&[sphere.clone(), cube]);
+    let part = fit(&sphere, &both, 1.0);
+    assert_eq!(part.result_to_input, DistanceSummary::default());
+    assert!(part.input_to_result.max > 250.0, "{part:?}");
+    assert!(close(part.two_sided.mean, part.input_to_result.mean / 2.0, 1e-12), "{part:?}");
+    assert_eq!(part.two_sided.max, part.input_to_result.max);
+}
+
+#[test]
+fn surface_fit_does_not_depend_on_the_thread_count() {
+    let input = fixtures::torus(Point3::origin(), 1.0, 0.35, 40, 20);
+    let mut rng = Rng(77);
+    let mut result = fixtures::torus(Point3::origin(), 1.0, 0.3, 31, 17);
+    result.positions.iter_mut().for_each(|p| *p += rng.point().coords * 0.05);
+    let run = |threads| {
+        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| surface_fit(Surface::from(&result), Surface::from(&input), 2.7))
+    };
+    let one = run(1);
+    assert_eq!(one, run(3));
+    assert!(one.two_sided.mean > 0.0 && one.two_sided.max < 10.0, "{one:?}");
+}
+
+#[test]
+fn plots_for_the_report() {
+    use voltrack::plot::{bar_chart, line_plot, significant, Axis, Series};
+    // Bars: labels escaped, unusable values drawn as empty bars.
+    let svg = bar_chart("Time <per> stage", "seconds", "s", &[("read & parse".into(), 1.5), ("odd".into(), Real::NAN), ("none".into(), -2.0), ("track".into(), 12.0)]);
+    assert_well_formed(&svg);
+    assert!(svg.contains("read &amp; parse") && svg.contains("Time &lt;per&gt; stage"));
+    assert!(!svg.contains("NaN") && !svg.contains("inf"));
+    let widths: Vec<Real> = svg
+        .lines()
+        .filter(|l| l.starts_with("<rect x=") && !l.contains("fill=\"none\""))
+        .map(|l| l.split("width=\"").nth(1).unwrap().split('"').next().unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(widths.len(), 4);
+    assert!(widths[1] == 0.0 && widths[2] == 0.0 && widths[0] > 0.0 && widths[3] > 7.9 * widths[0], "{widths:?}");
+    assert!(svg.contains(">12.0 s</text>") && svg.contains(">1.50 s</text>"));
+
+    let y_labels = |svg: &str| -> Vec<String> {
+        svg.lines().filter(|l| l.contains("text-anchor=\"end\"")).map(|l| l.split('>').nth(1).unwrap().split('<').next().unwrap().to_string()).collect()
+    };
+    let x_labels = |svg: &str| -> Vec<String> {
+        svg.lines()
+            .filter(|l| l.starts_with("<text") && l.contains("text-anchor=\"middle\"") && !l.contains("font-size") && !l.contains("rotate"))
+            .map(|l| l.split('>').nth(1).unwrap().split('<').next().unwrap().to_string())
+            .collect()
+    };
+    // A log axis spanning less than a decade still gets labelled ticks.
+    let narrow = vec![Series::new("I", vec![(0.0, 0.45), (1.0, 0.38), (2.0, 0.31)])];
+    let svg = line_plot("narrow", &Axis::linear("rank").integer(), &Axis::log("I"), &narrow);
+    assert_well_formed(&svg);
+    assert!(y_labels(&svg).len() >= 2, "{:?}", y_labels(&svg));
+    // Whole-number ticks on an integer axis; 0 included on a from-zero axis.
+    assert!(x_labels(&svg).iter().all(|l| !l.contains('.')), "{:?}", x_labels(&svg));
+    let svg = line_plot("zero", &Axis::linear("frame").integer(), &Axis::linear("s").from_zero(), &narrow);
+    assert_eq!(y_labels(&svg).first().map(String::as_str), Some("0.0"), "{:?}", y_labels(&svg));
+
+    // Lines through every corner: the legend gets a band of its own above them.
+    let zigzag = vec![
+        Series::new("up", vec![(0.0, 0.0), (1.0, 10.0), (2.0, 0.0), (3.0, 10.0)]),
+        Series::new("down", vec![(0.0, 10.0), (1.0, 0.0), (2.0, 10.0), (3.0, 0.0)]).color(3).dashed(),
+    ];
+    let svg = line_plot("corners", &Axis::linear("x"), &Axis::linear("y"), &zigzag);
+    assert_well_formed(&svg);
+    let legend = svg.lines().find(|l| l.contains("fill-opacity")).expect("a legend");
+    let attr = |name: &str| -> Real { legend.split(&format!(" {name}=\"")).nth(1).unwrap().split('"').next().unwrap().parse().unwrap() };
+    let (lx, ly, lw, lh) = (attr("x"), attr("y"), attr("width"), attr("height"));
+    for line in polylines(&svg) {
+        for (x, y) in line {
+            assert!(!(x >= lx && x <= lx + lw && y >= ly && y <= ly + lh), "({x}, {y}) under the legend at {lx} {ly} {lw} {lh}");
+        }
+    }
+    assert_eq!(svg.matches("stroke-dasharray").count(), 2, "the dashed line and its legend entry");
+    assert_eq!(svg.matches("<circle").count(), 8, "short series are marked point by point");
+
+    assert_eq!(significant(0.012345, 3), "0.0123");
+    assert_eq!(significant(4.5678, 3), "4.57");
+    assert_eq!(significant(1234.6, 3), "1235");
+    assert_eq!(significant(0.0, 3), "0");
+    assert_eq!(significant(2.5e-7, 2), "2.5e-7");
+}

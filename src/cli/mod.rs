@@ -253,6 +253,9 @@ fn convert(args: ConvertArgs) -> Result<()> {
     let format = args.format()?;
     // Bad export options fail now, not after the whole pipeline has run.
     args.gltf_options().validate()?;
+    if let Some(report) = &args.report {
+        voltrack::export::check_writable(report)?;
+    }
     let bars = bars::Bars::new();
     let checkpoint = args.track.checkpointing();
     let conv = pipeline::convert(&args.input.input, &voxel, &track, refine.as_ref(), &deform, checkpoint.as_ref(), bars.progress())?;
@@ -293,9 +296,25 @@ fn convert(args: ConvertArgs) -> Result<()> {
         }
     }
     bars.progress().report(Stage::Export, 1, 1);
-    bars.finish();
     let mut seconds = conv.seconds.clone();
     seconds.push((Stage::Export, clock.elapsed().as_secs_f64()));
+    let fit = match &args.report {
+        Some(path) => {
+            let measured = voltrack::report::Measurements::of(&conv, bars.progress())?;
+            let command = std::env::args().collect::<Vec<_>>().join(" ");
+            let report = voltrack::report::ReportInput {
+                seconds: &seconds,
+                output: Some(out),
+                command: Some(&command),
+                ..voltrack::report::ReportInput::new(&conv, &measured, &voxel, &track, refine.as_ref(), &deform)
+            };
+            voltrack::report::write_report(path, &report)?;
+            notes.push(format!("report: {}", path.display()));
+            Some(measured.fit)
+        }
+        None => None,
+    };
+    bars.finish();
     let size = output_size(out);
     let traj = conv.refined.as_ref().map_or(&conv.tracked.trajectories, |r| &r.trajectories);
     println!(
@@ -311,6 +330,10 @@ fn convert(args: ConvertArgs) -> Result<()> {
         println!("  {:>9} {:>8.2} s  {:>5.1} %", stage.name(), s, 100.0 * s / total.max(1e-9));
     }
     println!("  {:>9} {:>8.2} s", "total", total);
+    if let Some(fit) = fit {
+        let s = fit.summary();
+        println!("fit to the input: mean {:.3} %, p95 {:.3} %, max {:.3} % of the diagonal", s.mean, s.p95, s.max);
+    }
     for n in notes {
         println!("{n}");
     }

@@ -207,6 +207,9 @@ pub struct ConvertArgs {
     /// Blending of the centers' motions
     #[arg(long, value_enum, default_value = "dq")]
     pub blend: BlendArg,
+    /// Also write a self-contained HTML report: fit to the input per frame, PCAC/DFU, irregularity, time per stage
+    #[arg(long, value_name = "HTML")]
+    pub report: Option<PathBuf>,
 }
 
 impl ConvertArgs {

@@ -18,14 +18,7 @@ pub fn write_atomic<F>(path: &Path, fill: F) -> Result<()>
 where
     F: FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
 {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        return Err(Error::write(path, format!("the directory {} does not exist", dir.display())));
-    }
-    let name = path.file_name().ok_or_else(|| Error::write(path, "not a file name"))?;
+    let (dir, name) = check_writable(path)?;
     let tmp = dir.join(format!(".{}.{}.partial", name.to_string_lossy(), std::process::id()));
     let result = (|| {
         let file = std::fs::File::create(&tmp)?;
@@ -41,6 +34,20 @@ where
         return Err(Error::write(path, e));
     }
     Ok(())
+}
+
+/// Checks, before any work, that `path` names a file in an existing
+/// directory; returns the directory and the file name.
+pub fn check_writable(path: &Path) -> Result<(&Path, &std::ffi::OsStr)> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(Error::write(path, format!("the directory {} does not exist", dir.display())));
+    }
+    let name = path.file_name().ok_or_else(|| Error::write(path, "not a file name"))?;
+    Ok((dir, name))
 }
 
 /// Writes every frame of a voxelised sequence as `.binvox` into `dir`, named

@@ -1,0 +1,246 @@
+//! The conversion report: the fit of a dynamic mesh to its input files, and
+//! the HTML document built from a whole conversion of the bending bar.
+
+mod common;
+use common::Scratch;
+use std::path::{Path, PathBuf};
+use voltrack::deform::DynamicMesh;
+use voltrack::fixtures::{bending_bar_motion, BENDING_BAR_FRAMES};
+use voltrack::math::Real;
+use voltrack::metrics::{fit_to_inputs, DistanceSummary};
+use voltrack::params::{DeformParams, RefineParams, TrackParams};
+use voltrack::report::{report_html, write_report, Measurements, ReportInput};
+use voltrack::voxel::VoxelParams;
+use voltrack::{Aabb, Error, Progress};
+
+fn fixture_frames() -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/bending_bar");
+    (0..BENDING_BAR_FRAMES).map(|f| dir.join(format!("frame_{f}.obj"))).collect()
+}
+
+fn diagonal_of(paths: &[PathBuf]) -> Real {
+    paths.iter().map(|p| voltrack::io::read_mesh(p).unwrap().bounding_box()).fold(Aabb::empty(), |a, b| a.union(&b)).diagonal()
+}
+
+#[test]
+fn fit_of_the_true_motion_is_zero_and_of_a_still_mesh_is_not() {
+    let paths = fixture_frames();
+    let diagonal = diagonal_of(&paths);
+    let base = voltrack::io::read_mesh(&paths[0]).unwrap();
+    // The bar's own motion applied to frame 0: every frame's surface to the
+    // files' f32 precision, though each input frame is meshed differently,
+    // except at the elbow: the motion leaves the ring at the pivot unrotated
+    // and turns the next ring, so the strip between them depends on how far
+    // apart the rings are (14, 16 or 18 quads along the bar; frames 3 and 6
+    // have frame 0's 14).
+    let truth = DynamicMesh {
+        frames: (0..BENDING_BAR_FRAMES).map(|f| base.positions.iter().map(|p| bending_bar_motion(f, p)).collect()).collect(),
+        base: base.clone(),
+    };
+    let fit = fit_to_inputs(&truth, &paths, diagonal, Progress::none()).unwrap();
+    assert_eq!(fit.frames.len(), BENDING_BAR_FRAMES);
+    assert_eq!(fit.diagonal, diagonal);
+    for (f, x) in fit.frames.iter().enumerate() {
+        let same_rings = f % 3 == 0;
+        for s in [x.result_to_input, x.input_to_result] {
+            assert!(s.p95 < 1e-5, "frame {f}: {x:?}");
+            assert!(if same_rings { s.max < 1e-5 } else { s.max < 1.0 }, "frame {f}: {x:?}");
+        }
+        if !same_rings {
+            assert!(x.two_sided.max > 1e-3, "frame {f}: the elbow strip should show: {x:?}");
+        }
+    }
+    // Frame 0 unmoved for every frame: the bent end is off by up to its
+    // sagitta, most in the last frame.
+    let still = DynamicMesh { frames: vec![base.positions.clone(); BENDING_BAR_FRAMES], base };
+    let fit = fit_to_inputs(&still, &paths, diagonal, Progress::none()).unwrap();
+    assert_eq!(fit.frames[0].two_sided, DistanceSummary::default());
+    let last = &fit.frames[BENDING_BAR_FRAMES - 1];
+    assert!(last.result_to_input.max > 5.0 && last.input_to_result.max > 5.0, "{last:?}");
+    assert_eq!(fit.worst_frame(), BENDING_BAR_FRAMES - 1);
+    assert!(fit.frames.windows(2).all(|w| w[0].two_sided.mean < w[1].two_sided.mean), "{:?}", fit.frames);
+
+    // A frame count that does not match, or a missing file, is an error.
+    assert!(matches!(fit_to_inputs(&still, &paths[1..], diagonal, Progress::none()), Err(Error::InvalidInput(_))));
+    let mut missing = paths.clone();
+    missing[3] = PathBuf::from("no_such_frame.obj");
+    match fit_to_inputs(&still, &missing, diagonal, Progress::none()) {
+        Err(e) => assert!(e.to_string().contains("no_such_frame.obj"), "{e}"),
+        Ok(_) => panic!("a missing frame was measured"),
+    }
+}
+
+/// Checks that the document nests: every tag opened is closed in order
+/// (the report writes void elements as `<meta .../>`), attributes are quoted,
+/// and text holds no raw `<` nor an `&` that starts no entity.
+fn assert_well_formed(html: &str) {
+    let mut stack: Vec<String> = Vec::new();
+    let mut rest = html;
+    let mut elements = 0;
+    while let Some(open) = rest.find('<') {
+        let text = &rest[..open];
+        for (i, _) in text.match_indices('&') {
+            let entity = &text[i + 1..];
+            let end = entity.find(';').unwrap_or_else(|| panic!("bare & in text: {text}"));
+            let name = &entity[..end];
+            let numeric = name.strip_prefix('#').is_some_and(|n| !n.is_empty() && n.chars().all(|c| c.is_ascii_digit()));
+            assert!(numeric || ["amp", "lt", "gt", "quot", "apos"].contains(&name), "unknown entity &{name}; in {text}");
+        }
+        let close = rest[open..].find('>').expect("unclosed tag") + open;
+        let tag = &rest[open + 1..close];
+        assert!(!tag.contains('<'), "'<' inside a tag: {tag}");
+        assert_eq!(tag.matches('"').count() % 2, 0, "unbalanced quotes in {tag}");
+        if let Some(name) = tag.strip_prefix('/') {
+            assert_eq!(stack.pop().as_deref(), Some(name.trim()), "mismatched </{name}>");
+        } else if !tag.ends_with('/') && !tag.starts_with('!') {
+            stack.push(tag.split_whitespace().next().unwrap().to_string());
+            elements += 1;
+        }
+        rest = &rest[close + 1..];
+    }
+    assert!(rest.trim().is_empty(), "text after the root element: {rest}");
+    assert!(stack.is_empty(), "unclosed elements: {stack:?}");
+    assert!(elements > 100, "only {elements} elements");
+}
+
+/// Every text between `<open` and `close`.
+fn between<'a>(html: &'a str, open: &str, close: &str) -> Vec<&'a str> {
+    html.split(open).skip(1).map(|s| &s[..s.find(close).expect("closed")]).collect()
+}
+
+#[test]
+fn report_of_a_conversion() {
+    let dir = Scratch::new("report", "bar");
+    // A folder name that must be escaped wherever it is shown.
+    let input = dir.join("bar <&> \"x\"");
+    std::fs::create_dir(&input).unwrap();
+    for p in fixture_frames() {
+        std::fs::copy(&p, input.join(p.file_name().unwrap())).unwrap();
+    }
+    let voxel = VoxelParams { resolution: 48, ..Default::default() };
+    let track = TrackParams { centers: 150, seed: 3, ..Default::default() };
+    let refine = RefineParams { remove: Some(3), batches: 2, ..Default::default() };
+    let deform = DeformParams::default();
+    let conv = voltrack::pipeline::convert(std::slice::from_ref(&input), &voxel, &track, Some(&refine), &deform, None, Progress::none()).unwrap();
+    let measured = Measurements::of(&conv, Progress::none()).unwrap();
+
+    // The fit: frame 0 is the input mesh itself; later frames are close (the
+    // bar bends by up to 0.84 rad) but not exact.
+    let fit = &measured.fit;
+    assert_eq!(fit.frames.len(), BENDING_BAR_FRAMES);
+    assert!((fit.diagonal - conv.sequence.bounds.diagonal()).abs() == 0.0);
+    assert_eq!(fit.frames[0].result_to_input, DistanceSummary::default());
+    assert_eq!(fit.frames[0].input_to_result, DistanceSummary::default());
+    for (f, x) in fit.frames.iter().enumerate().skip(1) {
+        for s in [&x.result_to_input, &x.input_to_result] {
+            assert!(s.mean > 0.0 && s.mean <= s.p95 && s.p95 <= s.max, "frame {f}: {x:?}");
+            assert!(s.mean < 1.0 && s.p95 < 3.0 && s.max < 8.0, "frame {f} is off by more than a few % of the diagonal: {x:?}");
+        }
+    }
+    let summary = fit.summary();
+    assert!(summary.mean < 0.75, "{summary:?}");
+
+    let glb = dir.join("out <b>.glb");
+    let seconds: Vec<_> = conv.seconds.iter().copied().chain([(voltrack::Stage::Export, 0.25)]).collect();
+    let command = format!("voltrack convert '{}' -r 48 -n 150 --report r.html", input.display());
+    let report = ReportInput {
+        seconds: &seconds,
+        output: Some(&glb),
+        command: Some(&command),
+        ..ReportInput::new(&conv, &measured, &voxel, &track, Some(&refine), &deform)
+    };
+    let html = report_html(&report);
+    assert!(html.starts_with("<!DOCTYPE html>"));
+    assert_well_formed(&html);
+
+    // Self-contained: nothing to fetch, nothing to run. The SVG namespace is
+    // a name, not a resource.
+    let without_namespace = html.replace("xmlns=\"http://www.w3.org/2000/svg\"", "");
+    for bad in ["http://", "https://", "<script", "<link", " src=", " href=", "url(", "@import", "<img", "<iframe"] {
+        assert!(!without_namespace.contains(bad), "{bad} in the report");
+    }
+
+    // Names from the file system are escaped everywhere.
+    assert!(!html.contains("bar <&>") && !html.contains("out <b>"), "unescaped file name");
+    assert!(html.contains("<title>voltrack report: bar &lt;&amp;&gt; &quot;x&quot;</title>"));
+    assert!(html.contains("out &lt;b&gt;.glb"));
+    assert!(html.contains("-r 48 -n 150"));
+
+    // Seven plots, each in a figure whose caption says which way is better.
+    let svgs = between(&html, "<svg", "</svg>");
+    assert_eq!(svgs.len(), 7, "plots");
+    assert_eq!(html.matches("<figure>").count(), 7);
+    for caption in between(&html, "<figcaption>", "</figcaption>") {
+        assert!(caption.contains("is better") || caption.contains("is faster"), "caption without a direction: {caption}");
+    }
+    for title in [
+        "Distance between the result and the input, per frame",
+        "Irregularity curve",
+        "Deviation from uniformity (DFU) per frame",
+        "Refinement: energy of the global optimisation",
+        "Time per stage",
+        "Tracking time per frame",
+        "Tracking iterations per frame",
+    ] {
+        let plot = svgs.iter().find(|s| s.contains(&format!(">{title}</text>"))).unwrap_or_else(|| panic!("no plot titled {title}"));
+        assert!(plot.contains("<polyline") || plot.contains("<rect x="), "{title} draws nothing");
+    }
+    // The fit plot: both directions, three statistics each, one point per frame.
+    let fit_plot = svgs[0];
+    assert_eq!(fit_plot.matches("<polyline").count(), 6);
+    assert_eq!(fit_plot.matches("<circle").count(), 6 * BENDING_BAR_FRAMES);
+    assert_eq!(fit_plot.matches("stroke-dasharray").count(), 3 + 3, "dashed lines and their legend entries");
+    // Irregularity and DFU: before and after refinement.
+    assert_eq!(svgs[1].matches("<polyline").count(), 2);
+    assert_eq!(svgs[2].matches("<polyline").count(), 2);
+    assert!(svgs[1].contains("forward tracking") && svgs[1].contains("after refinement"));
+    // Energy: one line per batch. Stages: one bar each.
+    assert_eq!(svgs[3].matches("<polyline").count(), conv.refined.as_ref().unwrap().batches.len());
+    for stage in ["read", "voxelize", "track", "refine", "deform", "export"] {
+        assert!(svgs[4].contains(&format!(">{stage}</text>")), "no bar for {stage}");
+    }
+
+    // The numbers: header facts, qualities before and after, the fit table.
+    let refined = measured.refined.as_ref().unwrap();
+    for number in [
+        format!("{:.4}", measured.tracked.pcac),
+        format!("{:.4}", refined.pcac),
+        format!("{:.4}", measured.tracked.dfu),
+        format!("{:.4}", refined.dfu),
+        format!("<th>Vertices</th><td>{}</td>", conv.mesh.base.positions.len()),
+        format!("<th>Triangles</th><td>{}</td>", conv.mesh.base.triangles.len()),
+        format!("<th>Frames</th><td>{BENDING_BAR_FRAMES}</td>"),
+        "150 tracked, 147 after removing 3 irregular".to_string(),
+        "48 voxels along the longest side".to_string(),
+        format!("voltrack {}", env!("CARGO_PKG_VERSION")),
+        voltrack::plot::significant(summary.mean, 3),
+    ] {
+        assert!(html.contains(&number), "{number} missing");
+    }
+    assert_eq!(html.matches("<td class=\"file\"><code>frame_").count(), BENDING_BAR_FRAMES, "one table row per frame");
+    for (name, value) in [("centers", "150"), ("rho_gm", "0.0167"), ("blending", "dualquaternion"), ("resolution", "48")] {
+        assert!(html.contains(&format!("<tr><th>{name}</th><td>{value}</td></tr>")), "parameter {name}");
+    }
+
+    // Written whole or not at all.
+    let path = dir.join("report.html");
+    write_report(&path, &report).unwrap();
+    let written = std::fs::read_to_string(&path).unwrap();
+    assert_eq!(written.len(), html.len());
+    assert!(written.contains("<h2>Fit of the result to the input</h2>"));
+    let err = write_report(&dir.join("no/such/dir/report.html"), &report).unwrap_err();
+    assert!(matches!(err, Error::Write { .. }), "{err}");
+    assert!(dir.files().iter().all(|f| !f.contains("partial")), "{:?}", dir.files());
+
+    // Without refinement: no refinement section, one curve per quality plot.
+    let conv = voltrack::pipeline::convert(&[input], &voxel, &track, None, &deform, None, Progress::none()).unwrap();
+    let measured = Measurements::of(&conv, Progress::none()).unwrap();
+    assert!(measured.refined.is_none());
+    let html = report_html(&ReportInput::new(&conv, &measured, &voxel, &track, None, &deform));
+    assert_well_formed(&html);
+    let svgs = between(&html, "<svg", "</svg>");
+    assert_eq!(svgs.len(), 6);
+    assert!(!html.contains("Refinement: energy") && html.contains("<caption>Refinement</caption><tr><td>skipped</td></tr>"));
+    assert_eq!(svgs[1].matches("<polyline").count(), 1);
+    assert!(html.contains("150 (not refined)"));
+}
