@@ -71,9 +71,15 @@ fn voronoi_assignment_equals_a_linear_scan_while_centers_move() {
     let mut centers: Vec<Point3> = (0..60).map(|_| grid.voxel_center((g.next() * grid.len() as Real) as usize) + g.vec(0.05)).collect();
     let mut cells = Assignment::new(&grid, &voxels, vec![NO_OWNER; voxels.len()]);
     let mut moved = Vec::new();
+    // The tracker's index follows the centers (keeping candidate lists); a
+    // fresh one each step must agree with it and with the linear scan.
+    let mut carried = CenterIndex::new(&centers);
     for step in 0..25 {
+        if step > 0 {
+            carried = carried.moved_to(&centers, &moved);
+        }
+        let stats = cells.update(&carried, &moved, false);
         let index = CenterIndex::new(&centers);
-        let stats = cells.update(&index, &moved, false);
         let mut counts = vec![0u32; centers.len()];
         for (k, &v) in voxels.iter().enumerate() {
             let p = grid.voxel_center(v as usize);
@@ -83,13 +89,19 @@ fn voronoi_assignment_equals_a_linear_scan_while_centers_move() {
             let owner = cells.owners[k];
             assert_eq!(d(owner), d(best), "step {step}, voxel {v}: owner {owner} vs nearest {best}");
             assert_eq!(index.nearest_tree(&q), owner.min(best).max(owner), "tree and fast path pick the same center");
+            for hint in [owner, (owner + 7) % centers.len() as u32, NO_OWNER] {
+                assert_eq!(d(carried.nearest(&q, hint)), d(best), "step {step}, voxel {v}, hint {hint}: carried index");
+                assert_eq!(d(index.nearest(&q, hint)), d(best), "step {step}, voxel {v}, hint {hint}: fresh index");
+            }
             counts[owner as usize] += 1;
         }
         assert_eq!(stats.count, counts);
-        // Move: small steps mostly, a few jumps.
+        // Move: small steps mostly, a few jumps; some steps all tiny, so
+        // that candidate lists survive several steps.
         moved.clear();
+        let jumps = if step % 3 == 0 { 0.05 } else { 0.0 };
         for c in centers.iter_mut() {
-            let step = if g.next() < 0.05 { g.vec(1.0) } else { g.vec(0.02) };
+            let step = if g.next() < jumps { g.vec(1.0) } else { g.vec(0.02) };
             *c += step;
             moved.push(step.norm());
         }
@@ -237,4 +249,39 @@ fn too_many_centers_is_a_clear_error() {
     let seq = rigid_sequence(&mesh, &screw(2), 4);
     let e = track(&seq, &TrackParams { centers: 100_000, ..Default::default() }, Default::default()).unwrap_err().to_string();
     assert!(e.contains("frame0.obj") && e.contains("centers"), "{e}");
+}
+
+/// Centers on voxel centers put many voxels at exactly equal distance from
+/// two or more centers (Lloyd's start): the lower index must win everywhere,
+/// on the fresh and on the carried index.
+#[test]
+fn voronoi_ties_go_to_the_lower_index() {
+    let grid = GridSpec { origin: Point3::new(0.0, 0.0, 0.0), voxel_size: 0.5, dims: [24, 20, 16] };
+    let mut g = Lcg(11);
+    let voxels: Vec<u32> = (0..grid.len() as u32).filter(|_| g.next() < 0.6).collect();
+    let mut centers: Vec<Point3> = (0..40).map(|_| grid.voxel_center(voxels[(g.next() * voxels.len() as Real) as usize] as usize)).collect();
+    let mut cells = Assignment::new(&grid, &voxels, vec![NO_OWNER; voxels.len()]);
+    let mut carried = CenterIndex::new(&centers);
+    let mut moved: Vec<Real> = Vec::new();
+    for step in 0..12 {
+        if step > 0 {
+            carried = carried.moved_to(&centers, &moved);
+        }
+        cells.update(&carried, &moved, false);
+        let index = CenterIndex::new(&centers);
+        for (k, &v) in voxels.iter().enumerate() {
+            let p = grid.voxel_center(v as usize);
+            let q = [p.x, p.y, p.z];
+            let best = index.nearest_brute_force(&q);
+            assert_eq!(cells.owners[k], best, "step {step}, voxel {v}: assignment");
+            assert_eq!(index.nearest_tree(&q), best, "step {step}, voxel {v}: tree");
+        }
+        // Whole-voxel moves keep the ties coming.
+        moved.clear();
+        for c in centers.iter_mut() {
+            let d = nalgebra::Vector3::new((g.next() * 3.0).floor() - 1.0, (g.next() * 3.0).floor() - 1.0, 0.0) * grid.voxel_size;
+            *c += d;
+            moved.push(d.norm());
+        }
+    }
 }

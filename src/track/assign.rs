@@ -11,6 +11,10 @@
 //!   when d_b < r_K(o) - |v - o| (r_K(o): distance from o to its K-th nearest
 //!   center; any center outside the list is at least that far from v by the
 //!   triangle inequality). Otherwise a k-d tree answers.
+//!   The lists outlive an iteration ([`CenterIndex::moved_to`]): a center
+//!   outside o's list was at least r_K(o) from o when the list was built,
+//!   and since then the two have moved at most o's own travel plus the sum of
+//!   the largest move of every iteration, so r_K shrinks by that much.
 //! Ties are broken by the lower center index, so the result does not depend
 //! on the number of threads. Both shortcuts are tested against a linear scan.
 
@@ -32,33 +36,84 @@ const CHUNK: usize = 8192;
 
 /// Nearest-center queries over one set of center positions.
 pub struct CenterIndex {
-    tree: ImmutableKdTree<Real, 3>,
+    /// Built on first use: once the centers have settled, the candidate
+    /// lists answer nearly every query.
+    tree: OnceLock<ImmutableKdTree<Real, 3>>,
     points: Vec<[Real; 3]>,
     /// Each center's candidate list, built on first use: most voxels never
     /// need one once the centers have settled.
     knn: Vec<OnceLock<Candidates>>,
     k: usize,
+    /// How far each center has moved, summed over [`CenterIndex::moved_to`] calls.
+    travel: Vec<Real>,
+    /// The largest move of each call, summed: no center moved farther.
+    travel_max: Real,
 }
 
-/// The `k` nearest centers of a center (itself first), and the distance to
-/// the k-th (infinite when the list holds every center).
+/// The `k` nearest centers of a center (itself first), the distance to the
+/// k-th (infinite when the list holds every center) and the travel counters
+/// when the list was built.
 struct Candidates {
     list: Box<[u32]>,
     reach: Real,
+    travel: Real,
+    travel_max: Real,
+}
+
+impl Candidates {
+    /// The reach now, shrunk by the center's travel and the most any other
+    /// center can have travelled since the list was built.
+    #[inline]
+    fn reach_now(&self, travel: Real, travel_max: Real) -> Real {
+        self.reach - (travel - self.travel) - (travel_max - self.travel_max)
+    }
 }
 
 impl CenterIndex {
     pub fn new(centers: &[Point3]) -> Self {
         let points: Vec<[Real; 3]> = centers.iter().map(|p| [p.x, p.y, p.z]).collect();
-        let tree = ImmutableKdTree::new_from_slice(&points).expect("building a k-d tree over finite centers");
         let n = points.len();
-        CenterIndex { tree, points, knn: (0..n).map(|_| OnceLock::new()).collect(), k: CANDIDATES.min(n) }
+        CenterIndex {
+            tree: OnceLock::new(),
+            points,
+            knn: (0..n).map(|_| OnceLock::new()).collect(),
+            k: CANDIDATES.min(n),
+            travel: vec![0.0; n],
+            travel_max: 0.0,
+        }
+    }
+
+    /// The index over `centers`, which are this index's centers moved by
+    /// `moved[i]` each: candidate lists that still certify most queries are
+    /// kept, with their reach shrunk by how far their centers may have moved.
+    pub fn moved_to(mut self, centers: &[Point3], moved: &[Real]) -> Self {
+        assert_eq!(centers.len(), self.points.len());
+        assert_eq!(moved.len(), self.points.len());
+        for (p, c) in self.points.iter_mut().zip(centers) {
+            *p = [c.x, c.y, c.z];
+        }
+        for (t, m) in self.travel.iter_mut().zip(moved) {
+            *t += m;
+        }
+        self.travel_max += moved.iter().copied().fold(0.0, Real::max);
+        self.tree = OnceLock::new();
+        for (slot, &travel) in self.knn.iter_mut().zip(&self.travel) {
+            // Rebuilt (on demand) once half its reach is used up.
+            if slot.get().is_some_and(|c| c.reach_now(travel, self.travel_max) < 0.5 * c.reach) {
+                *slot = OnceLock::new();
+            }
+        }
+        self
+    }
+
+    fn tree(&self) -> &ImmutableKdTree<Real, 3> {
+        self.tree.get_or_init(|| ImmutableKdTree::new_from_slice(&self.points).expect("building a k-d tree over finite centers"))
     }
 
     fn candidates(&self, i: u32) -> &Candidates {
         self.knn[i as usize].get_or_init(|| {
             let mut found: Vec<(Real, u32)> = self
-                .tree
+                .tree()
                 .query(&self.points[i as usize])
                 .nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(self.k).unwrap())
                 .execute()
@@ -67,7 +122,7 @@ impl CenterIndex {
                 .collect();
             found.sort_by(|a, b| a.0.total_cmp(&b.0).then((a.1 != i).cmp(&(b.1 != i))).then(a.1.cmp(&b.1)));
             let reach = if self.k == self.points.len() { Real::INFINITY } else { found.last().map_or(0.0, |r| r.0.sqrt()) };
-            Candidates { list: found.into_iter().map(|r| r.1).collect(), reach }
+            Candidates { list: found.into_iter().map(|r| r.1).collect(), reach, travel: self.travel[i as usize], travel_max: self.travel_max }
         })
     }
 
@@ -91,13 +146,16 @@ impl CenterIndex {
 
     /// Nearest center from the k-d tree, ties to the lower index.
     pub fn nearest_tree(&self, v: &[Real; 3]) -> u32 {
-        let r = self.tree.query(v).nearest_one::<SquaredEuclidean<Real>>().execute();
-        // The tree may return any of several equidistant centers; settle ties.
-        let mut best = (r.distance, r.item);
-        for &c in self.candidates(r.item).list.iter() {
-            let d = self.dist2(c, v);
-            if d < best.0 || (d == best.0 && c < best.1) {
-                best = (d, c);
+        let r = self.tree().query(v).nearest_one::<SquaredEuclidean<Real>>().execute();
+        // The tree may return any of several equidistant centers (common while
+        // centers sit on voxel centers); settle ties over all of them.
+        let d = self.dist2(r.item, v);
+        let reach = d * (1.0 + 1e-9) + Real::MIN_POSITIVE;
+        let mut best = (d, r.item);
+        for c in self.tree().query(v).within::<SquaredEuclidean<Real>>(reach).execute() {
+            let d = self.dist2(c.item, v);
+            if d < best.0 || (d == best.0 && c.item < best.1) {
+                best = (d, c.item);
             }
         }
         best.1
@@ -119,7 +177,7 @@ impl CenterIndex {
                     second = second.min(d);
                 }
             }
-            let bound = cand.reach - self.dist2(hint, v).sqrt();
+            let bound = cand.reach_now(self.travel[hint as usize], self.travel_max) - self.dist2(hint, v).sqrt();
             let d_best = best.0.sqrt();
             // Strict: a center at exactly the bound could tie and win on index.
             if d_best < bound {
@@ -129,7 +187,7 @@ impl CenterIndex {
         if self.points.len() == 1 {
             return (0, self.dist2(0, v).sqrt(), Real::INFINITY);
         }
-        let found = self.tree.query(v).nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(2).unwrap()).execute();
+        let found = self.tree().query(v).nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(2).unwrap()).execute();
         let (a, b) = (&found[0], &found[1]);
         let owner = self.nearest_tree(v);
         // The second distance bounds every center but the owner from below.

@@ -167,13 +167,17 @@ impl<'a> Tracker<'a> {
             cur = predict(&motions, prev);
             t.fit += clock.elapsed().as_secs_f64();
         }
+        let mut index = CenterIndex::new(&cur);
         for _ in 0..self.params.max_iterations {
             if progress.cancelled() {
                 return None;
             }
             t.iterations += 1;
             let clock = Instant::now();
-            let stats = cells.update(&CenterIndex::new(&cur), &moved, false);
+            if !moved.is_empty() {
+                index = index.moved_to(&cur, &moved);
+            }
+            let stats = cells.update(&index, &moved, false);
             t.assign += clock.elapsed().as_secs_f64();
             let clock = Instant::now();
             let motions = fit_all(prev, &cur, &self.affinity);
@@ -198,7 +202,7 @@ impl<'a> Tracker<'a> {
         }
         // The frame's motions and cells at the final positions feed the affinity.
         let clock = Instant::now();
-        let stats = cells.update(&CenterIndex::new(&cur), &moved, true);
+        let stats = cells.update(&index.moved_to(&cur, &moved), &moved, true);
         t.assign += clock.elapsed().as_secs_f64();
         let clock = Instant::now();
         let motions = fit_all(prev, &cur, &self.affinity);

@@ -29,9 +29,13 @@ pub fn seed_centers(grid: &GridSpec, voxels: &[u32], n: usize, seed: u64, iterat
     let mut cells = Assignment::new(grid, voxels, vec![NO_OWNER; voxels.len()]);
     let mut moved = Vec::new();
     let mut steps = 0;
+    let mut index = CenterIndex::new(&centers);
     while steps < iterations {
         steps += 1;
-        let stats = cells.update(&CenterIndex::new(&centers), &moved, false);
+        if !moved.is_empty() {
+            index = index.moved_to(&centers, &moved);
+        }
+        let stats = cells.update(&index, &moved, false);
         moved.clear();
         for (i, c) in centers.iter_mut().enumerate() {
             let step = stats.centroid(i, grid).map_or(nalgebra::Vector3::zeros(), |x| (x - *c) * omega);

@@ -38,22 +38,28 @@ impl Rigid {
 /// With too few or collinear points the rotation is under-determined; a small
 /// pull towards the identity then picks the smallest rotation.
 pub fn fit_rigid(src: &[Point3], dst: &[Point3], pairs: impl Iterator<Item = (usize, Real)> + Clone) -> Rigid {
+    // One pass over the pairs (this is the tracker's inner loop): weighted
+    // sums of p, q and p qᵀ, taken relative to the first pair so that the
+    // covariance H = Σ w p qᵀ - W p̄ q̄ᵀ does not cancel digits away.
+    let Some((j0, _)) = pairs.clone().next() else { return Rigid::identity() };
+    let (p0, q0) = (src[j0].coords, dst[j0].coords);
     let mut wsum = 0.0;
     let mut ps = Vector3::zeros();
     let mut qs = Vector3::zeros();
-    for (j, w) in pairs.clone() {
+    let mut pq = Matrix3::zeros();
+    for (j, w) in pairs {
+        let (p, q) = (src[j].coords - p0, dst[j].coords - q0);
+        let wp = w * p;
         wsum += w;
-        ps += w * src[j].coords;
-        qs += w * dst[j].coords;
+        ps += wp;
+        qs += w * q;
+        pq += wp * q.transpose();
     }
     if !(wsum > 0.0) {
         return Rigid::identity();
     }
-    let (pm, qm) = (ps / wsum, qs / wsum);
-    let mut h = Matrix3::zeros();
-    for (j, w) in pairs {
-        h += w * (src[j].coords - pm) * (dst[j].coords - qm).transpose();
-    }
+    let h = pq - ps * (qs / wsum).transpose();
+    let (pm, qm) = (p0 + ps / wsum, q0 + qs / wsum);
     let mut svd = h.svd(true, true);
     if svd.singular_values[1] <= 1e-10 * svd.singular_values[0] {
         // Rank <= 1 (collinear or too few points): the rotation about the line
