@@ -135,13 +135,7 @@ pub fn line_plot(title: &str, x: &Axis, y: &Axis, series: &[Series]) -> String {
     };
     let sy = |v: Real| TOP + ph - (v - y0) / (y1 - y0) * ph;
 
-    let mut svg = String::new();
-    let _ = writeln!(
-        svg,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{HEIGHT}" viewBox="0 0 {WIDTH} {HEIGHT}" font-family="sans-serif" font-size="12">"#
-    );
-    let _ = writeln!(svg, r#"<rect width="100%" height="100%" fill="white"/>"#);
-    let _ = writeln!(svg, r#"<text x="{}" y="22" text-anchor="middle" font-size="15">{}</text>"#, WIDTH / 2.0, escape(title));
+    let mut svg = svg_start(HEIGHT, title);
     let _ = writeln!(svg, r##"<rect x="{LEFT}" y="{TOP}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##);
     for (v, label) in ticks(x0, x1, x) {
         let px = sx(v);
@@ -232,13 +226,7 @@ pub fn bar_chart(title: &str, value_axis: &str, unit: &str, bars: &[(String, Rea
     let sx = |v: Real| LABELS + v / top * pw;
     let axis_y = TOP + bars.len() as Real * (BAR + GAP);
 
-    let mut svg = String::new();
-    let _ = writeln!(
-        svg,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{height}" viewBox="0 0 {WIDTH} {height}" font-family="sans-serif" font-size="12">"#
-    );
-    let _ = writeln!(svg, r#"<rect width="100%" height="100%" fill="white"/>"#);
-    let _ = writeln!(svg, r#"<text x="{}" y="22" text-anchor="middle" font-size="15">{}</text>"#, WIDTH / 2.0, escape(title));
+    let mut svg = svg_start(height, title);
     for (v, label) in linear_ticks(0.0, top, false) {
         let px = sx(v);
         let _ = writeln!(svg, r##"<line x1="{px:.1}" y1="{TOP}" x2="{px:.1}" y2="{}" stroke="#ddd"/>"##, axis_y + 5.0);
@@ -336,4 +324,16 @@ fn log_label(m: Real, e: i32) -> String {
 /// `s` safe as XML/HTML text or a quoted attribute value.
 pub fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+/// The opening of a plot: the root element, a white background and the title.
+fn svg_start(height: Real, title: &str) -> String {
+    let mut svg = String::new();
+    let _ = writeln!(
+        svg,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{height}" viewBox="0 0 {WIDTH} {height}" font-family="sans-serif" font-size="12">"#
+    );
+    let _ = writeln!(svg, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ = writeln!(svg, r#"<text x="{}" y="22" text-anchor="middle" font-size="15">{}</text>"#, WIDTH / 2.0, escape(title));
+    svg
 }

@@ -2,6 +2,8 @@
 //! eigen-decomposition routes of PCAC against a direct implementation of the
 //! definition, irregularity against brute force, and the SVG curve.
 
+mod common;
+use common::assert_well_formed;
 use nalgebra::{DMatrix, DVector, Rotation3, SymmetricEigen, Vector3};
 use voltrack::math::{Point3, Real};
 use voltrack::metrics::{dfu, irregularity, irregularity_curve_svg, irregularity_curves_svg, pcac};
@@ -335,37 +337,6 @@ fn irregularity_edge_cases_and_threads() {
     let one = run(1);
     assert_eq!(one, run(4));
     assert_eq!(one, irregularity_brute_force(&t));
-}
-
-/// Checks that `svg` is well-formed XML as far as these plots go: tags nest
-/// and close, attributes are quoted, text holds no raw `<` or bare `&`.
-fn assert_well_formed(svg: &str) {
-    let mut stack: Vec<String> = Vec::new();
-    let mut rest = svg;
-    while let Some(open) = rest.find('<') {
-        let text = &rest[..open];
-        for (i, _) in text.match_indices('&') {
-            let entity = &text[i..];
-            assert!(
-                ["&amp;", "&lt;", "&gt;", "&quot;", "&apos;"].iter().any(|e| entity.starts_with(e)),
-                "bare & in text: {text}"
-            );
-        }
-        let close = rest[open..].find('>').expect("unclosed tag") + open;
-        let tag = &rest[open + 1..close];
-        assert!(!tag.contains('<'), "'<' inside a tag: {tag}");
-        assert_eq!(tag.matches('"').count() % 2, 0, "unbalanced quotes in {tag}");
-        if let Some(name) = tag.strip_prefix('/') {
-            assert_eq!(stack.pop().as_deref(), Some(name.trim()), "mismatched </{name}>");
-        } else if !tag.ends_with('/') && !tag.starts_with('?') && !tag.starts_with('!') {
-            stack.push(tag.split_whitespace().next().unwrap().to_string());
-        } else {
-            assert!(stack.first().is_some_and(|s| s == "svg") || tag.starts_with('?') || tag.starts_with('!'), "element outside <svg>");
-        }
-        rest = &rest[close + 1..];
-    }
-    assert!(rest.trim().is_empty(), "text after the root element: {rest}");
-    assert!(stack.is_empty(), "unclosed elements: {stack:?}");
 }
 
 /// The numbers of every `points` attribute of the polylines.

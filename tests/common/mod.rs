@@ -61,3 +61,36 @@ pub fn voxel_sequence(meshes: &[voltrack::TriangleMesh], resolution: usize) -> v
         voxelize_seconds: 0.0,
     }
 }
+
+/// Checks that an HTML or SVG document nests: every tag opened is closed in order
+/// (void elements written as `<meta .../>`), attributes are quoted,
+/// and text holds no raw `<` nor an `&` that starts no entity.
+pub fn assert_well_formed(html: &str) -> usize {
+    let mut stack: Vec<String> = Vec::new();
+    let mut rest = html;
+    let mut elements = 0;
+    while let Some(open) = rest.find('<') {
+        let text = &rest[..open];
+        for (i, _) in text.match_indices('&') {
+            let entity = &text[i + 1..];
+            let end = entity.find(';').unwrap_or_else(|| panic!("bare & in text: {text}"));
+            let name = &entity[..end];
+            let numeric = name.strip_prefix('#').is_some_and(|n| !n.is_empty() && n.chars().all(|c| c.is_ascii_digit()));
+            assert!(numeric || ["amp", "lt", "gt", "quot", "apos"].contains(&name), "unknown entity &{name}; in {text}");
+        }
+        let close = rest[open..].find('>').expect("unclosed tag") + open;
+        let tag = &rest[open + 1..close];
+        assert!(!tag.contains('<'), "'<' inside a tag: {tag}");
+        assert_eq!(tag.matches('"').count() % 2, 0, "unbalanced quotes in {tag}");
+        if let Some(name) = tag.strip_prefix('/') {
+            assert_eq!(stack.pop().as_deref(), Some(name.trim()), "mismatched </{name}>");
+        } else if !tag.ends_with('/') && !tag.starts_with('!') && !tag.starts_with('?') {
+            stack.push(tag.split_whitespace().next().unwrap().to_string());
+            elements += 1;
+        }
+        rest = &rest[close + 1..];
+    }
+    assert!(rest.trim().is_empty(), "text after the root element: {rest}");
+    assert!(stack.is_empty(), "unclosed elements: {stack:?}");
+    elements
+}
