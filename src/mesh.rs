@@ -66,7 +66,8 @@ impl TriangleMesh {
     }
 
     /// Checks what every stage relies on: at least one triangle, finite
-    /// coordinates, indices in range. `path` names the file in the error.
+    /// coordinates of a measurable extent, indices in range, and some triangle
+    /// of non-zero area. `path` names the file in the error.
     pub fn validate(&self, path: &Path) -> Result<()> {
         if self.triangles.is_empty() {
             return Err(Error::mesh(path, "the mesh has no triangles"));
@@ -81,7 +82,27 @@ impl TriangleMesh {
                 format!("triangle {} refers to a vertex beyond the {n} defined", t + 1),
             ));
         }
+        // A few degenerate triangles are normal in captures; only degenerate
+        // ones make no surface. "Zero" is relative to the mesh's size, so
+        // points rounded onto a common line count as collinear.
+        let diagonal = self.bounding_box().diagonal();
+        if !diagonal.is_finite() {
+            return Err(Error::mesh(path, "the coordinates are too large: the bounding box's diagonal overflows"));
+        }
+        let tiny = 1e-12 * diagonal.powi(2);
+        if !self.triangles.iter().any(|t| self.doubled_area(t) > tiny) {
+            return Err(Error::mesh(
+                path,
+                format!("all {} triangles are degenerate (zero area): the mesh has no surface", self.triangles.len()),
+            ));
+        }
         Ok(())
+    }
+
+    /// Twice the area of a triangle.
+    fn doubled_area(&self, t: &[u32; 3]) -> Real {
+        let [a, b, c] = t.map(|i| self.positions[i as usize]);
+        (b - a).cross(&(c - a)).norm()
     }
 
     /// Signed volume enclosed (exact for closed, consistently oriented meshes).

@@ -99,6 +99,7 @@ fn print_json(value: &serde_json::Value) -> Result<()> {
 
 fn voxelize(input: InputArgs, output: PathBuf, json: bool) -> Result<()> {
     let params = input.voxel_params();
+    voltrack::export::check_dir_creatable(&output)?;
     let bars = bars::Bars::new();
     let seq = pipeline::load(&input.input, &params, bars.progress())?;
     let written = voltrack::export::write_binvox_frames(&seq, &output)?;
@@ -140,6 +141,7 @@ fn quality_json(q: &Quality) -> serde_json::Value {
 fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Option<RefineArgs>, json: bool) -> Result<()> {
     let voxel = input.voxel_params();
     let params = track.params();
+    voltrack::export::check_writable(&output)?;
     let bars = bars::Bars::new();
     let seq = pipeline::load(&input.input, &voxel, bars.progress())?;
     let tracked = voltrack::track::track_with_checkpoints(&seq, &params, track.checkpointing().as_ref(), bars.progress())?;
@@ -192,6 +194,7 @@ fn load_tracked(centers: &Path, input: &[PathBuf], bars: &bars::Bars) -> Result<
 }
 
 fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: RefineArgs, json: bool) -> Result<()> {
+    voltrack::export::check_writable(&output)?;
     let bars = bars::Bars::new();
     let (traj, attrs, seq) = load_tracked(&centers, &input, &bars)?;
     let params = args.params();
@@ -251,8 +254,10 @@ fn convert(args: ConvertArgs) -> Result<()> {
     let refine = (!args.no_refine).then(|| args.refine.params());
     let deform = args.deform_params();
     let format = args.format()?;
-    // Bad export options fail now, not after the whole pipeline has run.
+    // Bad export options and output paths fail now, not after the whole
+    // pipeline has run.
     args.gltf_options().validate()?;
+    check_outputs(format, &args.output)?;
     if let Some(report) = &args.report {
         voltrack::export::check_writable(report)?;
     }
@@ -342,6 +347,20 @@ fn convert(args: ConvertArgs) -> Result<()> {
 }
 
 /// Bytes under `path` (a file, or a directory of files).
+/// Checks every path `format` writes for `out`.
+fn check_outputs(format: OutputFormat, out: &Path) -> Result<()> {
+    let files = match format {
+        OutputFormat::Glb | OutputFormat::Exr => vec![out.to_path_buf()],
+        OutputFormat::Vat => vec![out.to_path_buf(), out.with_extension("json")],
+        OutputFormat::Pc2 => vec![out.to_path_buf(), out.with_extension("obj")],
+        OutputFormat::ObjSequence => return Ok(voltrack::export::check_dir_creatable(out)?),
+    };
+    for file in &files {
+        voltrack::export::check_writable(file)?;
+    }
+    Ok(())
+}
+
 fn output_size(path: &Path) -> u64 {
     if path.is_dir() {
         std::fs::read_dir(path).map(|d| d.flatten().filter_map(|e| e.metadata().ok()).map(|m| m.len()).sum()).unwrap_or(0)

@@ -6,7 +6,7 @@
 //! extra attributes in a `HashMap` and writes them in its random order, so one
 //! attribute is what keeps the file bit-identical from run to run.
 
-use super::write_atomic;
+use super::{write_atomic, write_atomic_all};
 use crate::error::{Error, Result};
 use crate::math::Point3;
 use crate::mesh::Aabb;
@@ -23,7 +23,8 @@ pub const METADATA_ATTRIBUTE: &str = "voltrack";
 /// the tool version) in the header.
 pub fn write_trajectories_exr(path: &Path, traj: &Trajectories, attributes: &[(String, String)]) -> Result<()> {
     let pixel = |x: usize, y: usize| traj.get(y, x);
-    write_points_exr(path, "trajectories", traj.centers, traj.frames, pixel, attributes)
+    let bytes = encode_points_exr(path, "trajectories", traj.centers, traj.frames, pixel, attributes)?;
+    write_atomic(path, |w| w.write_all(&bytes))
 }
 
 /// Writes per-vertex positions as a vertex-animation texture (width =
@@ -49,19 +50,24 @@ pub fn write_vat_exr(path: &Path, frames: &[Vec<Point3>]) -> Result<()> {
         "software": concat!("voltrack ", env!("CARGO_PKG_VERSION")),
     });
     let attrs = vec![("vat".to_string(), info.to_string())];
-    write_points_exr(path, "vertex animation", vertices, frames.len(), |x, y| frames[y][x], &attrs)?;
+    let bytes = encode_points_exr(path, "vertex animation", vertices, frames.len(), |x, y| frames[y][x], &attrs)?;
     let text = serde_json::to_string_pretty(&info).map_err(|e| Error::write(&sidecar, e))?;
-    write_atomic(&sidecar, |w| w.write_all(text.as_bytes()))
+    // Both or neither: the texture cannot be decoded without its bounds.
+    write_atomic_all(vec![
+        (path, Box::new(|w: &mut _| w.write_all(&bytes))),
+        (&sidecar, Box::new(|w: &mut _| w.write_all(text.as_bytes()))),
+    ])
 }
 
-fn write_points_exr(
+/// The OpenEXR file of `width` × `height` points; `path` names it in errors.
+fn encode_points_exr(
     path: &Path,
     name: &str,
     width: usize,
     height: usize,
     pixel: impl Fn(usize, usize) -> Point3 + Sync,
     attributes: &[(String, String)],
-) -> Result<()> {
+) -> Result<Vec<u8>> {
     if width == 0 || height == 0 {
         return Err(Error::InvalidInput(format!("nothing to write to {}: {width} × {height} points", path.display())));
     }
@@ -95,7 +101,7 @@ fn write_points_exr(
         .non_parallel()
         .to_buffered(&mut bytes)
         .map_err(|e| Error::write(path, e))?;
-    write_atomic(path, |w| w.write_all(bytes.get_ref()))
+    Ok(bytes.into_inner())
 }
 
 /// JSON with every non-ASCII character escaped (`\uXXXX`, surrogate pairs

@@ -1,5 +1,6 @@
-//! Writing results (glTF, OBJ, PLY, binvox, EXR). Every writer goes through [`write_atomic`], so a failure
-//! never leaves a half-written file behind.
+//! Writing results (glTF, OBJ, PLY, binvox, EXR). Every writer goes through [`write_atomic`]
+//! (or [`write_atomic_all`] for files that belong together), so a failure never leaves a
+//! half-written file behind.
 
 pub mod basis;
 pub mod exr;
@@ -10,7 +11,7 @@ pub mod ply;
 
 use crate::error::{Error, Result};
 use std::io::{BufWriter, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Writes `path` through a temporary file in the same directory, renamed into
 /// place only when `fill` succeeded.
@@ -18,51 +19,127 @@ pub fn write_atomic<F>(path: &Path, fill: F) -> Result<()>
 where
     F: FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
 {
-    let (dir, name) = check_writable(path)?;
-    let tmp = dir.join(format!(".{}.{}.partial", name.to_string_lossy(), std::process::id()));
-    let result = (|| {
-        let file = std::fs::File::create(&tmp)?;
-        let mut w = BufWriter::new(file);
-        fill(&mut w)?;
-        w.flush()?;
-        w.get_ref().sync_all()?;
-        drop(w);
-        std::fs::rename(&tmp, path)
-    })();
-    if let Err(e) = result {
+    let tmp = temporary(path)?;
+    if let Err(e) = fill_temporary(&tmp, fill).and_then(|()| std::fs::rename(&tmp, path)) {
         let _ = std::fs::remove_file(&tmp);
         return Err(Error::write(path, e));
     }
     Ok(())
 }
 
+/// What fills one file of [`write_atomic_all`].
+pub type Fill<'a> = Box<dyn FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()> + 'a>;
+
+/// Writes files that belong together (a texture and its sidecar, a point
+/// cache and its mesh) as one: each through its temporary file, renamed into
+/// place only once all are complete. On failure none is left, not even one
+/// already renamed.
+pub fn write_atomic_all(files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
+    let mut written: Vec<(PathBuf, &Path)> = Vec::with_capacity(files.len());
+    let discard = |temps: &[(PathBuf, &Path)]| temps.iter().for_each(|(tmp, _)| drop(std::fs::remove_file(tmp)));
+    for (path, fill) in files {
+        let filled = temporary(path).and_then(|tmp| {
+            written.push((tmp.clone(), path));
+            fill_temporary(&tmp, fill).map_err(|e| Error::write(path, e))
+        });
+        if let Err(e) = filled {
+            discard(&written);
+            return Err(e);
+        }
+    }
+    for (k, (tmp, path)) in written.iter().enumerate() {
+        if let Err(e) = std::fs::rename(tmp, path) {
+            discard(&written[k..]);
+            written[..k].iter().for_each(|(_, done)| drop(std::fs::remove_file(done)));
+            return Err(Error::write(path, e));
+        }
+    }
+    Ok(())
+}
+
 /// Checks, before any work, that `path` names a file in an existing
-/// directory; returns the directory and the file name.
+/// directory and is not itself a directory; returns the directory and the
+/// file name.
 pub fn check_writable(path: &Path) -> Result<(&Path, &std::ffi::OsStr)> {
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        return Err(Error::write(path, format!("the directory {} does not exist", dir.display())));
+        let why = if dir.exists() { "is not a directory" } else { "does not exist" };
+        return Err(Error::write(path, format!("{} {why}", dir.display())));
+    }
+    if path.is_dir() {
+        return Err(Error::write(path, "a directory of this name exists"));
     }
     let name = path.file_name().ok_or_else(|| Error::write(path, "not a file name"))?;
     Ok((dir, name))
 }
 
-/// Writes every frame of a voxelised sequence as `.binvox` into `dir`, named
-/// after the input files.
-pub fn write_binvox_frames(seq: &crate::voxel::VoxelSequence, dir: &Path) -> Result<Vec<std::path::PathBuf>> {
+/// [`write_atomic_all`] for files in `dir`, which is created if needed; on
+/// failure neither the files nor a directory this call created are left.
+pub fn write_atomic_into(dir: &Path, files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
+    // The directories this call creates, innermost first.
+    let created: Vec<&Path> = dir.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).collect();
     std::fs::create_dir_all(dir).map_err(|e| Error::write(dir, e))?;
-    let mut written = Vec::new();
-    for (occ, src) in seq.frames.iter().zip(&seq.paths) {
+    write_atomic_all(files).inspect_err(|_| created.iter().for_each(|d| drop(std::fs::remove_dir(d))))
+}
+
+/// Fails unless `dir` is a directory or can be made one: no file has its
+/// name and its nearest existing ancestor is a directory. For checking an
+/// output directory before a long run, as [`check_writable`] does for files.
+pub fn check_dir_creatable(dir: &Path) -> Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(Error::write(dir, "a file of this name exists"));
+    }
+    match dir.ancestors().skip(1).find(|a| a.as_os_str().is_empty() || a.exists()) {
+        Some(a) if !a.as_os_str().is_empty() && !a.is_dir() => Err(Error::write(dir, format!("{} is not a directory", a.display()))),
+        _ => Ok(()),
+    }
+}
+
+/// The temporary file `path` is written through: beside it, so that the
+/// rename stays on one file system.
+fn temporary(path: &Path) -> Result<PathBuf> {
+    let (dir, name) = check_writable(path)?;
+    Ok(dir.join(format!(".{}.{}.partial", name.to_string_lossy(), std::process::id())))
+}
+
+/// Creates `tmp`, fills it and syncs it to disk.
+fn fill_temporary<F>(tmp: &Path, fill: F) -> std::io::Result<()>
+where
+    F: FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
+{
+    let mut w = BufWriter::new(std::fs::File::create(tmp)?);
+    fill(&mut w)?;
+    w.flush()?;
+    w.get_ref().sync_all()
+}
+
+/// Writes every frame of a voxelised sequence as `.binvox` into `dir`
+/// (created if needed), named after the input files. On failure nothing is
+/// left: neither the frames written so far nor a directory it created.
+pub fn write_binvox_frames(seq: &crate::voxel::VoxelSequence, dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut outputs: Vec<PathBuf> = Vec::with_capacity(seq.paths.len());
+    for (k, src) in seq.paths.iter().enumerate() {
         let stem = src.file_stem().unwrap_or_default().to_string_lossy();
         let out = dir.join(format!("{stem}.binvox"));
-        if written.contains(&out) {
-            return Err(Error::InvalidInput(format!("two input frames are both named {stem}; outputs would collide")));
+        if let Some(j) = outputs.iter().position(|o| *o == out) {
+            return Err(Error::InvalidInput(format!(
+                "{} and {} would both be written as {}: rename one",
+                seq.paths[j].display(),
+                seq.paths[k].display(),
+                out.display()
+            )));
         }
-        write_atomic(&out, |w| crate::io::write_binvox(w, &seq.grid, occ))?;
-        written.push(out);
+        outputs.push(out);
     }
-    Ok(written)
+    let files = seq
+        .frames
+        .iter()
+        .zip(&outputs)
+        .map(|(occ, out)| (out.as_path(), Box::new(move |w: &mut BufWriter<std::fs::File>| crate::io::write_binvox(w, &seq.grid, occ)) as Fill))
+        .collect();
+    write_atomic_into(dir, files)?;
+    Ok(outputs)
 }

@@ -1,7 +1,7 @@
 //! Wavefront OBJ writing: one mesh, or every frame of a dynamic mesh.
 
 use crate::deform::DynamicMesh;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::math::Point3;
 use crate::mesh::TriangleMesh;
 use std::io::Write;
@@ -36,15 +36,13 @@ pub fn write_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3]
 /// file, only the positions change. Returns the paths in frame order.
 pub fn write_obj_sequence(dir: &Path, mesh: &DynamicMesh) -> Result<Vec<PathBuf>> {
     super::basis::check_frames(mesh)?;
-    std::fs::create_dir_all(dir).map_err(|e| Error::write(dir, e))?;
     let width = (mesh.frames.len() - 1).to_string().len().max(4);
-    mesh.frames
+    let paths: Vec<PathBuf> = (0..mesh.frames.len()).map(|f| dir.join(format!("frame_{f:0width$}.obj"))).collect();
+    let files = paths
         .iter()
-        .enumerate()
-        .map(|(f, positions)| {
-            let path = dir.join(format!("frame_{f:0width$}.obj"));
-            super::write_atomic(&path, |w| write_obj(w, &mesh.base, positions))?;
-            Ok(path)
-        })
-        .collect()
+        .zip(&mesh.frames)
+        .map(|(path, positions)| (path.as_path(), Box::new(move |w: &mut _| write_obj(w, &mesh.base, positions)) as super::Fill))
+        .collect();
+    super::write_atomic_into(dir, files)?;
+    Ok(paths)
 }

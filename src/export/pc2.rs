@@ -3,11 +3,12 @@
 
 use super::basis::check_frames;
 use super::obj::write_obj;
-use super::write_atomic;
+use super::write_atomic_all;
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::mesh::TriangleMesh;
-use std::io::Write;
+use std::fs::File;
+use std::io::{BufWriter, Write};
 use std::path::Path;
 
 /// Writes the frames of `mesh` as a PC2 point cache at `path` and frame 0 as
@@ -49,7 +50,8 @@ pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32) -> Result<()> {
         uvs: base.uvs.as_ref().map(|uv| kept.iter().map(|&v| uv[v]).collect()),
         ..Default::default()
     };
-    write_atomic(path, |w| {
+    let cache = path.file_name().unwrap_or_default().to_string_lossy();
+    let write_cache = |w: &mut BufWriter<File>| {
         w.write_all(b"POINTCACHE2\0")?;
         w.write_all(&1i32.to_le_bytes())?;
         w.write_all(&points.to_le_bytes())?;
@@ -64,10 +66,11 @@ pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32) -> Result<()> {
             }
         }
         Ok(())
-    })?;
-    let cache = path.file_name().unwrap_or_default().to_string_lossy();
-    write_atomic(&obj_path, |w| {
+    };
+    let write_mesh = |w: &mut BufWriter<File>| {
         writeln!(w, "# Mesh Cache {cache}: {samples} frames at {fps} fps, start frame 0, one sample per frame")?;
         write_obj(w, &obj, &obj.positions)
-    })
+    };
+    // Both or neither: a cache without its mesh is of no use.
+    write_atomic_all(vec![(path, Box::new(write_cache)), (&obj_path, Box::new(write_mesh))])
 }

@@ -64,6 +64,16 @@ pub fn read_binvox(path: &Path, bytes: &[u8]) -> Result<(GridSpec, Occupancy)> {
     if total as u64 > u32::MAX as u64 {
         return Err(Error::parse(path, None, "grid too large"));
     }
+    // Each run of the data covers at most 255 voxels: a header announcing more
+    // voxels than the file can describe fails before anything is allocated.
+    let covered = (bytes.len() - pos) / 2 * 255;
+    if covered < total {
+        return Err(Error::parse(
+            path,
+            None,
+            format!("the data covers at most {covered} of the {total} voxels the header announces; is the file cut short?"),
+        ));
+    }
     let [nx, ny, nz] = dims;
     let mut occupied = vec![false; total];
     let mut file_index = 0usize;

@@ -1,5 +1,9 @@
 //! glTF 2.0 (.gltf with external or embedded buffers, and .glb): every triangle
 //! primitive of the default scene, with node transforms applied.
+//!
+//! The gltf crate's validation and readers take parts of the document on
+//! trust (they index, subtract and multiply unchecked, and assert on element
+//! types), so what they rely on is checked here first.
 
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
@@ -7,14 +11,44 @@ use crate::mesh::TriangleMesh;
 use nalgebra::Matrix4;
 use std::path::Path;
 
+/// Largest external buffer file read.
+const MAX_BUFFER_BYTES: u64 = 1 << 32;
+
 pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
-    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| Error::parse(path, None, format!("invalid glTF: {e}")))?;
-    let doc = &gltf.document;
+    let invalid = |e: &dyn std::fmt::Display| {
+        let text = e.to_string();
+        Error::parse(path, None, if text.starts_with("invalid glTF") { text } else { format!("invalid glTF: {text}") })
+    };
+    // The crate subtracts the header's size from the declared length unchecked.
+    if let Some(declared) = bytes.strip_prefix(b"glTF").and_then(|b| b.get(4..8)) {
+        let declared = u32::from_le_bytes(declared.try_into().expect("4 bytes"));
+        if declared < 12 {
+            return Err(invalid(&format!("the GLB header declares a length of {declared} bytes, less than the header itself")));
+        }
+    }
+    let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| invalid(&e))?;
+    let blob = gltf.blob;
+    let json = gltf.document.into_json();
+    // gltf-json's validation indexes the accessors by POSITION unchecked.
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for prim in &mesh.primitives {
+            for (semantic, index) in &prim.attributes {
+                if index.value() >= json.accessors.len() {
+                    return Err(invalid(&format!(
+                        "mesh {m}: its {} refers to accessor {}, but there are {}",
+                        semantic.to_string(),
+                        index.value(),
+                        json.accessors.len()
+                    )));
+                }
+            }
+        }
+    }
+    let doc = gltf::Document::from_json(json).map_err(|e| invalid(&e))?;
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for buffer in doc.buffers() {
         let data = match buffer.source() {
-            gltf::buffer::Source::Bin => gltf
-                .blob
+            gltf::buffer::Source::Bin => blob
                 .clone()
                 .ok_or_else(|| Error::parse(path, None, "the GLB has no binary chunk but a buffer refers to it"))?,
             gltf::buffer::Source::Uri(uri) => load_uri(path, uri)?,
@@ -32,13 +66,21 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         .default_scene()
         .or_else(|| doc.scenes().next())
         .ok_or_else(|| Error::mesh(path, "the file has no scene"))?;
+    // One vertex per byte of input is already far more than any capture
+    // needs: the bound on what instancing one mesh in many nodes may make.
+    let budget = (bytes.len() + buffers.iter().map(Vec::len).sum::<usize>()).max(1 << 20);
     let mut mesh = TriangleMesh::default();
     let mut stack: Vec<(gltf::Node, Matrix4<Real>)> = scene.nodes().map(|n| (n, Matrix4::identity())).collect();
-    let mut visited = 0usize;
+    // glTF node hierarchies are trees: a node reached twice has two parents
+    // or is in a cycle, and would be drawn again (2^k times down k layers).
+    let mut seen = vec![false; doc.nodes().len()];
     while let Some((node, parent)) = stack.pop() {
-        visited += 1;
-        if visited > 1_000_000 {
-            return Err(Error::parse(path, None, "the node hierarchy is cyclic"));
+        if std::mem::replace(&mut seen[node.index()], true) {
+            return Err(Error::parse(
+                path,
+                None,
+                format!("node {} is reached twice from the scene (it has more than one parent, or is in a cycle): glTF node hierarchies must be trees", node.index()),
+            ));
         }
         let local = Matrix4::from_fn(|r, c| node.transform().matrix()[c][r] as Real);
         let world = parent * local;
@@ -49,6 +91,13 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
                     continue;
                 }
                 append_primitive(path, &prim, &buffers, &world, &mut mesh)?;
+                if mesh.positions.len() > budget {
+                    return Err(Error::parse(
+                        path,
+                        None,
+                        format!("the scene instances its meshes into more than {budget} vertices, one per byte of input"),
+                    ));
+                }
             }
         }
         stack.extend(node.children().map(|c| (c, world)));
@@ -64,19 +113,35 @@ fn append_primitive(
     world: &Matrix4<Real>,
     mesh: &mut TriangleMesh,
 ) -> Result<()> {
+    use gltf::accessor::{DataType, Dimensions};
+    let position = prim.get(&gltf::Semantic::Positions).ok_or_else(|| Error::mesh(path, "a triangle primitive has no POSITION"))?;
+    check_accessor(path, &position, "POSITION", buffers)?;
+    if (position.dimensions(), position.data_type()) != (Dimensions::Vec3, DataType::F32) {
+        return Err(accessor_error(path, &position, "POSITION", "not VEC3 of float"));
+    }
+    if let Some(indices) = prim.indices() {
+        check_accessor(path, &indices, "indices", buffers)?;
+        if indices.dimensions() != Dimensions::Scalar || !matches!(indices.data_type(), DataType::U8 | DataType::U16 | DataType::U32) {
+            return Err(accessor_error(path, &indices, "indices", "not SCALAR of unsigned byte, short or int"));
+        }
+    }
     let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
     let base = mesh.positions.len() as u32;
     let positions: Vec<[f32; 3]> = reader
         .read_positions()
-        .ok_or_else(|| Error::mesh(path, "a triangle primitive has no POSITION"))?
+        .ok_or_else(|| accessor_error(path, &position, "POSITION", "its data lies outside its buffer"))?
         .collect();
+    if mesh.positions.len() + positions.len() > u32::MAX as usize {
+        return Err(Error::mesh(path, "more than 2^32 vertices"));
+    }
     let n = positions.len() as u32;
     mesh.positions.extend(positions.iter().map(|p| {
         world.transform_point(&Point3::new(p[0] as Real, p[1] as Real, p[2] as Real))
     }));
-    let indices: Vec<u32> = match reader.read_indices() {
-        Some(ix) => ix.into_u32().collect(),
-        None => (0..n).collect(),
+    let indices: Vec<u32> = match (prim.indices(), reader.read_indices()) {
+        (None, _) => (0..n).collect(),
+        (Some(_), Some(ix)) => ix.into_u32().collect(),
+        (Some(a), None) => return Err(accessor_error(path, &a, "indices", "its data lies outside its buffer")),
     };
     if let Some(&bad) = indices.iter().find(|&&i| i >= n) {
         return Err(Error::mesh(path, format!("index {bad} is beyond the primitive's {n} vertices")));
@@ -93,6 +158,53 @@ fn append_primitive(
     Ok(())
 }
 
+fn accessor_error(path: &Path, accessor: &gltf::Accessor, what: &str, problem: impl std::fmt::Display) -> Error {
+    Error::parse(path, None, format!("accessor {} ({what}): {problem}", accessor.index()))
+}
+
+/// What the gltf crate's accessor iterators assume: 1 ..= 2^32 - 1 elements,
+/// strides no smaller than an element, and every element inside its buffer
+/// view and every view inside its buffer; a sparse accessor without a view
+/// (zeros, then the sparse values) no longer than the buffers are in bytes.
+fn check_accessor(path: &Path, accessor: &gltf::Accessor, what: &str, buffers: &[Vec<u8>]) -> Result<()> {
+    let bad = |problem: String| accessor_error(path, accessor, what, problem);
+    let count = accessor.count();
+    if count == 0 || count > u32::MAX as usize {
+        return Err(bad(format!("{count} elements")));
+    }
+    let fits = |view: gltf::buffer::View, offset: usize, count: usize, size: usize| -> Result<()> {
+        let stride = view.stride().unwrap_or(size);
+        if stride < size {
+            return Err(bad(format!("buffer view {} has a stride of {stride} bytes, less than an element's {size}", view.index())));
+        }
+        let end = stride.checked_mul(count - 1).and_then(|b| b.checked_add(size)).and_then(|b| b.checked_add(offset));
+        if !end.is_some_and(|end| end <= view.length()) {
+            return Err(bad(format!("{count} elements from byte {offset} do not fit in buffer view {} of {} bytes", view.index(), view.length())));
+        }
+        let held = buffers.get(view.buffer().index()).map_or(0, Vec::len);
+        if !view.offset().checked_add(view.length()).is_some_and(|end| end <= held) {
+            return Err(bad(format!("buffer view {} reaches beyond its buffer of {held} bytes", view.index())));
+        }
+        Ok(())
+    };
+    if let Some(view) = accessor.view() {
+        fits(view, accessor.offset(), count, accessor.size())?;
+    }
+    if let Some(sparse) = accessor.sparse() {
+        let n = sparse.count();
+        if n == 0 || n > count {
+            return Err(bad(format!("{n} sparse elements of {count}")));
+        }
+        fits(sparse.indices().view(), sparse.indices().offset(), n, sparse.indices().index_type().size())?;
+        fits(sparse.values().view(), sparse.values().offset(), n, accessor.size())?;
+        let held: usize = buffers.iter().map(Vec::len).sum();
+        if accessor.view().is_none() && count > held {
+            return Err(bad(format!("{count} elements, more than the {held} bytes of the file's buffers")));
+        }
+    }
+    Ok(())
+}
+
 fn load_uri(path: &Path, uri: &str) -> Result<Vec<u8>> {
     if let Some(rest) = uri.strip_prefix("data:") {
         let (_, payload) = rest
@@ -101,6 +213,11 @@ fn load_uri(path: &Path, uri: &str) -> Result<Vec<u8>> {
         return decode_base64(payload).ok_or_else(|| Error::parse(path, None, "invalid base64 in a data URI"));
     }
     let file = path.parent().unwrap_or(Path::new("")).join(uri);
+    // Only a regular file: a URI naming /dev/zero or a FIFO must not hang.
+    let meta = std::fs::metadata(&file).map_err(|e| Error::io(&file, e))?;
+    if !meta.is_file() || meta.len() > MAX_BUFFER_BYTES {
+        return Err(Error::parse(path, None, format!("buffer URI {uri}: not a regular file of at most {MAX_BUFFER_BYTES} bytes")));
+    }
     std::fs::read(&file).map_err(|e| Error::io(&file, e))
 }
 

@@ -8,6 +8,9 @@ mod ply;
 mod sequence;
 
 pub use binvox::{read_binvox, write_binvox};
+pub use gltf::read_gltf;
+pub use obj::read_obj;
+pub use ply::read_ply;
 pub use sequence::{discover_frames, glob_match, is_supported, sort_natural, EXTENSIONS};
 
 use crate::error::{Error, Result};
@@ -40,9 +43,9 @@ pub fn read_frame(path: &Path) -> Result<FrameData> {
     // The parsers are ours or well fuzzed, but a panic on hostile input must
     // still become an error that names the file.
     let parsed = std::panic::catch_unwind(|| match ext.as_str() {
-        "obj" => obj::read_obj(path, &bytes).map(FrameData::Mesh),
-        "ply" => ply::read_ply(path, &bytes).map(FrameData::Mesh),
-        "gltf" | "glb" => gltf::read_gltf(path, &bytes).map(FrameData::Mesh),
+        "obj" => read_obj(path, &bytes).map(FrameData::Mesh),
+        "ply" => read_ply(path, &bytes).map(FrameData::Mesh),
+        "gltf" | "glb" => read_gltf(path, &bytes).map(FrameData::Mesh),
         _ => read_binvox(path, &bytes).map(|(g, o)| FrameData::Voxels(g, o)),
     });
     parsed.unwrap_or_else(|_| Err(Error::parse(path, None, "the reader failed on malformed content")))

@@ -1,12 +1,18 @@
-//! Wavefront OBJ, through tobj. tobj reports what went wrong but not where, so
-//! on failure we scan the text once more to name the offending line.
+//! Wavefront OBJ, through tobj. tobj reports what went wrong but not where, and
+//! takes faces of one or two corners for points and lines, so every face line
+//! is checked first (naming its line), and on any other failure the text is
+//! scanned once more for the offending line.
 
 use crate::error::{Error, Result};
 use crate::math::Point3;
 use crate::mesh::TriangleMesh;
 use std::path::Path;
 
+/// Material libraries larger than this are skipped (they are optional).
+const MAX_MTL_BYTES: u64 = 64 << 20;
+
 pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
+    check_faces(path, bytes)?;
     let options = tobj::LoadOptions {
         // One index per vertex, as glTF needs; polygons fanned into triangles.
         single_index: true,
@@ -17,9 +23,14 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut reader = std::io::BufReader::new(bytes);
     let (models, materials) = tobj::load_obj_buf(&mut reader, &options, |mtl| {
-        tobj::load_mtl(dir.join(mtl))
+        // Only a regular file of sane size: `mtllib /dev/zero` must not hang.
+        let file = dir.join(mtl);
+        match std::fs::metadata(&file) {
+            Ok(m) if m.is_file() && m.len() <= MAX_MTL_BYTES => tobj::load_mtl(file),
+            _ => Err(tobj::LoadError::OpenFileFailed),
+        }
     })
-    .map_err(|e| Error::parse(path, locate_error(bytes, e), e.to_string()))?;
+    .map_err(|e| Error::parse(path, locate_error(bytes, e), describe(e)))?;
 
     let mut mesh = TriangleMesh::default();
     let with_uvs = !models.is_empty() && models.iter().all(|m| !m.mesh.texcoords.is_empty());
@@ -70,13 +81,76 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
 }
 
 /// Line number and 1-based index among the `v` lines of the first vertex
-/// with a coordinate that is not a finite number.
+/// with a coordinate that is not a finite number (as tobj reads it, in f32:
+/// 1e39 is infinite).
 fn first_non_finite_vertex(bytes: &[u8]) -> Option<(usize, usize)> {
     lines(bytes)
         .filter(|(_, l)| first_word(l) == "v")
         .enumerate()
-        .find(|(_, (_, l))| l.split_whitespace().skip(1).take(3).any(|c| !c.parse::<f64>().is_ok_and(f64::is_finite)))
+        .find(|(_, (_, l))| l.split_whitespace().skip(1).take(3).any(|c| !c.parse::<f32>().is_ok_and(f32::is_finite)))
         .map(|(k, (line, _))| (line, k + 1))
+}
+
+/// Checks every face line: at least three corners, each `v`, `v/vt`, `v//vn`
+/// or `v/vt/vn` with indices that refer to an element defined above the line
+/// (1-based, or negative counting back from the last one). tobj would take a
+/// face of one or two corners (a file cut short in a face line) for a point or
+/// a line and drop it, and checks some indices only with arithmetic that can
+/// overflow.
+fn check_faces(path: &Path, bytes: &[u8]) -> Result<()> {
+    const KINDS: [(&str, &str); 3] = [("vertex", "vertices"), ("texture coordinate", "texture coordinates"), ("normal", "normals")];
+    let mut counts = [0u64; 3]; // v, vt, vn so far
+    for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+        let err = |m: String| Error::parse(path, Some(n + 1), m);
+        let line = std::str::from_utf8(raw).map_err(|_| err("not UTF-8 text".into()))?;
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => counts[0] += 1,
+            Some("vt") => counts[1] += 1,
+            Some("vn") => counts[2] += 1,
+            Some("f") => {
+                let corners: Vec<&str> = words.collect();
+                if corners.len() < 3 {
+                    return Err(err(format!("a face needs at least 3 corners, this one has {}", corners.len())));
+                }
+                for corner in corners {
+                    let fields: Vec<&str> = corner.split('/').collect();
+                    if fields.len() > 3 || fields[0].is_empty() {
+                        return Err(err(format!("'{corner}' is not a face corner (v, v/vt, v//vn or v/vt/vn)")));
+                    }
+                    for (slot, field) in fields.iter().enumerate().filter(|(_, f)| !f.is_empty()) {
+                        let ((one, many), count) = (KINDS[slot], counts[slot]);
+                        let index = field.parse::<i64>().map_err(|_| err(format!("{one} index '{field}' is not a whole number")))?;
+                        let problem = match index {
+                            0 => Some("OBJ indices start at 1".to_string()),
+                            i if i > 0 && i.unsigned_abs() > count => Some(format!("only {count} {many} are defined above this line")),
+                            i if i < 0 && i.unsigned_abs() > count => {
+                                Some(format!("it counts back past the first of the {count} {many} defined above this line"))
+                            }
+                            _ => None,
+                        };
+                        if let Some(problem) = problem {
+                            return Err(err(format!("{one} index {index} in '{corner}': {problem}")));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// tobj's error in words.
+fn describe(err: tobj::LoadError) -> String {
+    use tobj::LoadError as E;
+    match err {
+        E::PositionParseError => "a vertex ('v') needs three numbers".into(),
+        E::NormalParseError => "a normal ('vn') needs three numbers".into(),
+        E::TexcoordParseError => "a texture coordinate ('vt') needs two numbers".into(),
+        E::FaceColorOutOfBounds => "vertex colors ('v x y z r g b') are given for some vertices but not for all".into(),
+        other => other.to_string(),
+    }
 }
 
 fn lines(bytes: &[u8]) -> impl Iterator<Item = (usize, &str)> {
@@ -87,48 +161,21 @@ fn first_word(line: &str) -> &str {
     line.split_whitespace().next().unwrap_or("")
 }
 
-/// Best-effort line of a tobj error: the first line that fails the same check.
+/// Best-effort line of a tobj error: the first line that fails the same
+/// check (face lines were checked before tobj saw them).
 fn locate_error(bytes: &[u8], err: tobj::LoadError) -> Option<usize> {
     use tobj::LoadError as E;
     let floats_ok = |l: &str, min: usize| {
-        let v: Vec<&str> = l.split_whitespace().skip(1).collect();
+        let v: Vec<&str> = l.split_whitespace().skip(1).take(min).collect();
         v.len() >= min && v.iter().all(|t| t.parse::<f32>().is_ok())
     };
-    let mut counts = [0i64; 3]; // v, vt, vn seen so far (OBJ indices refer backwards)
-    for (n, l) in lines(bytes) {
-        let l = l.trim();
-        match (first_word(l), err) {
-            ("v", E::PositionParseError) if !floats_ok(l, 3) => return Some(n),
-            ("vn", E::NormalParseError) if !floats_ok(l, 3) => return Some(n),
-            ("vt", E::TexcoordParseError) if !floats_ok(l, 1) => return Some(n),
-            ("v", _) => counts[0] += 1,
-            ("vt", _) => counts[1] += 1,
-            ("vn", _) => counts[2] += 1,
-            ("f", _) => {
-                let corners: Vec<&str> = l.split_whitespace().skip(1).collect();
-                if corners.len() < 3 {
-                    if matches!(err, E::FaceParseError | E::InvalidPolygon) {
-                        return Some(n);
-                    }
-                    continue;
-                }
-                for c in corners {
-                    for (slot, field) in c.split('/').enumerate().take(3) {
-                        if field.is_empty() && slot > 0 {
-                            continue;
-                        }
-                        let Ok(i) = field.parse::<i64>() else {
-                            return Some(n);
-                        };
-                        let count = counts[[0, 1, 2][slot]];
-                        if i == 0 || i > count || -i > count {
-                            return Some(n);
-                        }
-                    }
-                }
-            }
-            _ => {}
-        }
-    }
-    None
+    lines(bytes).find_map(|(n, l)| {
+        let bad = match (first_word(l), err) {
+            ("v", E::PositionParseError) | ("vn", E::NormalParseError) => !floats_ok(l, 3),
+            ("vt", E::TexcoordParseError) => !floats_ok(l, 2),
+            ("v", E::FaceColorOutOfBounds) => l.split_whitespace().count() < 7,
+            _ => false,
+        };
+        bad.then_some(n)
+    })
 }

@@ -63,6 +63,19 @@ struct Element {
     name: String,
     count: usize,
     properties: Vec<Property>,
+    /// Header line declaring it.
+    line: usize,
+}
+
+impl Element {
+    /// Fewest bytes one element takes in the body: its scalars and list
+    /// counts in binary, a value and a line break in ASCII.
+    fn min_bytes(&self, encoding: Encoding) -> usize {
+        match encoding {
+            Encoding::Ascii => 2,
+            _ => self.properties.iter().map(|p| p.list.unwrap_or(p.scalar).size()).sum(),
+        }
+    }
 }
 
 /// Reads values one at a time from the body, whatever the encoding, and knows
@@ -74,14 +87,37 @@ struct Body<'a> {
     encoding: Encoding,
     line: usize,
     tokens: std::vec::IntoIter<&'a str>,
+    /// The element being read: name, 1-based number, count declared.
+    element: (&'a str, usize, usize),
 }
 
 impl<'a> Body<'a> {
+    /// An error at the current position, saying which element it is in (a
+    /// count in the header that disagrees with the body shows up as an
+    /// element that does not fit).
     fn err(&self, msg: impl Into<String>) -> Error {
+        let (name, k, count) = self.element;
+        let msg = format!("{name} {k} of {count}: {}", msg.into());
         match self.encoding {
             Encoding::Ascii => Error::parse(self.path, Some(self.line), msg),
-            _ => Error::parse(self.path, None, format!("{} (at byte {})", msg.into(), self.pos)),
+            _ => Error::parse(self.path, None, format!("{msg} (at byte {})", self.pos)),
         }
+    }
+
+    /// Fails unless only white space follows the last element.
+    fn check_end(&self) -> Result<()> {
+        let rest = &self.bytes[self.pos.min(self.bytes.len())..];
+        let Some(at) = rest.iter().position(|b| !b.is_ascii_whitespace()) else {
+            return Ok(());
+        };
+        let msg = "data after the last element the header declares: are its element counts right?";
+        Err(match self.encoding {
+            Encoding::Ascii => {
+                let line = self.line + rest[..at].iter().filter(|&&b| b == b'\n').count() + 1;
+                Error::parse(self.path, Some(line), msg)
+            }
+            _ => Error::parse(self.path, None, format!("{} more bytes: {msg} (at byte {})", rest.len(), self.pos)),
+        })
     }
 
     /// Starts a new ASCII element line.
@@ -115,7 +151,13 @@ impl<'a> Body<'a> {
     fn value(&mut self, s: Scalar) -> Result<f64> {
         match self.encoding {
             Encoding::Ascii => {
-                let t = self.tokens.next().ok_or_else(|| self.err("fewer values on the line than the header declares"))?;
+                let t = self.tokens.next().ok_or_else(|| {
+                    self.err(if self.pos >= self.bytes.len() {
+                        "the file ends in the middle of this element"
+                    } else {
+                        "fewer values on the line than the header declares"
+                    })
+                })?;
                 let v = if matches!(s, Scalar::F32 | Scalar::F64) {
                     t.parse::<f64>().ok()
                 } else {
@@ -149,12 +191,41 @@ impl<'a> Body<'a> {
 
 pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     let (encoding, elements, body_start, header_lines) = read_header(path, bytes)?;
-    let mut body = Body { path, bytes, pos: body_start, encoding, line: header_lines, tokens: Vec::new().into_iter() };
+    let mut body = Body {
+        path,
+        bytes,
+        pos: body_start,
+        encoding,
+        line: header_lines,
+        tokens: Vec::new().into_iter(),
+        element: ("header", 0, 0),
+    };
     let mut mesh = TriangleMesh::default();
     let mut normals = Vec::new();
     let mut uvs = Vec::new();
     let mut saw_vertices = false;
+    // Vertices read once the vertex element is complete: face indices are checked against it.
+    let mut vertices: Option<usize> = None;
     for el in &elements {
+        if el.properties.is_empty() {
+            continue; // holds nothing, however many there are
+        }
+        // A count the rest of the file cannot hold fails here, before a
+        // loop of billions.
+        let left = bytes.len().saturating_sub(body.pos);
+        let fits = el.count.checked_mul(el.min_bytes(encoding)).is_some_and(|need| need <= left + 1);
+        if !fits {
+            return Err(Error::parse(
+                path,
+                Some(el.line),
+                format!(
+                    "the header declares {} {} elements of at least {} bytes each, more than the {left} bytes left in the file",
+                    el.count,
+                    el.name,
+                    el.min_bytes(encoding)
+                ),
+            ));
+        }
         let is_vertex = el.name == "vertex";
         let is_face = el.name == "face";
         let find = |names: &[&str]| el.properties.iter().position(|p| names.contains(&p.name.as_str()) && p.list.is_none());
@@ -163,7 +234,7 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         let uv = [find(&["u", "s", "texture_u", "texture_s"]), find(&["v", "t", "texture_v", "texture_t"])];
         if is_vertex {
             if xyz.iter().any(Option::is_none) {
-                return Err(Error::parse(path, None, "the vertex element lacks one of the properties x, y, z"));
+                return Err(Error::parse(path, Some(el.line), "the vertex element lacks one of the properties x, y, z"));
             }
             saw_vertices = true;
         }
@@ -171,11 +242,12 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         let has_uvs = uv.iter().all(Option::is_some);
         let face_list = el.properties.iter().position(|p| p.list.is_some() && (p.name == "vertex_indices" || p.name == "vertex_index"));
         if is_face && face_list.is_none() {
-            return Err(Error::parse(path, None, "the face element has no vertex_indices list"));
+            return Err(Error::parse(path, Some(el.line), "the face element has no vertex_indices list"));
         }
         let mut values = vec![0.0f64; el.properties.len()];
         let mut corners: Vec<u32> = Vec::new();
-        for _ in 0..el.count {
+        for number in 1..=el.count {
+            body.element = (&el.name, number, el.count);
             body.next_line()?;
             for (k, p) in el.properties.iter().enumerate() {
                 if let Some(count_type) = p.list {
@@ -191,10 +263,16 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
                             if v < 0.0 || v.fract() != 0.0 || v >= u32::MAX as f64 {
                                 return Err(body.err(format!("vertex index {v} is not valid")));
                             }
+                            if let Some(n) = vertices.filter(|&n| v >= n as f64) {
+                                return Err(body.err(format!("vertex index {v} is beyond the {n} vertices")));
+                            }
                             corners.push(v as u32);
                         }
                     }
-                    if keep && corners.len() >= 3 {
+                    if keep && corners.len() < 3 {
+                        return Err(body.err(format!("a face needs at least 3 corners, this one has {}", corners.len())));
+                    }
+                    if keep {
                         for i in 1..corners.len() - 1 {
                             mesh.triangles.push([corners[0], corners[i], corners[i + 1]]);
                         }
@@ -206,6 +284,9 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
             body.end_line()?;
             if is_vertex {
                 let [x, y, z] = xyz.map(|i| values[i.unwrap()]);
+                if ![x, y, z].iter().all(|c| c.is_finite()) {
+                    return Err(body.err(format!("non-finite coordinate ({x}, {y}, {z})")));
+                }
                 mesh.positions.push(Point3::new(x, y, z));
                 if has_normals {
                     normals.push(nxyz.map(|i| values[i.unwrap()] as f32));
@@ -216,7 +297,11 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
                 }
             }
         }
+        if is_vertex {
+            vertices = Some(mesh.positions.len());
+        }
     }
+    body.check_end()?;
     if !saw_vertices {
         return Err(Error::parse(path, None, "no vertex element in the header"));
     }
@@ -264,7 +349,7 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<(Encoding, Vec<Element>, usi
             }
             ["element", name, count] => {
                 let count = count.parse::<usize>().map_err(|_| err(format!("element count '{count}' is not a number")))?;
-                elements.push(Element { name: name.to_string(), count, properties: Vec::new() });
+                elements.push(Element { name: name.to_string(), count, properties: Vec::new(), line: line_no });
             }
             ["property", "list", ct, it, name] => {
                 let el = elements.last_mut().ok_or_else(|| err("property before any element".into()))?;

@@ -5,7 +5,7 @@ mod voxelize;
 mod winding;
 
 pub use grid::{GridSpec, Occupancy, GRID_MARGIN, MAX_RESOLUTION};
-pub use voxelize::voxelize;
+pub use voxelize::{voxelize, voxelize_detailed, Voxelization};
 pub use winding::winding_number;
 mod sequence;
 pub use sequence::{voxelize_sequence, VoxelParams, VoxelSequence};
