@@ -532,4 +532,12 @@ fn obj_sequence_shares_one_connectivity() {
     std::fs::write(dir.join("taken"), b"x").unwrap();
     let err = voltrack::export::obj::write_obj_sequence(&dir.join("taken"), &bending_bar()).unwrap_err().to_string();
     assert!(err.contains("taken"), "{err}");
+    // A frame that cannot be written: none of the others stays.
+    let out = dir.join("new/frames");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::create_dir(out.join("frame_0003.obj")).unwrap();
+    let err = voltrack::export::obj::write_obj_sequence(&out, &bending_bar()).unwrap_err().to_string();
+    assert!(err.contains("frame_0003.obj"), "{err}");
+    let left: Vec<PathBuf> = std::fs::read_dir(&out).unwrap().flatten().map(|e| e.path()).collect();
+    assert_eq!(left, [out.join("frame_0003.obj")]);
 }

@@ -346,7 +346,6 @@ fn convert(args: ConvertArgs) -> Result<()> {
     Ok(())
 }
 
-/// Bytes under `path` (a file, or a directory of files).
 /// Checks every path `format` writes for `out`.
 fn check_outputs(format: OutputFormat, out: &Path) -> Result<()> {
     let files = match format {
@@ -361,6 +360,7 @@ fn check_outputs(format: OutputFormat, out: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Bytes under `path` (a file, or a directory of files).
 fn output_size(path: &Path) -> u64 {
     if path.is_dir() {
         std::fs::read_dir(path).map(|d| d.flatten().filter_map(|e| e.metadata().ok()).map(|m| m.len()).sum()).unwrap_or(0)

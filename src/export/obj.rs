@@ -33,7 +33,8 @@ pub fn write_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3]
 /// Writes every frame of `mesh` into `dir` (created if needed) as
 /// `frame_0000.obj`, `frame_0001.obj`, … (more digits past 10 000 frames, so
 /// names sort in frame order): the same vertex order, faces and UVs in every
-/// file, only the positions change. Returns the paths in frame order.
+/// file, only the positions change. Returns the paths in frame order. On
+/// failure no frame is left.
 pub fn write_obj_sequence(dir: &Path, mesh: &DynamicMesh) -> Result<Vec<PathBuf>> {
     super::basis::check_frames(mesh)?;
     let width = (mesh.frames.len() - 1).to_string().len().max(4);
