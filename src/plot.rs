@@ -31,6 +31,11 @@ impl Series {
         self.dashed = true;
         self
     }
+    /// Its colour, and its dash attribute (or ""), as the `k`-th series of a plot.
+    fn stroke(&self, k: usize) -> (&'static str, &'static str) {
+        let color = COLORS[self.color.unwrap_or(k) % COLORS.len()];
+        (color, if self.dashed { r#" stroke-dasharray="6 4""# } else { "" })
+    }
 }
 
 /// An axis: its label, and how its range and ticks are chosen.
@@ -155,8 +160,7 @@ pub fn line_plot(title: &str, x: &Axis, y: &Axis, series: &[Series]) -> String {
         escape(&y.label)
     );
     for (k, (s, points)) in series.iter().zip(&pixels).enumerate() {
-        let color = COLORS[s.color.unwrap_or(k) % COLORS.len()];
-        let dash = if s.dashed { r#" stroke-dasharray="6 4""# } else { "" };
+        let (color, dash) = s.stroke(k);
         let path: Vec<String> = points.iter().map(|&(px, py)| format!("{px:.1},{py:.1}")).collect();
         let _ = writeln!(svg, r#"<polyline fill="none" stroke="{color}" stroke-width="1.5"{dash} points="{}"/>"#, path.join(" "));
         if points.len() <= MARKED_POINTS {
@@ -173,8 +177,7 @@ pub fn line_plot(title: &str, x: &Axis, y: &Axis, series: &[Series]) -> String {
             r##"<rect x="{lx:.1}" y="{top:.1}" width="{width:.1}" height="{height}" fill="white" fill-opacity="0.85" stroke="#ccc"/>"##
         );
         for (k, s) in series.iter().enumerate() {
-            let color = COLORS[s.color.unwrap_or(k) % COLORS.len()];
-            let dash = if s.dashed { r#" stroke-dasharray="6 4""# } else { "" };
+            let (color, dash) = s.stroke(k);
             let ly = top + 12.0 + 16.0 * k as Real;
             let _ = writeln!(svg, r#"<line x1="{:.1}" y1="{ly:.1}" x2="{:.1}" y2="{ly:.1}" stroke="{color}" stroke-width="2"{dash}/>"#, lx + 6.0, lx + 26.0);
             let _ = writeln!(svg, r#"<text x="{:.1}" y="{:.1}">{}</text>"#, lx + 32.0, ly + 4.0, escape(&s.label));

@@ -130,10 +130,13 @@ pub fn report_html(input: &ReportInput) -> String {
 /// the first file's name.
 fn sequence_name(input: &ReportInput) -> String {
     let paths = &input.conversion.sequence.paths;
-    match paths[0].parent() {
-        Some(dir) if !dir.as_os_str().is_empty() && paths.iter().all(|p| p.parent() == Some(dir)) => file_name(dir),
-        _ => file_name(&paths[0]),
-    }
+    common_folder(paths).map_or_else(|| file_name(&paths[0]), file_name)
+}
+
+/// The folder every one of `paths` is in, when they share one (named).
+fn common_folder(paths: &[std::path::PathBuf]) -> Option<&Path> {
+    let dir = paths.first()?.parent()?;
+    (!dir.as_os_str().is_empty() && paths.iter().all(|p| p.parent() == Some(dir))).then_some(dir)
 }
 
 /// The last component of `path` (all of it when there is none, as for `..`).
@@ -195,11 +198,9 @@ fn input_html(input: &ReportInput) -> String {
     let g = &seq.grid;
     let code = |s: &str| format!("<code>{}</code>", escape(s));
     let (first, last) = (&seq.paths[0], &seq.paths[seq.paths.len() - 1]);
-    let files = match first.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() && seq.paths.iter().all(|p| p.parent() == Some(dir)) => {
-            format!("{} &#8212; {} &#8230; {}", code(&format!("{}/", dir.display())), code(&file_name(first)), code(&file_name(last)))
-        }
-        _ => format!("{} &#8230; {}", code(&first.display().to_string()), code(&last.display().to_string())),
+    let files = match common_folder(&seq.paths) {
+        Some(dir) => format!("{} &#8212; {} &#8230; {}", code(&format!("{}/", dir.display())), code(&file_name(first)), code(&file_name(last))),
+        None => format!("{} &#8230; {}", code(&first.display().to_string()), code(&last.display().to_string())),
     };
     let mut rows: Vec<(&str, String)> = vec![
         ("Input", files),

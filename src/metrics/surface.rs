@@ -230,10 +230,9 @@ impl DistanceSummary {
         if samples.is_empty() {
             return DistanceSummary::default();
         }
-        let total: Real = samples.iter().map(|s| s.1).sum();
-        let uniform = !(total > 0.0 && total.is_finite());
-        let weight = |s: &(Real, Real)| if uniform { 1.0 } else { s.1 };
-        let total = if uniform { samples.len() as Real } else { total };
+        let weighted = total_weight(samples);
+        let weight = |s: &(Real, Real)| if weighted.is_some() { s.1 } else { 1.0 };
+        let total = weighted.unwrap_or(samples.len() as Real);
         let mean = samples.iter().map(|s| s.0 * weight(s)).sum::<Real>() / total;
         let mut sorted = samples.to_vec();
         sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -248,6 +247,13 @@ impl DistanceSummary {
         }
         DistanceSummary { mean, p95, max: sorted[sorted.len() - 1].0 }
     }
+}
+
+/// The samples' total weight, None when it is not a positive finite number:
+/// the samples then count equally.
+fn total_weight(samples: &[(Real, Real)]) -> Option<Real> {
+    let total: Real = samples.iter().map(|s| s.1).sum();
+    (total > 0.0 && total.is_finite()).then_some(total)
 }
 
 /// How closely one frame of the result fits the same frame of the input,
@@ -324,10 +330,9 @@ pub fn surface_fit(result: Surface, input: Surface, diagonal: Real) -> FrameFit 
 /// evaluate.py draws as many samples from either surface.
 fn pool_halves(a: &[(Real, Real)], b: &[(Real, Real)]) -> Vec<(Real, Real)> {
     let half = |s: &[(Real, Real)]| {
-        let total: Real = s.iter().map(|x| x.1).sum();
-        let uniform = !(total > 0.0 && total.is_finite());
+        let total = total_weight(s);
         let n = s.len() as Real;
-        s.iter().map(move |&(d, w)| (d, if uniform { 0.5 / n } else { 0.5 * w / total })).collect::<Vec<_>>()
+        s.iter().map(move |&(d, w)| (d, total.map_or(0.5 / n, |t| 0.5 * w / t))).collect::<Vec<_>>()
     };
     let mut pooled = half(a);
     pooled.extend(half(b));
