@@ -3,7 +3,8 @@
 //! `cargo bench --bench track` runs the two configurations:
 //! R = 256, N = 1000 and the authors' R = 512, N = 2000.
 //! `VOLTRACK_BENCH_FRAMES=K` tracks only the first K frames;
-//! `VOLTRACK_BENCH_DATA=DIR` tracks another sequence.
+//! `VOLTRACK_BENCH_DATA=DIR` tracks another sequence;
+//! `VOLTRACK_BENCH_RESOLUTION=256` runs only the configuration at that R.
 
 use std::time::Instant;
 use voltrack::params::TrackParams;
@@ -20,8 +21,9 @@ fn main() {
         }
     };
     paths.truncate(frames);
+    let only: Option<usize> = std::env::var("VOLTRACK_BENCH_RESOLUTION").ok().and_then(|s| s.parse().ok());
     println!("threads: {}", rayon::current_num_threads());
-    for (r, n) in [(256, 1000), (512, 2000)] {
+    for (r, n) in [(256, 1000), (512, 2000)].into_iter().filter(|&(r, _)| only.map_or(true, |o| o == r)) {
         let clock = Instant::now();
         let seq = voxelize_sequence(&paths, &VoxelParams { resolution: r, ..Default::default() }, Default::default()).expect("voxelising");
         let read_voxelize = clock.elapsed().as_secs_f64();

@@ -5,7 +5,7 @@ use voltrack::math::{Matrix3, Point3, Real, Rotation3, Vector3};
 use voltrack::params::{sigma_for, AffinityKind, TrackParams};
 use voltrack::track::affinity::{motion_dissimilarity2, Affinity};
 use voltrack::track::assign::{Assignment, CellMoments, CenterIndex, NO_OWNER};
-use voltrack::track::{fit_rigid, track, Rigid};
+use voltrack::track::{fit_rigid, track, Rigid, RigidFits};
 use voltrack::voxel::{GridSpec, VoxelSequence};
 
 mod common;
@@ -63,6 +63,50 @@ fn kabsch_respects_weights() {
     }
 }
 
+/// The tracker's batched fits against one [`fit_rigid`] each: neighbour
+/// lists of every size (empty, one point, collinear, many), points far from
+/// the origin, nearly rigid motions and zero weights.
+#[test]
+fn batched_rigid_fits_equal_single_fits() {
+    let mut g = Lcg(5);
+    let offset = Vector3::new(250.0, -40.0, 1000.0);
+    let n = 120;
+    let src: Vec<Point3> = (0..n).map(|_| Point3::from(g.vec(10.0) + offset)).collect();
+    let lists: Vec<Vec<(usize, Real)>> = (0..n)
+        .map(|i| match i % 6 {
+            0 => Vec::new(),
+            1 => vec![(i, 1.0)],
+            2 => vec![(i, 1.0), ((i + 1) % n, 0.5)],
+            3 => (0..n).step_by(7).map(|j| (j, if j % 2 == 0 { 0.0 } else { g.next() })).collect(),
+            _ => (0..n).filter(|j| (j * 31 + i) % 5 == 0).map(|j| (j, 0.001 + g.next())).collect(),
+        })
+        .collect();
+    let fits = RigidFits::new(&src, n, |i| lists[i].iter().copied());
+    for _ in 0..5 {
+        let truth = g.rigid();
+        // Rigid plus per-point noise, so that the fits differ from each other.
+        let dst: Vec<Point3> = src.iter().map(|p| truth.apply(p) + g.vec(0.3)).collect();
+        let batched = fits.fit(&dst);
+        for (i, list) in lists.iter().enumerate() {
+            let single = fit_rigid(&src, &dst, list.iter().copied());
+            let (a, b) = (&batched[i], &single);
+            let energy = |r: &Rigid| -> Real { list.iter().map(|&(j, w)| w * (dst[j] - r.apply(&src[j])).norm_squared()).sum() };
+            assert!((energy(a) - energy(b)).abs() <= 1e-9 * (1.0 + energy(b)), "fit {i}: energy {} vs {}", energy(a), energy(b));
+            if list.len() == 2 {
+                // Two points leave the spin about their line to a 1e-6 pull
+                // towards the identity, which the 3x3 SVD resolves only to
+                // about 1e-5: the line is carried alike, the spin nearly so.
+                assert!((a.rotation - b.rotation).abs().max() < 1e-3, "fit {i}: {:?} vs {:?}", a.rotation, b.rotation);
+                continue;
+            }
+            assert!((a.rotation - b.rotation).abs().max() < 1e-9, "fit {i} ({} points): {:?} vs {:?}", list.len(), a.rotation, b.rotation);
+            // Translations carry the offset (about 1000): compare where they take the points.
+            let worst = list.iter().map(|&(j, _)| (a.apply(&src[j]) - b.apply(&src[j])).norm()).fold(0.0, Real::max);
+            assert!(worst < 1e-8, "fit {i}: points land {worst} apart");
+        }
+    }
+}
+
 #[test]
 fn voronoi_assignment_equals_a_linear_scan_while_centers_move() {
     let grid = GridSpec { origin: Point3::new(-1.0, -2.0, 0.5), voxel_size: 0.1, dims: [30, 25, 20] };
@@ -81,6 +125,7 @@ fn voronoi_assignment_equals_a_linear_scan_while_centers_move() {
         let stats = cells.update(&carried, &moved, false);
         let index = CenterIndex::new(&centers);
         let mut counts = vec![0u32; centers.len()];
+        let mut sums = vec![[0i64; 3]; centers.len()];
         for (k, &v) in voxels.iter().enumerate() {
             let p = grid.voxel_center(v as usize);
             let q = [p.x, p.y, p.z];
@@ -94,8 +139,12 @@ fn voronoi_assignment_equals_a_linear_scan_while_centers_move() {
                 assert_eq!(d(index.nearest(&q, hint)), d(best), "step {step}, voxel {v}, hint {hint}: fresh index");
             }
             counts[owner as usize] += 1;
+            let c = grid.voxel_coords(v as usize);
+            (0..3).for_each(|d| sums[owner as usize][d] += c[d] as i64);
         }
-        assert_eq!(stats.count, counts);
+        // The cells' sums are kept up to date from the owner changes alone.
+        assert_eq!(stats.count, counts, "step {step}");
+        assert_eq!(stats.sum, sums, "step {step}");
         // Move: small steps mostly, a few jumps; some steps all tiny, so
         // that candidate lists survive several steps.
         moved.clear();

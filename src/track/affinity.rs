@@ -87,7 +87,7 @@ impl Affinity {
         &self.lists[i]
     }
 
-    /// Weighted index pairs for [`super::rigid::fit_rigid`].
+    /// Weighted index pairs for the rigid fits ([`super::rigid::RigidFits`]).
     pub fn pairs(&self, i: usize) -> impl Iterator<Item = (usize, Real)> + Clone + '_ {
         self.lists[i].iter().map(|n| (n.j as usize, n.w))
     }
@@ -148,9 +148,4 @@ pub fn within_reach(centers: &[Point3], sigma: Real, mu: Real) -> Vec<Vec<u32>> 
             found
         })
         .collect()
-}
-
-/// Every center's rigid fit from `prev` to `cur` over its weighted neighbours.
-pub fn fit_all(prev: &[Point3], cur: &[Point3], affinity: &Affinity) -> Vec<Rigid> {
-    (0..prev.len()).into_par_iter().map(|i| super::rigid::fit_rigid(prev, cur, affinity.pairs(i))).collect()
 }

@@ -15,6 +15,12 @@
 //!   outside o's list was at least r_K(o) from o when the list was built,
 //!   and since then the two have moved at most o's own travel plus the sum of
 //!   the largest move of every iteration, so r_K shrinks by that much.
+//! - Local decay of the lower bound: Hamerly lowers every voxel's lower
+//!   bound by the largest move of any center, so one fast center makes every
+//!   voxel look again. With o's list in hand, a voxel of o needs only two
+//!   terms: the centers in the list moved at most their own largest move, and
+//!   every center outside it is at least r_K(o) - |v - o| away anyway.
+//!   (On crane at R = 256 this halved the voxels searched per iteration.)
 //! Ties are broken by the lower center index, so the result does not depend
 //! on the number of threads. Both shortcuts are tested against a linear scan.
 
@@ -48,6 +54,20 @@ pub struct CenterIndex {
     travel: Vec<Real>,
     /// The largest move of each call, summed: no center moved farther.
     travel_max: Real,
+    /// Set by [`CenterIndex::moved_to`], per center o: how far the centers
+    /// of o's list moved at most in that call, and o's reach now; None for a
+    /// fresh index, whose voxels' lower bounds fall by the largest move.
+    local: Option<Vec<LocalBound>>,
+}
+
+/// What a voxel of center o needs to lower its lower bound after a move.
+#[derive(Clone, Copy, Debug)]
+struct LocalBound {
+    /// The largest move among o's candidates (the largest of all when o had
+    /// no list, or its list was dropped).
+    decay: Real,
+    /// r_K(o) now; infinite when o had no list (decay then covers everyone).
+    reach: Real,
 }
 
 /// The `k` nearest centers of a center (itself first), the distance to the
@@ -80,6 +100,7 @@ impl CenterIndex {
             k: CANDIDATES.min(n),
             travel: vec![0.0; n],
             travel_max: 0.0,
+            local: None,
         }
     }
 
@@ -95,17 +116,43 @@ impl CenterIndex {
         for (t, m) in self.travel.iter_mut().zip(moved) {
             *t += m;
         }
-        self.travel_max += moved.iter().copied().fold(0.0, Real::max);
+        let max_move = moved.iter().copied().fold(0.0, Real::max);
+        self.travel_max += max_move;
         self.tree = OnceLock::new();
+        let everyone = LocalBound { decay: max_move, reach: Real::INFINITY };
+        let mut local = Vec::with_capacity(self.knn.len());
         for (slot, &travel) in self.knn.iter_mut().zip(&self.travel) {
+            let reach = slot.get().map(|c| c.reach_now(travel, self.travel_max));
             // Rebuilt (on demand) once a tenth of its reach is used up: a
             // shrunk reach sends more voxels to the slow k-d tree path
             // (at half, assignment on crane took twice as long).
-            if slot.get().is_some_and(|c| c.reach_now(travel, self.travel_max) < 0.9 * c.reach) {
-                *slot = OnceLock::new();
-            }
+            local.push(match (slot.get(), reach) {
+                (Some(c), Some(reach)) if reach >= 0.9 * c.reach => {
+                    LocalBound { decay: c.list.iter().map(|&j| moved[j as usize]).fold(0.0, Real::max), reach }
+                }
+                _ => {
+                    *slot = OnceLock::new();
+                    everyone
+                }
+            });
         }
+        self.local = Some(local);
         self
+    }
+
+    /// How a voxel of center o lowers its lower bound `lower` after the last
+    /// move: `upper` bounds its distance to o now, `max_move` is the largest move.
+    #[inline]
+    fn lowered(&self, o: u32, lower: Real, upper: Real, max_move: Real) -> Real {
+        match &self.local {
+            Some(local) => {
+                let b = local[o as usize];
+                // Both bounds hold; far from o, where the list proves
+                // little, Hamerly's may be the better.
+                (lower - b.decay).min(b.reach - upper).max(lower - max_move)
+            }
+            None => lower - max_move,
+        }
     }
 
     fn tree(&self) -> &ImmutableKdTree<Real, 3> {
@@ -168,33 +215,55 @@ impl CenterIndex {
     #[inline]
     fn nearest2(&self, v: &[Real; 3], hint: u32) -> (u32, Real, Real) {
         if hint != NO_OWNER && (hint as usize) < self.points.len() {
-            let (mut best, mut second) = ((Real::INFINITY, 0u32), Real::INFINITY);
-            let cand = self.candidates(hint);
-            for &c in cand.list.iter() {
-                let d = self.dist2(c, v);
-                if d < best.0 || (d == best.0 && c < best.1) {
-                    second = second.min(best.0);
-                    best = (d, c);
-                } else {
-                    second = second.min(d);
+            match self.nearest_among_candidates(v, hint) {
+                Ok(found) => return found,
+                // The hint was stale: the best of its list is nearer to v,
+                // and so likely to certify with its own list.
+                Err(best) if best != hint => {
+                    if let Ok(found) = self.nearest_among_candidates(v, best) {
+                        return found;
+                    }
                 }
-            }
-            let bound = cand.reach_now(self.travel[hint as usize], self.travel_max) - self.dist2(hint, v).sqrt();
-            let d_best = best.0.sqrt();
-            // Strict: a center at exactly the bound could tie and win on index.
-            if d_best < bound {
-                return (best.1, d_best, second.sqrt().min(bound));
+                Err(_) => {}
             }
         }
         if self.points.len() == 1 {
             return (0, self.dist2(0, v).sqrt(), Real::INFINITY);
         }
         let found = self.tree().query(v).nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(2).unwrap()).execute();
-        let (a, b) = (&found[0], &found[1]);
-        let owner = self.nearest_tree(v);
+        let (a, b) = (found[0].item, found[1].item);
+        let (da, db) = (self.dist2(a, v), self.dist2(b, v));
+        // Clearly nearer than the runner-up: no tie to settle.
+        let owner = if db > da * (1.0 + 1e-9) + Real::MIN_POSITIVE { a } else { self.nearest_tree(v) };
         // The second distance bounds every center but the owner from below.
-        let second = if owner == a.item { b.distance } else { a.distance };
+        let second = if owner == a { db } else { da.min(db) };
         (owner, self.dist2(owner, v).sqrt(), second.sqrt())
+    }
+
+    /// The nearest center among `hint`'s candidates with a lower bound on
+    /// every other center's distance, when the list's reach proves it the
+    /// nearest of all; otherwise Err with the best candidate.
+    #[inline]
+    fn nearest_among_candidates(&self, v: &[Real; 3], hint: u32) -> Result<(u32, Real, Real), u32> {
+        let (mut best, mut second) = ((Real::INFINITY, 0u32), Real::INFINITY);
+        let cand = self.candidates(hint);
+        for &c in cand.list.iter() {
+            let d = self.dist2(c, v);
+            if d < best.0 || (d == best.0 && c < best.1) {
+                second = second.min(best.0);
+                best = (d, c);
+            } else {
+                second = second.min(d);
+            }
+        }
+        let bound = cand.reach_now(self.travel[hint as usize], self.travel_max) - self.dist2(hint, v).sqrt();
+        let d_best = best.0.sqrt();
+        // Strict: a center at exactly the bound could tie and win on index.
+        if d_best < bound {
+            Ok((best.1, d_best, second.sqrt().min(bound)))
+        } else {
+            Err(best.1)
+        }
     }
 
     /// Nearest center (ties to the lower index), from a hint or none.
@@ -271,6 +340,10 @@ pub struct Assignment {
     /// Slack for the f64 arithmetic on the bounds, in world units (the f32
     /// bounds themselves are rounded outwards).
     eps: Real,
+    /// Counts and sums of the cells as last returned, kept up to date from
+    /// the voxels that change owner (a few hundred of ~300 000 per
+    /// iteration once the centers settle) instead of summed afresh.
+    sums: Option<CellStats>,
 }
 
 impl Assignment {
@@ -287,6 +360,7 @@ impl Assignment {
             upper: vec![f32::INFINITY; n],
             lower: vec![f32::NEG_INFINITY; n],
             eps: grid.voxel_size * 1e-9,
+            sums: None,
         }
     }
 
@@ -296,37 +370,67 @@ impl Assignment {
     pub fn update(&mut self, index: &CenterIndex, moved: &[Real], with_moments: bool) -> CellStats {
         let max_move = moved.iter().copied().fold(0.0, Real::max);
         let (eps, origin, a) = (self.eps, self.origin, self.voxel_size);
-        self.owners
+        // (voxel, old owner) for every voxel whose owner changed.
+        let changes: Vec<Vec<(u32, u32)>> = self
+            .owners
             .par_chunks_mut(CHUNK)
             .zip(self.upper.par_chunks_mut(CHUNK))
             .zip(self.lower.par_chunks_mut(CHUNK))
             .zip(self.coords.par_chunks(CHUNK))
-            .for_each(|(((own, up), low), coords)| {
+            .enumerate()
+            .map(|(chunk, (((own, up), low), coords))| {
+                let mut changed = Vec::new();
                 for k in 0..own.len() {
                     let c = coords[k];
                     let pos = [0, 1, 2].map(|d| origin[d] + (c[d] as Real + 0.5) * a);
                     let o = own[k];
                     if o != NO_OWNER && up[k].is_finite() {
                         let u = up[k] as Real + moved[o as usize];
-                        let l = low[k] as Real - max_move;
-                        low[k] = (l as f32).next_down();
+                        let l = index.lowered(o, low[k] as Real, u, max_move);
                         if u + eps < l {
                             up[k] = (u as f32).next_up();
+                            low[k] = (l as f32).next_down();
                             continue;
                         }
                         let u = index.dist2(o, &pos).sqrt();
-                        up[k] = (u as f32).next_up();
+                        let l = index.lowered(o, low[k] as Real, u, max_move);
                         if u + eps < l {
+                            up[k] = (u as f32).next_up();
+                            low[k] = (l as f32).next_down();
                             continue;
                         }
                     }
                     let (owner, d, second) = index.nearest2(&pos, o);
+                    if owner != o {
+                        changed.push(((chunk * CHUNK + k) as u32, o));
+                    }
                     own[k] = owner;
                     up[k] = (d as f32).next_up();
                     low[k] = (second as f32).next_down();
                 }
-            });
-        cell_stats(&self.coords, &self.owners, index.len(), with_moments)
+                changed
+            })
+            .collect();
+        match &mut self.sums {
+            Some(sums) if !with_moments && sums.count.len() == index.len() => {
+                for &(k, old) in changes.iter().flatten() {
+                    let c = self.coords[k as usize].map(|c| c as i64);
+                    let new = self.owners[k as usize] as usize;
+                    if old != NO_OWNER {
+                        sums.count[old as usize] -= 1;
+                        (0..3).for_each(|d| sums.sum[old as usize][d] -= c[d]);
+                    }
+                    sums.count[new] += 1;
+                    (0..3).for_each(|d| sums.sum[new][d] += c[d]);
+                }
+                sums.clone()
+            }
+            _ => {
+                let stats = cell_stats(&self.coords, &self.owners, index.len(), with_moments);
+                self.sums = Some(CellStats { second: None, ..stats.clone() });
+                stats
+            }
+        }
     }
 }
 

@@ -2,11 +2,11 @@
 //! with rigid predictions, then alternate Voronoi centroids and rigid
 //! predictions until no center moves more than the threshold.
 
-use super::affinity::{fit_all, Affinity};
+use super::affinity::Affinity;
 use super::checkpoint::{self, Checkpointing, Snapshot};
 use super::assign::{assign, carry_owners, Assignment, CellMoments, CellStats, CenterIndex, NO_OWNER};
 use super::lloyd::seed_centers;
-use super::rigid::Rigid;
+use super::rigid::{Rigid, RigidFits};
 use super::Trajectories;
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
@@ -160,10 +160,14 @@ impl<'a> Tracker<'a> {
         let beta = self.params.beta;
         let mut cells = Assignment::new(self.grid, voxels, carry_owners(self.prev_voxels, &self.owners, voxels));
         let mut moved: Vec<Real> = Vec::new();
+        // The weights and frame f-1 are fixed for the whole frame.
+        let clock = Instant::now();
+        let fits = RigidFits::new(prev, prev.len(), |i| self.affinity.pairs(i));
+        t.fit += clock.elapsed().as_secs_f64();
 
         for _ in 0..self.params.presmooth_steps {
             let clock = Instant::now();
-            let motions = fit_all(prev, &cur, &self.affinity);
+            let motions = fits.fit(&cur);
             cur = predict(&motions, prev);
             t.fit += clock.elapsed().as_secs_f64();
         }
@@ -180,7 +184,7 @@ impl<'a> Tracker<'a> {
             let stats = cells.update(&index, &moved, false);
             t.assign += clock.elapsed().as_secs_f64();
             let clock = Instant::now();
-            let motions = fit_all(prev, &cur, &self.affinity);
+            let motions = fits.fit(&cur);
             t.fit += clock.elapsed().as_secs_f64();
             moved.clear();
             for (i, c) in cur.iter_mut().enumerate() {
@@ -205,7 +209,7 @@ impl<'a> Tracker<'a> {
         let stats = cells.update(&index.moved_to(&cur, &moved), &moved, true);
         t.assign += clock.elapsed().as_secs_f64();
         let clock = Instant::now();
-        let motions = fit_all(prev, &cur, &self.affinity);
+        let motions = fits.fit(&cur);
         self.affinity.update(&cur, &motions, &cell_moments(&stats, self.grid));
         t.affinity += clock.elapsed().as_secs_f64();
         self.owners = cells.owners;
