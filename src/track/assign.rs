@@ -20,7 +20,8 @@
 //!   voxel look again. With o's list in hand, a voxel of o needs only two
 //!   terms: the centers in the list moved at most their own largest move, and
 //!   every center outside it is at least r_K(o) - |v - o| away anyway.
-//!   (On crane at R = 256 this halved the voxels searched per iteration.)
+//!   (On crane_tvm's first 16 frames at R = 256, N = 1000: 202 million
+//!   voxel searches instead of 302.)
 //! Ties are broken by the lower center index, so the result does not depend
 //! on the number of threads. Both shortcuts are tested against a linear scan.
 
