@@ -123,15 +123,13 @@ impl CenterIndex {
         let everyone = LocalBound { decay: max_move, reach: Real::INFINITY };
         let mut local = Vec::with_capacity(self.knn.len());
         for (slot, &travel) in self.knn.iter_mut().zip(&self.travel) {
-            let reach = slot.get().map(|c| c.reach_now(travel, self.travel_max));
             // Rebuilt (on demand) once a tenth of its reach is used up: a
             // shrunk reach sends more voxels to the slow k-d tree path
             // (at half, assignment on crane took twice as long).
-            local.push(match (slot.get(), reach) {
-                (Some(c), Some(reach)) if reach >= 0.9 * c.reach => {
-                    LocalBound { decay: c.list.iter().map(|&j| moved[j as usize]).fold(0.0, Real::max), reach }
-                }
-                _ => {
+            let kept = slot.get().map(|c| (c, c.reach_now(travel, self.travel_max))).filter(|(c, reach)| *reach >= 0.9 * c.reach);
+            local.push(match kept {
+                Some((c, reach)) => LocalBound { decay: c.list.iter().map(|&j| moved[j as usize]).fold(0.0, Real::max), reach },
+                None => {
                     *slot = OnceLock::new();
                     everyone
                 }
@@ -300,6 +298,26 @@ pub struct CellMoments {
 }
 
 impl CellStats {
+    /// Adds (`sign` 1) or takes away (`sign` -1) the voxel at grid
+    /// coordinates `c` in cell `cell`.
+    fn tally(&mut self, cell: usize, c: [u16; 3], sign: i64) {
+        let [x, y, z] = c.map(|c| c as i64);
+        self.count[cell] = (self.count[cell] as i64 + sign) as u32;
+        let s = &mut self.sum[cell];
+        s[0] += sign * x;
+        s[1] += sign * y;
+        s[2] += sign * z;
+        if let Some(second) = &mut self.second {
+            let q = &mut second[cell];
+            q[0] += sign * x * x;
+            q[1] += sign * y * y;
+            q[2] += sign * z * z;
+            q[3] += sign * x * y;
+            q[4] += sign * x * z;
+            q[5] += sign * y * z;
+        }
+    }
+
     /// World centroid of cell i, None when it holds no voxel.
     pub fn centroid(&self, i: usize, grid: &GridSpec) -> Option<Point3> {
         let n = self.count[i];
@@ -414,15 +432,11 @@ impl Assignment {
             .collect();
         match &mut self.sums {
             Some(sums) if !with_moments && sums.count.len() == index.len() => {
+                // Every voxel had an owner when the sums were taken.
                 for &(k, old) in changes.iter().flatten() {
-                    let c = self.coords[k as usize].map(|c| c as i64);
-                    let new = self.owners[k as usize] as usize;
-                    if old != NO_OWNER {
-                        sums.count[old as usize] -= 1;
-                        (0..3).for_each(|d| sums.sum[old as usize][d] -= c[d]);
-                    }
-                    sums.count[new] += 1;
-                    (0..3).for_each(|d| sums.sum[new][d] += c[d]);
+                    let c = self.coords[k as usize];
+                    sums.tally(old as usize, c, -1);
+                    sums.tally(self.owners[k as usize] as usize, c, 1);
                 }
                 sums.clone()
             }
@@ -452,23 +466,8 @@ fn cell_stats(coords: &[[u16; 3]], owners: &[u32], n: usize, with_moments: bool)
         sum: vec![[0; 3]; n],
         second: with_moments.then(|| vec![[0; 6]; n]),
     };
-    for (&o, c) in owners.iter().zip(coords) {
-        let [x, y, z] = c.map(|c| c as i64);
-        let o = o as usize;
-        stats.count[o] += 1;
-        let s = &mut stats.sum[o];
-        s[0] += x;
-        s[1] += y;
-        s[2] += z;
-        if let Some(second) = &mut stats.second {
-            let q = &mut second[o];
-            q[0] += x * x;
-            q[1] += y * y;
-            q[2] += z * z;
-            q[3] += x * y;
-            q[4] += x * z;
-            q[5] += y * z;
-        }
+    for (&o, &c) in owners.iter().zip(coords) {
+        stats.tally(o as usize, c, 1);
     }
     stats
 }

@@ -150,7 +150,8 @@ impl RigidFits {
             .into_par_iter()
             .map(|i| {
                 let (wsum, range) = (self.wsum[i], self.start[i]..self.start[i + 1]);
-                if range.is_empty() || !(wsum > 0.0) {
+                // Also an empty list, whose weights sum to 0.
+                if !(wsum > 0.0) {
                     return Rigid::identity();
                 }
                 let mut acc = [0.0; 12];
