@@ -109,10 +109,18 @@ fn batched_rigid_fits_equal_single_fits() {
 
 #[test]
 fn voronoi_assignment_equals_a_linear_scan_while_centers_move() {
+    // 60 centers: the candidate lists (16, extended to 48) hold most of
+    // them; 400: lists and k-d tree both do real work.
+    for n in [60, 400] {
+        assignment_matches_linear_scan(n);
+    }
+}
+
+fn assignment_matches_linear_scan(n: usize) {
     let grid = GridSpec { origin: Point3::new(-1.0, -2.0, 0.5), voxel_size: 0.1, dims: [30, 25, 20] };
     let mut g = Lcg(3);
     let voxels: Vec<u32> = (0..grid.len() as u32).filter(|_| g.next() < 0.4).collect();
-    let mut centers: Vec<Point3> = (0..60).map(|_| grid.voxel_center((g.next() * grid.len() as Real) as usize) + g.vec(0.05)).collect();
+    let mut centers: Vec<Point3> = (0..n).map(|_| grid.voxel_center((g.next() * grid.len() as Real) as usize) + g.vec(0.05)).collect();
     let mut cells = Assignment::new(&grid, &voxels, vec![NO_OWNER; voxels.len()]);
     let mut moved = Vec::new();
     // The tracker's index follows the centers (keeping candidate lists); a
@@ -132,7 +140,7 @@ fn voronoi_assignment_equals_a_linear_scan_while_centers_move() {
             let best = index.nearest_brute_force(&q);
             let d = |i: u32| (centers[i as usize] - p).norm_squared();
             let owner = cells.owners[k];
-            assert_eq!(d(owner), d(best), "step {step}, voxel {v}: owner {owner} vs nearest {best}");
+            assert_eq!(d(owner), d(best), "{n} centers, step {step}, voxel {v}: owner {owner} vs nearest {best}");
             assert_eq!(index.nearest_tree(&q), owner.min(best).max(owner), "tree and fast path pick the same center");
             for hint in [owner, (owner + 7) % centers.len() as u32, NO_OWNER] {
                 assert_eq!(d(carried.nearest(&q, hint)), d(best), "step {step}, voxel {v}, hint {hint}: carried index");

@@ -38,6 +38,9 @@ pub const NO_OWNER: u32 = u32::MAX;
 /// Candidate-list length K.
 const CANDIDATES: usize = 16;
 
+/// Length of the extended list tried when the first K do not certify.
+const CANDIDATES_FAR: usize = 48;
+
 /// Voxels per parallel work unit.
 const CHUNK: usize = 8192;
 
@@ -51,6 +54,7 @@ pub struct CenterIndex {
     /// need one once the centers have settled.
     knn: Vec<OnceLock<Candidates>>,
     k: usize,
+    k_far: usize,
     /// How far each center has moved, summed over [`CenterIndex::moved_to`] calls.
     travel: Vec<Real>,
     /// The largest move of each call, summed: no center moved farther.
@@ -71,22 +75,53 @@ struct LocalBound {
     reach: Real,
 }
 
+/// How the bounds of a voxel of center o loosen after a move, in one
+/// place for the loop over all voxels.
+#[derive(Clone, Copy, Debug)]
+struct Loosening {
+    /// o's own move: the upper bound grows by it.
+    moved: Real,
+    decay: Real,
+    reach: Real,
+    max_move: Real,
+}
+
+impl Loosening {
+    /// The lower bound `lower` after the move, for a voxel whose distance
+    /// to o is now at most `upper`.
+    #[inline]
+    fn lowered(&self, lower: Real, upper: Real) -> Real {
+        // Both bounds hold; far from o, where the list proves little,
+        // Hamerly's may be the better.
+        (lower - self.decay).min(self.reach - upper).max(lower - self.max_move)
+    }
+}
+
 /// The `k` nearest centers of a center (itself first), the distance to the
 /// k-th (infinite when the list holds every center) and the travel counters
 /// when the list was built.
+///
+/// The list is extended to the `CANDIDATES_FAR` nearest: the first K serve
+/// nearly every search, and the rest, with their own reach, settle most of
+/// those the first K cannot without the k-d tree (a tenth of all searches
+/// on crane_tvm, each costing as much as ten list searches).
 struct Candidates {
     list: Box<[u32]>,
+    /// The first `near` of `list` are the K nearest, with reach `reach`;
+    /// `reach_far` is the whole list's.
+    near: usize,
     reach: Real,
+    reach_far: Real,
     travel: Real,
     travel_max: Real,
 }
 
 impl Candidates {
-    /// The reach now, shrunk by the center's travel and the most any other
-    /// center can have travelled since the list was built.
+    /// How much the reaches have shrunk since the list was built: the
+    /// center's own travel and the most any other center can have travelled.
     #[inline]
-    fn reach_now(&self, travel: Real, travel_max: Real) -> Real {
-        self.reach - (travel - self.travel) - (travel_max - self.travel_max)
+    fn shrink(&self, travel: Real, travel_max: Real) -> Real {
+        (travel - self.travel) + (travel_max - self.travel_max)
     }
 }
 
@@ -99,6 +134,7 @@ impl CenterIndex {
             points,
             knn: (0..n).map(|_| OnceLock::new()).collect(),
             k: CANDIDATES.min(n),
+            k_far: CANDIDATES_FAR.min(n),
             travel: vec![0.0; n],
             travel_max: 0.0,
             local: None,
@@ -126,9 +162,9 @@ impl CenterIndex {
             // Rebuilt (on demand) once a tenth of its reach is used up: a
             // shrunk reach sends more voxels to the slow k-d tree path
             // (at half, assignment on crane took twice as long).
-            let kept = slot.get().map(|c| (c, c.reach_now(travel, self.travel_max))).filter(|(c, reach)| *reach >= 0.9 * c.reach);
+            let kept = slot.get().map(|c| (c, c.reach - c.shrink(travel, self.travel_max))).filter(|(c, reach)| *reach >= 0.9 * c.reach);
             local.push(match kept {
-                Some((c, reach)) => LocalBound { decay: c.list.iter().map(|&j| moved[j as usize]).fold(0.0, Real::max), reach },
+                Some((c, reach)) => LocalBound { decay: c.list[..c.near].iter().map(|&j| moved[j as usize]).fold(0.0, Real::max), reach },
                 None => {
                     *slot = OnceLock::new();
                     everyone
@@ -139,19 +175,16 @@ impl CenterIndex {
         self
     }
 
-    /// How a voxel of center o lowers its lower bound `lower` after the last
-    /// move: `upper` bounds its distance to o now, `max_move` is the largest move.
-    #[inline]
-    fn lowered(&self, o: u32, lower: Real, upper: Real, max_move: Real) -> Real {
-        match &self.local {
-            Some(local) => {
-                let b = local[o as usize];
-                // Both bounds hold; far from o, where the list proves
-                // little, Hamerly's may be the better.
-                (lower - b.decay).min(b.reach - upper).max(lower - max_move)
-            }
-            None => lower - max_move,
-        }
+    /// Per center, how its voxels' bounds loosen after the move `moved`
+    /// (one distance per center).
+    fn loosening(&self, moved: &[Real]) -> Vec<Loosening> {
+        let max_move = moved.iter().copied().fold(0.0, Real::max);
+        (0..moved.len())
+            .map(|o| {
+                let b = self.local.as_ref().map_or(LocalBound { decay: max_move, reach: Real::INFINITY }, |local| local[o]);
+                Loosening { moved: moved[o], decay: b.decay, reach: b.reach, max_move }
+            })
+            .collect()
     }
 
     fn tree(&self) -> &ImmutableKdTree<Real, 3> {
@@ -163,14 +196,16 @@ impl CenterIndex {
             let mut found: Vec<(Real, u32)> = self
                 .tree()
                 .query(&self.points[i as usize])
-                .nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(self.k).unwrap())
+                .nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(self.k_far).unwrap())
                 .execute()
                 .into_iter()
                 .map(|r| (r.distance, r.item))
                 .collect();
             found.sort_by(|a, b| a.0.total_cmp(&b.0).then((a.1 != i).cmp(&(b.1 != i))).then(a.1.cmp(&b.1)));
-            let reach = if self.k == self.points.len() { Real::INFINITY } else { found.last().map_or(0.0, |r| r.0.sqrt()) };
-            Candidates { list: found.into_iter().map(|r| r.1).collect(), reach, travel: self.travel[i as usize], travel_max: self.travel_max }
+            // Any center outside the first m is at least as far as the m-th.
+            let reach = |m: usize| if m == self.points.len() { Real::INFINITY } else { found.get(m.wrapping_sub(1)).map_or(0.0, |r| r.0.sqrt()) };
+            let (near, reach_far) = (self.k.min(found.len()), reach(self.k_far));
+            Candidates { near, reach: reach(self.k), reach_far, list: found.into_iter().map(|r| r.1).collect(), travel: self.travel[i as usize], travel_max: self.travel_max }
         })
     }
 
@@ -246,23 +281,25 @@ impl CenterIndex {
     fn nearest_among_candidates(&self, v: &[Real; 3], hint: u32) -> Result<(u32, Real, Real), u32> {
         let (mut best, mut second) = ((Real::INFINITY, 0u32), Real::INFINITY);
         let cand = self.candidates(hint);
-        for &c in cand.list.iter() {
-            let d = self.dist2(c, v);
-            if d < best.0 || (d == best.0 && c < best.1) {
-                second = second.min(best.0);
-                best = (d, c);
-            } else {
-                second = second.min(d);
+        let shrink = cand.shrink(self.travel[hint as usize], self.travel_max) + self.dist2(hint, v).sqrt();
+        for (part, reach) in [(&cand.list[..cand.near], cand.reach), (&cand.list[cand.near..], cand.reach_far)] {
+            for &c in part {
+                let d = self.dist2(c, v);
+                if d < best.0 || (d == best.0 && c < best.1) {
+                    second = second.min(best.0);
+                    best = (d, c);
+                } else {
+                    second = second.min(d);
+                }
+            }
+            let bound = reach - shrink;
+            let d_best = best.0.sqrt();
+            // Strict: a center at exactly the bound could tie and win on index.
+            if d_best < bound {
+                return Ok((best.1, d_best, second.sqrt().min(bound)));
             }
         }
-        let bound = cand.reach_now(self.travel[hint as usize], self.travel_max) - self.dist2(hint, v).sqrt();
-        let d_best = best.0.sqrt();
-        // Strict: a center at exactly the bound could tie and win on index.
-        if d_best < bound {
-            Ok((best.1, d_best, second.sqrt().min(bound)))
-        } else {
-            Err(best.1)
-        }
+        Err(best.1)
     }
 
     /// Nearest center (ties to the lower index), from a hint or none.
@@ -387,7 +424,7 @@ impl Assignment {
     /// `moved[i]` how far center i moved since the last call (ignored on the
     /// first call). Returns the cells' sums.
     pub fn update(&mut self, index: &CenterIndex, moved: &[Real], with_moments: bool) -> CellStats {
-        let max_move = moved.iter().copied().fold(0.0, Real::max);
+        let loosening = index.loosening(moved);
         let (eps, origin, a) = (self.eps, self.origin, self.voxel_size);
         // (voxel, old owner) for every voxel whose owner changed.
         let changes: Vec<Vec<(u32, u32)>> = self
@@ -400,19 +437,20 @@ impl Assignment {
             .map(|(chunk, (((own, up), low), coords))| {
                 let mut changed = Vec::new();
                 for k in 0..own.len() {
+                    let o = own[k];
                     let c = coords[k];
                     let pos = [0, 1, 2].map(|d| origin[d] + (c[d] as Real + 0.5) * a);
-                    let o = own[k];
                     if o != NO_OWNER && up[k].is_finite() {
-                        let u = up[k] as Real + moved[o as usize];
-                        let l = index.lowered(o, low[k] as Real, u, max_move);
+                        let b = &loosening[o as usize];
+                        let u = up[k] as Real + b.moved;
+                        let l = b.lowered(low[k] as Real, u);
                         if u + eps < l {
                             up[k] = (u as f32).next_up();
                             low[k] = (l as f32).next_down();
                             continue;
                         }
                         let u = index.dist2(o, &pos).sqrt();
-                        let l = index.lowered(o, low[k] as Real, u, max_move);
+                        let l = b.lowered(low[k] as Real, u);
                         if u + eps < l {
                             up[k] = (u as f32).next_up();
                             low[k] = (l as f32).next_down();
