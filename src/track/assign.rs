@@ -1,7 +1,7 @@
 //! Voronoi assignment of occupied voxels to their nearest center, and the
 //! per-cell sums the tracker needs.
 //!
-//! Centers move little between iterations, which two exact shortcuts exploit:
+//! Centers move little between iterations, which these exact shortcuts exploit:
 //! - Hamerly's bounds: each voxel keeps an upper bound on the distance to its
 //!   center and a lower bound on the distance to any other; moving centers
 //!   loosen them by how far they moved, and while upper < lower the owner
@@ -10,7 +10,8 @@
 //!   o and o's K nearest centers. The best of those is provably the nearest
 //!   when d_b < r_K(o) - |v - o| (r_K(o): distance from o to its K-th nearest
 //!   center; any center outside the list is at least that far from v by the
-//!   triangle inequality). Otherwise a k-d tree answers.
+//!   triangle inequality). Otherwise the list's extension to the 48 nearest
+//!   tries the same with r_48(o), and only then does a k-d tree answer.
 //!   The lists outlive an iteration ([`CenterIndex::moved_to`]): a center
 //!   outside o's list was at least r_K(o) from o when the list was built,
 //!   and since then the two have moved at most o's own travel plus the sum of
@@ -23,7 +24,7 @@
 //!   (On crane_tvm's first 16 frames at R = 256, N = 1000: 202 million
 //!   voxel searches instead of 302.)
 //! Ties are broken by the lower center index, so the result does not depend
-//! on the number of threads. Both shortcuts are tested against a linear scan.
+//! on the number of threads. The shortcuts are tested against a linear scan.
 
 use crate::math::{Point3, Real};
 use crate::voxel::GridSpec;
