@@ -60,34 +60,32 @@ pub struct CenterIndex {
     travel: Vec<Real>,
     /// The largest move of each call, summed: no center moved farther.
     travel_max: Real,
-    /// Set by [`CenterIndex::moved_to`], per center o: how far the centers
-    /// of o's list moved at most in that call, and o's reach now; None for a
-    /// fresh index, whose voxels' lower bounds fall by the largest move.
-    local: Option<Vec<LocalBound>>,
+    /// Set by [`CenterIndex::moved_to`], per center: how its voxels' bounds
+    /// loosen after that move; None for a fresh index, whose voxels' lower
+    /// bounds fall by the largest move.
+    local: Option<Vec<Loosening>>,
 }
 
-/// What a voxel of center o needs to lower its lower bound after a move.
+/// How the bounds of a voxel of center o loosen after a move.
 #[derive(Clone, Copy, Debug)]
-struct LocalBound {
+struct Loosening {
+    /// o's own move: the upper bound grows by it.
+    moved: Real,
     /// The largest move among o's candidates (the largest of all when o had
     /// no list, or its list was dropped).
     decay: Real,
     /// r_K(o) now; infinite when o had no list (decay then covers everyone).
     reach: Real,
-}
-
-/// How the bounds of a voxel of center o loosen after a move, in one
-/// place for the loop over all voxels.
-#[derive(Clone, Copy, Debug)]
-struct Loosening {
-    /// o's own move: the upper bound grows by it.
-    moved: Real,
-    decay: Real,
-    reach: Real,
+    /// The largest move of any center.
     max_move: Real,
 }
 
 impl Loosening {
+    /// Hamerly's bound alone: no center moved farther than `max_move`.
+    fn everyone(moved: Real, max_move: Real) -> Self {
+        Loosening { moved, decay: max_move, reach: Real::INFINITY, max_move }
+    }
+
     /// The lower bound `lower` after the move, for a voxel whose distance
     /// to o is now at most `upper`.
     #[inline]
@@ -157,18 +155,17 @@ impl CenterIndex {
         let max_move = moved.iter().copied().fold(0.0, Real::max);
         self.travel_max += max_move;
         self.tree = OnceLock::new();
-        let everyone = LocalBound { decay: max_move, reach: Real::INFINITY };
         let mut local = Vec::with_capacity(self.knn.len());
-        for (slot, &travel) in self.knn.iter_mut().zip(&self.travel) {
+        for ((slot, &travel), &own_move) in self.knn.iter_mut().zip(&self.travel).zip(moved) {
             // Rebuilt (on demand) once a tenth of its reach is used up: a
             // shrunk reach sends more voxels to the slow k-d tree path
             // (at half, assignment on crane took twice as long).
             let kept = slot.get().map(|c| (c, c.reach - c.shrink(travel, self.travel_max))).filter(|(c, reach)| *reach >= 0.9 * c.reach);
             local.push(match kept {
-                Some((c, reach)) => LocalBound { decay: c.list[..c.near].iter().map(|&j| moved[j as usize]).fold(0.0, Real::max), reach },
+                Some((c, reach)) => Loosening { moved: own_move, decay: c.list[..c.near].iter().map(|&j| moved[j as usize]).fold(0.0, Real::max), reach, max_move },
                 None => {
                     *slot = OnceLock::new();
-                    everyone
+                    Loosening::everyone(own_move, max_move)
                 }
             });
         }
@@ -177,15 +174,16 @@ impl CenterIndex {
     }
 
     /// Per center, how its voxels' bounds loosen after the move `moved`
-    /// (one distance per center).
-    fn loosening(&self, moved: &[Real]) -> Vec<Loosening> {
-        let max_move = moved.iter().copied().fold(0.0, Real::max);
-        (0..moved.len())
-            .map(|o| {
-                let b = self.local.as_ref().map_or(LocalBound { decay: max_move, reach: Real::INFINITY }, |local| local[o]);
-                Loosening { moved: moved[o], decay: b.decay, reach: b.reach, max_move }
-            })
-            .collect()
+    /// (one distance per center; for an index from [`CenterIndex::moved_to`],
+    /// the move it was given).
+    fn loosening(&self, moved: &[Real]) -> std::borrow::Cow<'_, [Loosening]> {
+        match &self.local {
+            Some(local) => local.into(),
+            None => {
+                let max_move = moved.iter().copied().fold(0.0, Real::max);
+                moved.iter().map(|&m| Loosening::everyone(m, max_move)).collect::<Vec<_>>().into()
+            }
+        }
     }
 
     fn tree(&self) -> &ImmutableKdTree<Real, 3> {
@@ -204,9 +202,9 @@ impl CenterIndex {
                 .collect();
             found.sort_by(|a, b| a.0.total_cmp(&b.0).then((a.1 != i).cmp(&(b.1 != i))).then(a.1.cmp(&b.1)));
             // Any center outside the first m is at least as far as the m-th.
-            let reach = |m: usize| if m == self.points.len() { Real::INFINITY } else { found.get(m.wrapping_sub(1)).map_or(0.0, |r| r.0.sqrt()) };
-            let (near, reach_far) = (self.k.min(found.len()), reach(self.k_far));
-            Candidates { near, reach: reach(self.k), reach_far, list: found.into_iter().map(|r| r.1).collect(), travel: self.travel[i as usize], travel_max: self.travel_max }
+            let reach = |m: usize| if m == self.points.len() { Real::INFINITY } else { found[m - 1].0.sqrt() };
+            let (reach, reach_far) = (reach(self.k), reach(self.k_far));
+            Candidates { near: self.k, reach, reach_far, list: found.into_iter().map(|r| r.1).collect(), travel: self.travel[i as usize], travel_max: self.travel_max }
         })
     }
 
