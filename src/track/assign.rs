@@ -174,8 +174,9 @@ impl CenterIndex {
         }
         let max_move = moved.iter().copied().fold(0.0, Real::max);
         // The FAST centers that moved most (often thrown out of the volume,
-        // moving far) are checked one by one against every list below; the
-        // rest moved at most the next largest move, all the reaches lose.
+        // moving far) are checked one by one against every list below; every
+        // other center moved at most the next largest move, which is all the
+        // reaches lose to them.
         let fast = FAST.min(moved.len().saturating_sub(1));
         let mut order: Vec<u32> = (0..moved.len() as u32).collect();
         if !order.is_empty() {
