@@ -122,6 +122,11 @@ struct Candidates {
     travel_cap: Real,
 }
 
+#[inline]
+fn squared_distance(a: &[Real; 3], b: &[Real; 3]) -> Real {
+    (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)
+}
+
 /// Centers checked one by one when lists are carried over a move.
 const FAST: usize = 32;
 
@@ -129,8 +134,7 @@ impl Candidates {
     /// Whether center j, unless in the list of center o, is beyond both
     /// reaches shrunk by `shrink`.
     fn keeps_out(&self, j: u32, o: usize, points: &[[Real; 3]], shrink: Real) -> bool {
-        let (p, q) = (&points[j as usize], &points[o]);
-        let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
+        let d2 = squared_distance(&points[j as usize], &points[o]);
         let beyond = |reach: Real| reach - shrink <= 0.0 || d2 >= (reach - shrink).powi(2);
         (beyond(self.reach) || self.list[..self.near].contains(&j)) && (beyond(self.reach_far) || self.list.contains(&j))
     }
@@ -251,8 +255,7 @@ impl CenterIndex {
 
     #[inline]
     fn dist2(&self, i: u32, v: &[Real; 3]) -> Real {
-        let c = &self.points[i as usize];
-        (c[0] - v[0]).powi(2) + (c[1] - v[1]).powi(2) + (c[2] - v[2]).powi(2)
+        squared_distance(&self.points[i as usize], v)
     }
 
     /// Nearest center by linear scan: the reference the fast paths are tested against.
