@@ -103,6 +103,62 @@ impl Loosening {
     }
 }
 
+/// [`Loosening`] in f32, rounded so that the bounds stay valid, for the
+/// pass over every voxel. (The same pass in f64, with its conversions and
+/// branches, made tracking crane_tvm's first 16 frames at R = 256, N = 1000
+/// take 29 s of CPU instead of 22.)
+#[derive(Clone, Copy, Debug)]
+struct Loosening32 {
+    moved: f32,
+    decay: f32,
+    reach: f32,
+    max_move: f32,
+}
+
+/// Factors that cover the f32 rounding of [`Loosening32::loosen`]: each of
+/// its few operations errs by at most 2^-24 relative, and the bounds it
+/// compares are positive.
+const GROW: f32 = 1.0 + 1.0 / (1u32 << 20) as f32;
+const SHRINK: f32 = 1.0 - 1.0 / (1u32 << 20) as f32;
+
+fn round_up(x: Real) -> f32 {
+    let f = x as f32;
+    if (f as Real) < x { f.next_up() } else { f }
+}
+
+fn round_down(x: Real) -> f32 {
+    let f = x as f32;
+    if (f as Real) > x { f.next_down() } else { f }
+}
+
+impl From<&Loosening> for Loosening32 {
+    fn from(b: &Loosening) -> Self {
+        Loosening32 { moved: round_up(b.moved), decay: round_up(b.decay), reach: round_down(b.reach), max_move: round_up(b.max_move) }
+    }
+}
+
+impl Loosening32 {
+    /// The bounds (`upper`, `lower`) after the move. The owner still holds when upper < lower; otherwise the loosened
+    /// bounds may be NaN or meaningless and the voxel must be measured.
+    ///
+    /// Valid because the move terms are rounded outwards, the upper bound is
+    /// raised by 2^-20 relative after its one addition, and the lower bound,
+    /// positive whenever it proves anything, is lowered by as much after its
+    /// subtractions (whose relative errors the min and max keep).
+    #[inline(always)]
+    fn loosen(&self, upper: f32, lower: f32) -> (f32, f32) {
+        // Comparisons rather than f32::min/max, whose NaN handling costs
+        // instructions here; a NaN (from an infinite upper bound) only fails
+        // the test u < l.
+        let u = (upper + self.moved) * GROW;
+        let (a, b) = (lower - self.decay, self.reach - u);
+        let m = if a < b { a } else { b };
+        let c = lower - self.max_move;
+        let l = if m > c { m } else { c };
+        (u, l * SHRINK)
+    }
+}
+
 /// The `k` nearest centers of a center (itself first), the distance to the
 /// k-th (infinite when the list holds every center) and the travel counters
 /// when the list was built.
@@ -466,8 +522,13 @@ impl Assignment {
     /// Re-assigns after the centers moved: `index` over the new positions,
     /// `moved[i]` how far center i moved since the last call (ignored on the
     /// first call). Returns the cells' sums.
+    ///
+    /// Two passes per chunk of voxels: a branch-free one loosens every
+    /// voxel's bounds in f32 and lists those whose bounds no longer prove
+    /// the owner (one in seven on crane_tvm), then those are measured.
     pub fn update(&mut self, index: &CenterIndex, moved: &[Real], with_moments: bool) -> CellStats {
         let loosening = index.loosening(moved);
+        let loosening32: Vec<Loosening32> = loosening.iter().map(Loosening32::from).collect();
         let (eps, origin, a) = (self.eps, self.origin, self.voxel_size);
         // (voxel, old owner) for every voxel whose owner changed.
         let changes: Vec<Vec<(u32, u32)>> = self
@@ -478,22 +539,32 @@ impl Assignment {
             .zip(self.coords.par_chunks(CHUNK))
             .enumerate()
             .map(|(chunk, (((own, up), low), coords))| {
-                let mut changed = Vec::new();
+                // Voxels to measure, with their lower bound before this pass.
+                let mut pending = vec![(0u32, 0f32); own.len()];
+                let mut n = 0;
                 for k in 0..own.len() {
+                    let lo = low[k];
+                    let skip = match loosening32.get(own[k] as usize) {
+                        Some(b) => {
+                            let (u, l) = b.loosen(up[k], lo);
+                            up[k] = u;
+                            low[k] = l;
+                            u < l
+                        }
+                        None => false,
+                    };
+                    pending[n] = (k as u32, lo);
+                    n += !skip as usize;
+                }
+                let mut changed = Vec::new();
+                for &(k, lo) in &pending[..n] {
+                    let k = k as usize;
                     let o = own[k];
                     let c = coords[k];
                     let pos = [0, 1, 2].map(|d| origin[d] + (c[d] as Real + 0.5) * a);
-                    if o != NO_OWNER && up[k].is_finite() {
-                        let b = &loosening[o as usize];
-                        let u = up[k] as Real + b.moved;
-                        let l = b.lowered(low[k] as Real, u);
-                        if u + eps < l {
-                            up[k] = (u as f32).next_up();
-                            low[k] = (l as f32).next_down();
-                            continue;
-                        }
+                    if let Some(b) = loosening.get(o as usize) {
                         let u = index.dist2(o, &pos).sqrt();
-                        let l = b.lowered(low[k] as Real, u);
+                        let l = b.lowered(lo as Real, u);
                         if u + eps < l {
                             up[k] = (u as f32).next_up();
                             low[k] = (l as f32).next_down();
@@ -567,4 +638,42 @@ pub fn carry_owners(prev_voxels: &[u32], prev_owners: &[u32], voxels: &[u32]) ->
         out[k] = if j < prev_voxels.len() && prev_voxels[j] == v { prev_owners[j] } else { last };
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::track::rng::SplitMix64;
+
+    /// The f32 loosening never tightens a bound the f64 arithmetic allows,
+    /// at any scale, on bounds built to fall within an f32 rounding of a tie.
+    #[test]
+    fn f32_loosening_keeps_the_bounds_valid() {
+        let mut rng = SplitMix64::new(11);
+        let mut unit = || (rng.next_u64() >> 11) as Real / (1u64 << 53) as Real;
+        let (mut skipped, mut measured) = (0, 0);
+        for case in 0..200_000 {
+            let scale = (10.0 as Real).powf(-3.0 + 7.0 * unit());
+            let moved = scale * 1e-3 * unit();
+            let max_move = scale * 1e-3 * unit();
+            let decay = max_move * unit();
+            let reach = if case % 5 == 0 { Real::INFINITY } else { scale * (1.0 + 2.0 * unit()) };
+            let b = Loosening { moved, decay, reach, max_move };
+            let upper = (scale * unit()) as f32;
+            // Within a few f32 roundings of the loosened bounds meeting.
+            let tie = upper as Real + moved + max_move.max(decay);
+            let lower = (tie * (1.0 + 1e-6 * (2.0 * unit() - 1.0))) as f32;
+            let (u, l) = Loosening32::from(&b).loosen(upper, lower);
+            let u_exact = upper as Real + moved;
+            assert!(u as Real >= u_exact, "case {case}: upper {u} below {u_exact}");
+            if u < l {
+                skipped += 1;
+                let l_exact = b.lowered(lower as Real, u_exact);
+                assert!(l as Real <= l_exact, "case {case}: lower {l} above {l_exact}");
+            } else {
+                measured += 1;
+            }
+        }
+        assert!(skipped > 10_000 && measured > 10_000, "{skipped} skipped, {measured} measured: the cases miss the boundary");
+    }
 }
