@@ -384,12 +384,13 @@ impl CenterIndex {
         for (part, reach) in [(&cand.list[..cand.near], cand.reach), (&cand.list[cand.near..], cand.reach_far)] {
             for &c in part {
                 let d = self.dist2(c, v);
-                if d < best.0 || (d == best.0 && c < best.1) {
-                    second = second.min(best.0);
-                    best = (d, c);
-                } else {
-                    second = second.min(d);
-                }
+                // Branch-free (selects rather than jumps: which candidate
+                // wins is unpredictable): the runner-up is the smaller of
+                // itself and whichever of d and the best loses.
+                let loser = if d < best.0 { best.0 } else { d };
+                second = if loser < second { loser } else { second };
+                let wins = d < best.0 || (d == best.0 && c < best.1);
+                best = (if wins { d } else { best.0 }, if wins { c } else { best.1 });
             }
             let bound = reach - shrink;
             let d_best = best.0.sqrt();
