@@ -539,49 +539,52 @@ impl Assignment {
             .zip(self.lower.par_chunks_mut(CHUNK))
             .zip(self.coords.par_chunks(CHUNK))
             .enumerate()
-            .map(|(chunk, (((own, up), low), coords))| {
-                // Voxels to measure, with their lower bound before this pass.
-                let mut pending = vec![(0u32, 0f32); own.len()];
-                let mut n = 0;
-                for k in 0..own.len() {
-                    let lo = low[k];
-                    let skip = match loosening32.get(own[k] as usize) {
-                        Some(b) => {
-                            let (u, l) = b.loosen(up[k], lo);
-                            up[k] = u;
-                            low[k] = l;
-                            u < l
-                        }
-                        None => false,
-                    };
-                    pending[n] = (k as u32, lo);
-                    n += !skip as usize;
-                }
-                let mut changed = Vec::new();
-                for &(k, lo) in &pending[..n] {
-                    let k = k as usize;
-                    let o = own[k];
-                    let c = coords[k];
-                    let pos = [0, 1, 2].map(|d| origin[d] + (c[d] as Real + 0.5) * a);
-                    if let Some(b) = loosening.get(o as usize) {
-                        let u = index.dist2(o, &pos).sqrt();
-                        let l = b.lowered(lo as Real, u);
-                        if u + eps < l {
-                            up[k] = (u as f32).next_up();
-                            low[k] = (l as f32).next_down();
-                            continue;
-                        }
+            // Voxels to measure, with their lower bound before the first
+            // pass: a buffer per rayon job rather than a zeroed one per chunk.
+            .map_init(
+                || vec![(0u32, 0f32); CHUNK],
+                |pending, (chunk, (((own, up), low), coords))| {
+                    let mut n = 0;
+                    for k in 0..own.len() {
+                        let lo = low[k];
+                        let skip = match loosening32.get(own[k] as usize) {
+                            Some(b) => {
+                                let (u, l) = b.loosen(up[k], lo);
+                                up[k] = u;
+                                low[k] = l;
+                                u < l
+                            }
+                            None => false,
+                        };
+                        pending[n] = (k as u32, lo);
+                        n += !skip as usize;
                     }
-                    let (owner, d, second) = index.nearest2(&pos, o);
-                    if owner != o {
-                        changed.push(((chunk * CHUNK + k) as u32, o));
+                    let mut changed = Vec::new();
+                    for &(k, lo) in &pending[..n] {
+                        let k = k as usize;
+                        let o = own[k];
+                        let c = coords[k];
+                        let pos = [0, 1, 2].map(|d| origin[d] + (c[d] as Real + 0.5) * a);
+                        if let Some(b) = loosening.get(o as usize) {
+                            let u = index.dist2(o, &pos).sqrt();
+                            let l = b.lowered(lo as Real, u);
+                            if u + eps < l {
+                                up[k] = (u as f32).next_up();
+                                low[k] = (l as f32).next_down();
+                                continue;
+                            }
+                        }
+                        let (owner, d, second) = index.nearest2(&pos, o);
+                        if owner != o {
+                            changed.push(((chunk * CHUNK + k) as u32, o));
+                        }
+                        own[k] = owner;
+                        up[k] = (d as f32).next_up();
+                        low[k] = (second as f32).next_down();
                     }
-                    own[k] = owner;
-                    up[k] = (d as f32).next_up();
-                    low[k] = (second as f32).next_down();
-                }
-                changed
-            })
+                    changed
+                },
+            )
             .collect();
         match &mut self.sums {
             Some(sums) if !with_moments && sums.count.len() == index.len() => {
