@@ -138,8 +138,9 @@ impl From<&Loosening> for Loosening32 {
 }
 
 impl Loosening32 {
-    /// The bounds (`upper`, `lower`) after the move. The owner still holds when upper < lower; otherwise the loosened
-    /// bounds may be NaN or meaningless and the voxel must be measured.
+    /// The bounds (`upper`, `lower`) after the move. The owner still holds
+    /// when upper < lower; otherwise the loosened bounds may be NaN or
+    /// meaningless, and the voxel must be measured.
     ///
     /// Valid because the move terms are rounded outwards, the upper bound is
     /// raised by 2^-20 relative after its one addition, and the lower bound,
