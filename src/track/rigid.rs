@@ -242,12 +242,12 @@ mod tests {
     #[test]
     fn weighted_sums_are_bit_identical_on_every_path() {
         let mut rng = SplitMix64::new(7);
-        let mut value = || ((rng.next_u64() >> 11) as Real / (1u64 << 53) as Real - 0.5) * 1e3;
+        let mut value = || (rng.unit() - 0.5) * 1e3;
         let table: Vec<[Real; 12]> = (0..500).map(|_| [(); 12].map(|_| value())).collect();
         let mut rng = SplitMix64::new(8);
         let lists: Vec<(Vec<u32>, Vec<Real>)> = [0, 1, 3, 17, 427, 430]
             .iter()
-            .map(|&len| ((0..len).map(|_| rng.below(table.len()) as u32).collect(), (0..len).map(|_| (rng.next_u64() >> 11) as Real / (1u64 << 53) as Real).collect()))
+            .map(|&len| ((0..len).map(|_| rng.below(table.len()) as u32).collect(), (0..len).map(|_| rng.unit()).collect()))
             .collect();
         let bits = |s: [[Real; 12]; 2]| s.map(|s| s.map(Real::to_bits));
         for a in &lists {
