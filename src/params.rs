@@ -227,13 +227,20 @@ pub struct DeformParams {
     /// Least ω between a vertex's nearest center and another center for the
     /// vertex to bind to it too. Default 0.5; in (0, 1].
     pub min_affinity: Real,
+    /// Rounds of spreading every vertex's center weights over its mesh
+    /// neighbours (half its own, half their mean), keeping the
+    /// `2 × neighbors` largest. Without it the center set switches between
+    /// adjacent vertices where the ω filter cuts, and triangles across the
+    /// cut fold: on crane_tvm 10 rounds take the worst frame's inverted
+    /// area from 3.95 to 2.88 %. Default 10; 0 = off.
+    pub smoothing: usize,
     /// Blending. Default dual quaternions.
     pub blending: Blending,
 }
 
 impl Default for DeformParams {
     fn default() -> Self {
-        DeformParams { neighbors: 4, min_affinity: 0.5, blending: Blending::DualQuaternion }
+        DeformParams { neighbors: 4, min_affinity: 0.5, smoothing: 10, blending: Blending::DualQuaternion }
     }
 }
 

@@ -1,6 +1,6 @@
 //! Deforming the first-frame mesh by center trajectories.
 
-use voltrack::deform::{deform, DualQuaternion};
+use voltrack::deform::{bind, deform, smooth_bindings, Binding, DualQuaternion};
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
 use voltrack::params::{Blending, DeformParams};
 use voltrack::refine::SparseAffinity;
@@ -65,4 +65,56 @@ fn vertices_bind_only_to_centers_affine_to_their_nearest() {
     let together = SparseAffinity { lists: vec![vec![(0, 1.0), (1, 1.0)], vec![(0, 1.0), (1, 1.0)]] };
     let dm = deform(&mesh, &traj, &together, &DeformParams::default()).unwrap();
     assert!(dm.frames[1].iter().zip(&mesh.positions).any(|(v, p)| (v - (p + Vector3::new(0.0, 1.0, 0.0))).norm() > 1e-3));
+}
+
+/// A bar 3 long along x, with eight centers on its axis; ω links the centers
+/// within `group` of each other's index range (`None`: all linked).
+fn bar_with_centers(split: Option<u32>) -> (voltrack::TriangleMesh, Vec<Point3>, SparseAffinity) {
+    let mesh = voltrack::fixtures::bending_bar(0);
+    let centers: Vec<Point3> = (0..8).map(|i| Point3::new(0.1875 + 0.375 * i as Real, 0.0, 0.0)).collect();
+    let side = |i: u32| split.map_or(0, |s| u32::from(i >= s));
+    let lists = (0..8u32).map(|i| (0..8u32).filter(|&j| side(i) == side(j)).map(|j| (j, 1.0)).collect()).collect();
+    (mesh, centers, SparseAffinity { lists })
+}
+
+fn nearest_center(b: &Binding) -> u32 {
+    b.centers[0].0
+}
+
+#[test]
+fn smoothed_weights_stay_normalised_and_never_cross_a_cut() {
+    let (mesh, centers, omega) = bar_with_centers(Some(4));
+    let params = DeformParams::default();
+    let bound = bind(&mesh, &centers, &omega, &params);
+    assert_eq!(smooth_bindings(&mesh.triangles, &bound, &omega, 0, 8), bound);
+    let smoothed = smooth_bindings(&mesh.triangles, &bound, &omega, 30, 8);
+    for (b, s) in bound.iter().zip(&smoothed) {
+        assert!(s.centers.len() <= 8 && !s.centers.is_empty());
+        assert!((s.centers.iter().map(|c| c.1).sum::<Real>() - 1.0).abs() < 1e-12);
+        assert!(s.centers.iter().all(|c| c.1 > 0.0));
+        // The bar is one connected surface, but no weight leaks over the cut
+        // between centers 0-3 and 4-7.
+        let side = nearest_center(b) >= 4;
+        assert!(s.centers.iter().all(|c| (c.0 >= 4) == side), "{b:?} became {s:?}");
+    }
+}
+
+#[test]
+fn smoothing_makes_the_weights_change_gradually_along_the_surface() {
+    let (mesh, centers, omega) = bar_with_centers(None);
+    let params = DeformParams::default();
+    let bound = bind(&mesh, &centers, &omega, &params);
+    // Largest change of the weights across one edge, as an L1 distance.
+    let jump = |b: &[Binding]| {
+        let weight = |v: usize, c: u32| b[v].centers.iter().find(|e| e.0 == c).map_or(0.0, |e| e.1);
+        mesh.triangles
+            .iter()
+            .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+            .map(|(a, b)| (0..8).map(|c| (weight(a as usize, c) - weight(b as usize, c)).abs()).sum::<Real>())
+            .fold(0.0, Real::max)
+    };
+    let before = jump(&bound);
+    let after = jump(&smooth_bindings(&mesh.triangles, &bound, &omega, params.smoothing, 2 * params.neighbors));
+    // Measured: 0.56 before, 0.35 after; without smoothing the two are equal.
+    assert!(after < 0.7 * before, "largest jump {before} before, {after} after");
 }

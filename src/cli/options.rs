@@ -204,6 +204,9 @@ pub struct ConvertArgs {
     /// Centers each vertex follows
     #[arg(long, default_value_t = DeformParams::default().neighbors)]
     pub bind_neighbors: usize,
+    /// Rounds of spreading each vertex's center weights to its mesh neighbours (0: off)
+    #[arg(long, default_value_t = DeformParams::default().smoothing)]
+    pub bind_smoothing: usize,
     /// Blending of the centers' motions
     #[arg(long, value_enum, default_value = "dq")]
     pub blend: BlendArg,
@@ -239,6 +242,7 @@ impl ConvertArgs {
     pub fn deform_params(&self) -> DeformParams {
         DeformParams {
             neighbors: self.bind_neighbors,
+            smoothing: self.bind_smoothing,
             blending: match self.blend {
                 BlendArg::Dq => Blending::DualQuaternion,
                 BlendArg::Linear => Blending::Linear,

@@ -102,7 +102,7 @@ pub fn deform(mesh: &TriangleMesh, traj: &Trajectories, omega: &SparseAffinity, 
     if traj.centers == 0 || omega.lists.len() != traj.centers {
         return Err(Error::InvalidInput("no centers to deform the mesh with".into()));
     }
-    let bindings = bind(mesh, traj.frame(0), omega, params);
+    let bindings = smooth_bindings(&mesh.triangles, &bind(mesh, traj.frame(0), omega, params), omega, params.smoothing, 2 * params.neighbors);
     let motions = center_motions(traj, omega);
     let mut frames = vec![mesh.positions.clone()];
     for m in motions.iter().skip(1) {
@@ -126,4 +126,54 @@ pub fn move_vertices(positions: &[Point3], bindings: &[Binding], motions: &[Rigi
             }
         })
         .collect()
+}
+
+/// Spreads every vertex's weights over its mesh neighbours, `rounds` times
+/// (half its own, half their mean), keeping the `keep` largest: the center
+/// set then changes gradually across the surface instead of switching
+/// between adjacent vertices. Weights cross an edge only when its two
+/// vertices' nearest centers are one and the same or have an affinity at
+/// all, so surfaces merged where two bodies touch in frame 0 but that part
+/// later still do not share centers.
+pub fn smooth_bindings(triangles: &[[u32; 3]], bindings: &[Binding], omega: &SparseAffinity, rounds: usize, keep: usize) -> Vec<Binding> {
+    let nearest: Vec<usize> = bindings.iter().map(|b| b.centers.first().map_or(usize::MAX, |c| c.0 as usize)).collect();
+    let linked = |a: usize, b: usize| nearest[a] == nearest[b] || (nearest[a] != usize::MAX && nearest[b] != usize::MAX && omega.weight(nearest[a], nearest[b]) > 0.0);
+    let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); bindings.len()];
+    for t in triangles {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            if linked(a as usize, b as usize) {
+                neighbours[a as usize].push(b);
+                neighbours[b as usize].push(a);
+            }
+        }
+    }
+    for n in &mut neighbours {
+        n.sort_unstable();
+        n.dedup();
+    }
+    let mut current = bindings.to_vec();
+    for _ in 0..rounds {
+        current = (0..current.len())
+            .into_par_iter()
+            .map(|v| {
+                let mut acc: Vec<(u32, Real)> = current[v].centers.iter().map(|&(c, w)| (c, 0.5 * w)).collect();
+                let share = 0.5 / neighbours[v].len().max(1) as Real;
+                for &u in &neighbours[v] {
+                    for &(c, w) in &current[u as usize].centers {
+                        match acc.iter_mut().find(|e| e.0 == c) {
+                            Some(e) => e.1 += share * w,
+                            None => acc.push((c, share * w)),
+                        }
+                    }
+                }
+                acc.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+                acc.truncate(keep);
+                let total: Real = acc.iter().map(|e| e.1).sum();
+                acc.iter_mut().for_each(|e| e.1 /= total);
+                Binding { centers: acc }
+            })
+            .collect();
+    }
+    current
 }
