@@ -1,9 +1,11 @@
 //! Deforms the first frame of a sequence by trajectories already tracked
 //! (`voltrack track -o centers.exr`), to try deformation settings without
 //! tracking again: `cargo run --release --example deform_from -- centers.exr
-//! INPUT_DIR out.glb [neighbors]`.
+//! INPUT_DIR out.glb [neighbors]`. `VOLTRACK_RHO_GP`, `VOLTRACK_RHO_GM`,
+//! `VOLTRACK_MIN_AFFINITY` and `VOLTRACK_BLEND=linear` override the affinity
+//! the mesh is bound with and the blending.
 
-use voltrack::params::DeformParams;
+use voltrack::params::{Blending, DeformParams, RefineParams};
 use voltrack::voxel::VoxelParams;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -14,12 +16,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (traj, attrs) = voltrack::io::exr::read_trajectories_exr(args[0].as_ref())?;
     let resolution = voltrack::pipeline::resolution_of(&attrs, args[0].as_ref())?;
     let seq = voltrack::pipeline::load(&[args[1].clone().into()], &VoxelParams { resolution, ..Default::default() }, Default::default())?;
+    let env = |k: &str| std::env::var(k).ok().and_then(|s| s.parse::<f64>().ok());
     let mut params = DeformParams::default();
     if let Some(k) = args.get(3) {
         params.neighbors = k.parse()?;
     }
+    let mut refine = RefineParams::default();
+    refine.rho_gp = env("VOLTRACK_RHO_GP").unwrap_or(refine.rho_gp);
+    refine.rho_gm = env("VOLTRACK_RHO_GM").unwrap_or(refine.rho_gm);
+    params.min_affinity = env("VOLTRACK_MIN_AFFINITY").unwrap_or(params.min_affinity);
+    if std::env::var("VOLTRACK_BLEND").is_ok_and(|b| b == "linear") {
+        params.blending = Blending::Linear;
+    }
     let first = seq.first_mesh.as_ref().ok_or("no mesh")?;
-    let mesh = voltrack::pipeline::deform_sequence(first, &traj, &seq, None, &params)?;
+    let mesh = voltrack::pipeline::deform_sequence(first, &traj, &seq, Some(&refine), &params)?;
     let report = voltrack::export::gltf::write_dynamic_glb(args[2].as_ref(), &mesh, &Default::default())?;
     println!("wrote {} ({} targets)", args[2], report.targets);
     Ok(())
