@@ -5,7 +5,8 @@
 //! affine (ω) to its nearest one, so a hand resting on a hip in frame 0 is not
 //! glued to the hip. Each center's rigid motion from frame 0 to frame f is
 //! fitted over its own affine neighbours, and a vertex follows the blend of
-//! its centers' motions.
+//! its centers' motions. The weights are spread a little over the mesh, so
+//! the set of centers changes gradually from vertex to vertex.
 
 mod blend;
 
@@ -133,8 +134,8 @@ pub fn move_vertices(positions: &[Point3], bindings: &[Binding], motions: &[Rigi
 /// set then changes gradually across the surface instead of switching
 /// between adjacent vertices. Weights cross an edge only when its two
 /// vertices' nearest centers are one and the same or have an affinity at
-/// all, so surfaces merged where two bodies touch in frame 0 but that part
-/// later still do not share centers.
+/// all: where two bodies touch in frame 0 and part later, their merged
+/// surface still does not mix their centers.
 pub fn smooth_bindings(triangles: &[[u32; 3]], bindings: &[Binding], omega: &SparseAffinity, rounds: usize, keep: usize) -> Vec<Binding> {
     let nearest: Vec<usize> = bindings.iter().map(|b| b.centers.first().map_or(usize::MAX, |c| c.0 as usize)).collect();
     let linked = |a: usize, b: usize| nearest[a] == nearest[b] || (nearest[a] != usize::MAX && nearest[b] != usize::MAX && omega.weight(nearest[a], nearest[b]) > 0.0);
