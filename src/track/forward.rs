@@ -99,9 +99,10 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
             traj.frame_mut(0).copy_from_slice(&centers0);
             let mut owners = vec![NO_OWNER; voxels0.len()];
             let stats0 = assign(grid, voxels0, &CenterIndex::new(&centers0), &mut owners, false);
-            let affinity = Affinity::initial(&centers0, params.affinity, params.rho_p * scale, params.rho_m * scale, params.alpha, params.mu);
+            let reach = rho_p(params, seq, scale);
+            let affinity = Affinity::initial(&centers0, params.affinity, reach, params.rho_m * scale, params.alpha, params.mu);
             let timing = FrameTiming { total: start.elapsed().as_secs_f64(), iterations: lloyd_steps, ..Default::default() };
-            log::info!("frame 0: {} centers placed, {:.1} neighbours each", params.centers, affinity.mean_neighbors());
+            log::info!("frame 0: {} centers placed; ρ_p {reach:.4}, {:.1} neighbours each", params.centers, affinity.mean_neighbors());
             (traj, vec![stats0.count], vec![timing], affinity, owners, 1)
         }
     };
@@ -217,6 +218,12 @@ impl<'a> Tracker<'a> {
         t.total = start.elapsed().as_secs_f64();
         Some((cur, stats.count, t))
     }
+}
+
+/// ρ_p in the input's units (see [`TrackParams::rho_p`]), from frame 0's
+/// occupied volume.
+pub(super) fn rho_p(params: &TrackParams, seq: &VoxelSequence, scale: Real) -> Real {
+    params.rho_p_in_units(scale, seq.frames[0].indices.len() as Real * seq.grid.voxel_size.powi(3))
 }
 
 /// Rigid predictions p_i = A_i(c_i^{f-1}).
