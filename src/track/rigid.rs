@@ -155,7 +155,9 @@ impl RigidFits {
                 let range = self.start[i]..self.start[i + 1];
                 (&self.points[range.clone()], &self.weights[range])
             };
-            let sums = if out.len() == 2 { weighted_sums(list(i), list(i + 1), &table) } else { weighted_sums(list(i), (&[], &[]), &table) };
+            // The last fit of an odd count is paired with an empty list.
+            let second = if out.len() == 2 { list(i + 1) } else { (&[][..], &[][..]) };
+            let sums = weighted_sums(list(i), second, &table);
             for (k, motion) in out.iter_mut().enumerate() {
                 *motion = self.motion(i + k, &sums[k], &dst_shift);
             }
