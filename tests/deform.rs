@@ -86,8 +86,8 @@ fn smoothed_weights_stay_normalised_and_never_cross_a_cut() {
     let (mesh, centers, omega) = bar_with_centers(Some(4));
     let params = DeformParams::default();
     let bound = bind(&mesh, &centers, &omega, &params);
-    assert_eq!(smooth_bindings(&mesh.triangles, &bound, &omega, 0, 8), bound);
-    let smoothed = smooth_bindings(&mesh.triangles, &bound, &omega, 30, 8);
+    assert_eq!(smooth_bindings(&mesh.triangles, bound.clone(), &omega, 0, 8), bound);
+    let smoothed = smooth_bindings(&mesh.triangles, bound.clone(), &omega, 30, 8);
     for (b, s) in bound.iter().zip(&smoothed) {
         assert!(s.centers.len() <= 8 && !s.centers.is_empty());
         assert!((s.centers.iter().map(|c| c.1).sum::<Real>() - 1.0).abs() < 1e-12);
@@ -114,7 +114,7 @@ fn smoothing_makes_the_weights_change_gradually_along_the_surface() {
             .fold(0.0, Real::max)
     };
     let before = jump(&bound);
-    let after = jump(&smooth_bindings(&mesh.triangles, &bound, &omega, params.smoothing, 2 * params.neighbors));
+    let after = jump(&smooth_bindings(&mesh.triangles, bound.clone(), &omega, params.smoothing, 2 * params.neighbors));
     // Measured: 0.56 before, 0.35 after; without smoothing the two are equal.
     assert!(after < 0.7 * before, "largest jump {before} before, {after} after");
 }

@@ -103,7 +103,7 @@ pub fn deform(mesh: &TriangleMesh, traj: &Trajectories, omega: &SparseAffinity, 
     if traj.centers == 0 || omega.lists.len() != traj.centers {
         return Err(Error::InvalidInput("no centers to deform the mesh with".into()));
     }
-    let bindings = smooth_bindings(&mesh.triangles, &bind(mesh, traj.frame(0), omega, params), omega, params.smoothing, 2 * params.neighbors);
+    let bindings = smooth_bindings(&mesh.triangles, bind(mesh, traj.frame(0), omega, params), omega, params.smoothing, 2 * params.neighbors);
     let motions = center_motions(traj, omega);
     let mut frames = vec![mesh.positions.clone()];
     for m in motions.iter().skip(1) {
@@ -136,9 +136,15 @@ pub fn move_vertices(positions: &[Point3], bindings: &[Binding], motions: &[Rigi
 /// vertices' nearest centers are one and the same or have an affinity at
 /// all: where two bodies touch in frame 0 and part later, their merged
 /// surface still does not mix their centers.
-pub fn smooth_bindings(triangles: &[[u32; 3]], bindings: &[Binding], omega: &SparseAffinity, rounds: usize, keep: usize) -> Vec<Binding> {
-    let nearest: Vec<usize> = bindings.iter().map(|b| b.centers.first().map_or(usize::MAX, |c| c.0 as usize)).collect();
-    let linked = |a: usize, b: usize| nearest[a] == nearest[b] || (nearest[a] != usize::MAX && nearest[b] != usize::MAX && omega.weight(nearest[a], nearest[b]) > 0.0);
+pub fn smooth_bindings(triangles: &[[u32; 3]], bindings: Vec<Binding>, omega: &SparseAffinity, rounds: usize, keep: usize) -> Vec<Binding> {
+    if rounds == 0 {
+        return bindings;
+    }
+    let nearest: Vec<Option<usize>> = bindings.iter().map(|b| b.centers.first().map(|c| c.0 as usize)).collect();
+    let linked = |a: usize, b: usize| match (nearest[a], nearest[b]) {
+        (Some(x), Some(y)) => x == y || omega.weight(x, y) > 0.0,
+        _ => false,
+    };
     let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); bindings.len()];
     for t in triangles {
         for k in 0..3 {
@@ -153,7 +159,7 @@ pub fn smooth_bindings(triangles: &[[u32; 3]], bindings: &[Binding], omega: &Spa
         n.sort_unstable();
         n.dedup();
     }
-    let mut current = bindings.to_vec();
+    let mut current = bindings;
     for _ in 0..rounds {
         current = (0..current.len())
             .into_par_iter()
