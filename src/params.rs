@@ -99,8 +99,8 @@ impl TrackParams {
         if self.centers == 0 {
             return bad("--centers must be at least 1");
         }
-        let rho_p = self.rho_p.unwrap_or(1.0);
-        if !(rho_p > 0.0 && self.rho_m > 0.0 && rho_p.is_finite() && self.rho_m.is_finite()) {
+        let positive = |rho: Real| rho > 0.0 && rho.is_finite();
+        if !(self.rho_p.is_none_or(positive) && positive(self.rho_m)) {
             return bad("rho_p and rho_m must be positive");
         }
         if !(self.alpha > 0.0 && self.alpha <= 1.0) {
