@@ -23,6 +23,7 @@ fn main() {
         &TrackParams::default(),
         Some(&RefineParams::default()),
         &DeformParams::default(),
+        &Default::default(),
         None,
         Default::default(),
     )
@@ -46,6 +47,14 @@ fn main() {
     for (stage, s) in &stages {
         println!("{:>10} {s:>8.2} s {:>6.1} %", stage.name(), 100.0 * s / total);
     }
-    let tail: f64 = stages.iter().filter(|(s, _)| matches!(s, voltrack::Stage::Deform | voltrack::Stage::Export)).map(|s| s.1).sum();
-    println!("{:>10} {total:>8.2} s (wall {wall:.2} s); deform + export {:.1} % of the total; GLB {:.1} MiB, {} targets", "total", 100.0 * tail / total, report.bytes as f64 / 1048576.0, report.targets);
+    let share = |of: &[voltrack::Stage]| 100.0 * stages.iter().filter(|(s, _)| of.contains(s)).map(|s| s.1).sum::<f64>() / total;
+    use voltrack::Stage::{Conform, Deform, Export};
+    println!(
+        "{:>10} {total:>8.2} s (wall {wall:.2} s); deform + export {:.1} % of the total, with conform {:.1} %; GLB {:.1} MiB, {} targets",
+        "total",
+        share(&[Deform, Export]),
+        share(&[Deform, Conform, Export]),
+        report.bytes as f64 / 1048576.0,
+        report.targets
+    );
 }

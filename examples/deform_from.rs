@@ -3,9 +3,11 @@
 //! tracking again: `cargo run --release --example deform_from -- centers.exr
 //! INPUT_DIR out.glb [neighbors]`. `VOLTRACK_RHO_GP`, `VOLTRACK_RHO_GM`,
 //! `VOLTRACK_MIN_AFFINITY` and `VOLTRACK_BLEND=linear` override the affinity
-//! the mesh is bound with and the blending.
+//! the mesh is bound with and the blending; `VOLTRACK_CONFORM_ITERATIONS`,
+//! `_STIFFNESS`, `_POINT_WEIGHT`, `_MAX_DISTANCE` and `_NORMAL_COSINE` the fit
+//! to the input surfaces.
 
-use voltrack::params::{Blending, DeformParams, RefineParams};
+use voltrack::params::{Blending, ConformParams, DeformParams, RefineParams};
 use voltrack::voxel::VoxelParams;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -30,6 +32,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let first = seq.first_mesh.as_ref().ok_or("no mesh")?;
     let mesh = voltrack::pipeline::deform_sequence(first, &traj, &seq, Some(&refine), &params)?;
+    let defaults = ConformParams::default();
+    let conform = ConformParams {
+        iterations: env("VOLTRACK_CONFORM_ITERATIONS").map_or(defaults.iterations, |i| i as usize),
+        stiffness: env("VOLTRACK_CONFORM_STIFFNESS").unwrap_or(defaults.stiffness),
+        point_weight: env("VOLTRACK_CONFORM_POINT_WEIGHT").unwrap_or(defaults.point_weight),
+        max_distance: env("VOLTRACK_CONFORM_MAX_DISTANCE").unwrap_or(defaults.max_distance),
+        min_normal_cosine: env("VOLTRACK_CONFORM_NORMAL_COSINE").unwrap_or(defaults.min_normal_cosine),
+        ..defaults
+    };
+    let mesh = voltrack::deform::conform_to_inputs(mesh, &seq.paths, seq.bounds.longest_side(), &conform, Default::default())?;
     let report = voltrack::export::gltf::write_dynamic_glb(args[2].as_ref(), &mesh, &Default::default())?;
     println!("wrote {} ({} targets)", args[2], report.targets);
     Ok(())

@@ -44,7 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "vertices" => {
             let inputs = [format!("{data}/pent_tvm").into()];
             let track = TrackParams { centers: env("VOLTRACK_CENTERS", 1000), ..Default::default() };
-            let conv = voltrack::pipeline::convert(&inputs, &voxel, &track, Some(&RefineParams::default()), &DeformParams::default(), None, Default::default())?;
+            let conv = voltrack::pipeline::convert(&inputs, &voxel, &track, Some(&RefineParams::default()), &DeformParams::default(), &Default::default(), None, Default::default())?;
             (conv.mesh.frames, conv.sequence.grid.voxel_size)
         }
         other => return Err(format!("unknown mode {other}: centers or vertices").into()),

@@ -1,11 +1,11 @@
 //! The stages strung together, as the commands use them: each function takes
 //! its inputs and options and returns a result the CLI prints or writes.
 
-use crate::deform::{deform, DynamicMesh};
+use crate::deform::{conform_to_inputs, deform, DynamicMesh};
 use crate::error::{Error, Result};
 use crate::math::Real;
 use crate::mesh::TriangleMesh;
-use crate::params::{DeformParams, RefineParams, TrackParams};
+use crate::params::{ConformParams, DeformParams, RefineParams, TrackParams};
 use crate::progress::{Progress, Stage};
 use crate::refine::{global_affinity, refine, RefineResult, SequenceCells};
 use crate::track::{track_with_checkpoints, Checkpointing, TrackResult, Trajectories};
@@ -121,14 +121,16 @@ pub struct Conversion {
 }
 
 /// Voxelise, track (saving and resuming through `checkpoint` when given),
-/// refine (unless `refine` is None) and deform: the whole pipeline up to
-/// export.
+/// refine (unless `refine` is None), deform and conform to the input
+/// surfaces (unless `conform_params.iterations` is 0): the whole pipeline up
+/// to export.
 pub fn convert(
     inputs: &[PathBuf],
     voxel: &VoxelParams,
     track_params: &TrackParams,
     refine_params: Option<&RefineParams>,
     deform_params: &DeformParams,
+    conform_params: &ConformParams,
     checkpoint: Option<&Checkpointing>,
     progress: Progress,
 ) -> Result<Conversion> {
@@ -153,16 +155,28 @@ pub fn convert(
     let mesh = deform_sequence(&first, traj, &sequence, refine_params, deform_params)?;
     progress.report(Stage::Deform, 1, 1);
     seconds.push((Stage::Deform, clock.elapsed().as_secs_f64()));
+    let clock = Instant::now();
+    let mesh = conform_to_inputs(mesh, &sequence.paths, sequence.bounds.longest_side(), conform_params, progress)
+        .map_err(|e| tracking_saved(e, checkpoint, &sequence))?;
+    if conform_params.iterations > 0 {
+        seconds.push((Stage::Conform, clock.elapsed().as_secs_f64()));
+    }
     Ok(Conversion { sequence, tracked, refined, mesh, seconds })
 }
 
 /// [`refine`] after [`track_with_checkpoints`]: when interrupted, says that
 /// the checkpoint holds the finished tracking, so a resumed run starts here.
 pub fn refine_tracked(traj: &Trajectories, seq: &VoxelSequence, params: &RefineParams, checkpoint: Option<&Checkpointing>, progress: Progress) -> Result<RefineResult> {
-    refine(traj, seq, params, progress).map_err(|e| match e {
+    refine(traj, seq, params, progress).map_err(|e| tracking_saved(e, checkpoint, seq))
+}
+
+/// An interruption after tracking names the checkpoint, which holds every
+/// tracked frame.
+fn tracking_saved(e: Error, checkpoint: Option<&Checkpointing>, seq: &VoxelSequence) -> Error {
+    match e {
         Error::Interrupted { saved: None } => Error::Interrupted { saved: checkpoint.map(|c| (c.path(), seq.frames.len())) },
         e => e,
-    })
+    }
 }
 
 /// Deforms `first` (frame 0 as loaded) by trajectories tracked on `seq`,

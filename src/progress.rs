@@ -10,6 +10,7 @@ pub enum Stage {
     Track,
     Refine,
     Deform,
+    Conform,
     Export,
 }
 
@@ -21,6 +22,7 @@ impl Stage {
             Stage::Track => "track",
             Stage::Refine => "refine",
             Stage::Deform => "deform",
+            Stage::Conform => "conform",
             Stage::Export => "export",
         }
     }

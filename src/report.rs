@@ -12,7 +12,7 @@
 use crate::error::Result;
 use crate::math::Real;
 use crate::metrics::{fit_to_inputs, irregularity_curves_svg, FrameFit, SequenceFit};
-use crate::params::{DeformParams, RefineParams, TrackParams};
+use crate::params::{ConformParams, DeformParams, RefineParams, TrackParams};
 use crate::pipeline::{measure, measure_with_counts, Conversion, Quality};
 use crate::plot::{bar_chart, escape, line_plot, significant, Axis, Series};
 use crate::progress::{Progress, Stage};
@@ -55,6 +55,7 @@ pub struct ReportInput<'a> {
     /// None when refinement was skipped.
     pub refine: Option<&'a RefineParams>,
     pub deform: &'a DeformParams,
+    pub conform: &'a ConformParams,
     /// Seconds per stage: `conversion.seconds`, plus the export's if known.
     pub seconds: &'a [(Stage, f64)],
     /// The file the result was written to, named in the header.
@@ -73,8 +74,9 @@ impl<'a> ReportInput<'a> {
         track: &'a TrackParams,
         refine: Option<&'a RefineParams>,
         deform: &'a DeformParams,
+        conform: &'a ConformParams,
     ) -> Self {
-        ReportInput { conversion, measurements, voxel, track, refine, deform, seconds: &conversion.seconds, output: None, command: None }
+        ReportInput { conversion, measurements, voxel, track, refine, deform, conform, seconds: &conversion.seconds, output: None, command: None }
     }
 }
 
@@ -251,6 +253,7 @@ fn input_html(input: &ReportInput) -> String {
         None => h.push_str("<table><caption>Refinement</caption><tr><td>skipped</td></tr></table>\n"),
     }
     h.push_str(&params_table("Deformation", input.deform));
+    h.push_str(&params_table("Conforming to the input", input.conform));
     h.push_str("</div>\n</details>\n</section>\n");
     h
 }

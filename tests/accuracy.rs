@@ -14,7 +14,7 @@ fn the_converted_bar_follows_its_true_motion() {
     // The README's first command: -r 64 -n 200, everything else at defaults.
     let voxel = VoxelParams { resolution: 64, ..Default::default() };
     let track = TrackParams { centers: 200, ..Default::default() };
-    let conv = voltrack::pipeline::convert(&inputs, &voxel, &track, Some(&RefineParams::default()), &DeformParams::default(), None, Default::default()).unwrap();
+    let conv = voltrack::pipeline::convert(&inputs, &voxel, &track, Some(&RefineParams::default()), &DeformParams::default(), &Default::default(), None, Default::default()).unwrap();
     let voxel_size = conv.sequence.grid.voxel_size;
     let base = &conv.mesh.frames[0];
     assert_eq!(conv.mesh.frames.len(), fixtures::BENDING_BAR_FRAMES);
@@ -29,7 +29,9 @@ fn the_converted_bar_follows_its_true_motion() {
     let mean = all.iter().sum::<Real>() / all.len() as Real;
     let p95 = all[all.len() * 95 / 100];
     eprintln!("all frames: mean {mean:.3}, p95 {p95:.3}, max {:.3} voxels", all[all.len() - 1]);
-    // Measured: mean 0.72, p95 2.18, max 4.59 voxels (in the
-    // last frame, bent by 48 degrees); with the paper's ρ_p 0.66, 1.99, 4.58.
+    // Measured: mean 0.75, p95 2.29, max 4.29 voxels (in the last frame,
+    // bent by 48 degrees); without conforming to the input (which follows
+    // the re-tessellated surface) 0.72, 2.18, 4.59; with that and the
+    // paper's ρ_p 0.66, 1.99, 4.58.
     assert!(mean < 1.0 && p95 < 3.0, "mean {mean}, p95 {p95} voxels");
 }

@@ -286,13 +286,14 @@ fn unwritable_outputs_fail_and_leave_nothing() {
 fn invalid_parameters_exit_with_2() {
     let dir = Scratch::new("cli", "params");
     let input = fixture().to_string_lossy().into_owned();
-    let cases: [(Vec<&str>, &str); 6] = [
+    let cases: [(Vec<&str>, &str); 7] = [
         (vec!["convert", &input, "-r", "32", "--centers", "0", "-o", "x.glb"], "centers"),
         (vec!["track", &input, "-r", "32", "-n", "0", "-o", "c.exr"], "centers"),
         (vec!["track", &input, "-r", "1", "-n", "10", "-o", "c.exr"], "resolution"),
         (vec!["track", &input, "-r", "32", "-n", "10", "--mu", "1.5", "-o", "c.exr"], "mu"),
         (vec!["convert", &input, "-r", "32", "-n", "20", "--no-refine", "--basis", "0", "-o", "x.glb"], "component"),
         (vec!["convert", &input, "-r", "32", "-n", "20", "--no-refine", "--fps", "0", "-o", "x.pc2"], "frame rate"),
+        (vec!["convert", &input, "-r", "32", "-n", "20", "--conform-stiffness", "0", "-o", "x.glb"], "stiffness"),
     ];
     for (args, what) in cases {
         let stderr = fails(&dir, &args, 2);

@@ -1,8 +1,9 @@
 //! Deforming the first-frame mesh by center trajectories.
 
-use voltrack::deform::{bind, deform, smooth_bindings, Binding, DualQuaternion};
+use voltrack::deform::{bind, conform_frame, deform, smooth_bindings, Binding, DualQuaternion};
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
-use voltrack::params::{Blending, DeformParams};
+use voltrack::metrics::SurfaceIndex;
+use voltrack::params::{Blending, ConformParams, DeformParams};
 use voltrack::refine::SparseAffinity;
 use voltrack::track::{Rigid, Trajectories};
 
@@ -117,4 +118,62 @@ fn smoothing_makes_the_weights_change_gradually_along_the_surface() {
     let after = jump(&smooth_bindings(&mesh.triangles, bound.clone(), &omega, params.smoothing, 2 * params.neighbors));
     // Measured: 0.56 before, 0.35 after; without smoothing the two are equal.
     assert!(after < 0.7 * before, "largest jump {before} before, {after} after");
+}
+
+/// The sphere the conform tests fit to, and a rigid motion of it.
+fn conform_sphere() -> (voltrack::TriangleMesh, Rigid) {
+    (voltrack::fixtures::sphere(Point3::origin(), 1.0, 32, 16), random_rigid(3))
+}
+
+fn moved(points: &[Point3], m: &Rigid) -> Vec<Point3> {
+    points.iter().map(|p| m.apply(p)).collect()
+}
+
+fn mean_distance(a: &[Point3], b: &[Point3]) -> Real {
+    a.iter().zip(b).map(|(p, q)| (p - q).norm()).sum::<Real>() / a.len() as Real
+}
+
+#[test]
+fn conforming_keeps_a_mesh_already_on_the_surface_and_pulls_an_offset_one_onto_it() {
+    let (base, m) = conform_sphere();
+    let input = voltrack::TriangleMesh { positions: moved(&base.positions, &m), ..base.clone() };
+    let params = ConformParams::default();
+    // Already right: every term of the energy is zero, so nothing moves.
+    let kept = conform_frame(&base, &input.positions, &input, 2.0, &params).unwrap();
+    assert!(mean_distance(&kept, &input.positions) < 1e-9);
+    // 2 % too large: lands on the surface, back where it belongs.
+    let centre = m.apply(&Point3::origin());
+    let offset: Vec<Point3> = input.positions.iter().map(|p| centre + (p - centre) * 1.02).collect();
+    let fitted = conform_frame(&base, &offset, &input, 2.0, &params).unwrap();
+    let surface = SurfaceIndex::new(&input.positions, &input.triangles);
+    let off_surface = fitted.iter().map(|p| surface.distance(p)).fold(0.0, Real::max);
+    let (before, after) = (mean_distance(&offset, &input.positions), mean_distance(&fitted, &input.positions));
+    assert!(off_surface < 1e-3 && after < 0.05 * before, "{off_surface} off the surface; {before} -> {after} from the truth");
+}
+
+#[test]
+fn conforming_undoes_a_twist_that_blending_left_on_the_surface() {
+    let (base, _) = conform_sphere();
+    // Each latitude turned about the axis by 0.3 z radians: still on the
+    // sphere, but sheared, which the frame-0 edges rule out.
+    let twisted: Vec<Point3> = base.positions.iter().map(|p| Rotation3::new(Vector3::z() * 0.3 * p.z) * p).collect();
+    let fitted = conform_frame(&base, &twisted, &base, 2.0, &ConformParams::default()).unwrap();
+    let (before, after) = (mean_distance(&twisted, &base.positions), mean_distance(&fitted, &base.positions));
+    assert!(after < 0.05 * before, "mean error {before} -> {after}");
+    // Off: the blended positions stay.
+    let off = conform_frame(&base, &twisted, &base, 2.0, &ConformParams { iterations: 0, ..Default::default() }).unwrap();
+    assert_eq!(off, twisted);
+}
+
+#[test]
+fn conforming_to_an_inside_out_input_gives_the_same_mesh() {
+    let (base, m) = conform_sphere();
+    let input = voltrack::TriangleMesh { positions: moved(&base.positions, &m), ..base.clone() };
+    let inside_out = voltrack::TriangleMesh { triangles: input.triangles.iter().map(|&[a, b, c]| [a, c, b]).collect(), ..input.clone() };
+    let centre = m.apply(&Point3::origin());
+    let offset: Vec<Point3> = input.positions.iter().map(|p| centre + (p - centre) * 1.02).collect();
+    let params = ConformParams::default();
+    let a = conform_frame(&base, &offset, &input, 2.0, &params).unwrap();
+    let b = conform_frame(&base, &offset, &inside_out, 2.0, &params).unwrap();
+    assert!(mean_distance(&a, &b) < 1e-9, "{}", mean_distance(&a, &b));
 }

@@ -13,7 +13,7 @@ fn convert_bytes(threads: usize, dir: &Scratch) -> (Vec<u8>, Vec<u8>) {
         let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/bending_bar");
         let voxel = VoxelParams { resolution: 48, ..Default::default() };
         let track = TrackParams { centers: 120, seed: 7, ..Default::default() };
-        let conv = voltrack::pipeline::convert(&[input], &voxel, &track, Some(&RefineParams::default()), &DeformParams::default(), None, Default::default())
+        let conv = voltrack::pipeline::convert(&[input], &voxel, &track, Some(&RefineParams::default()), &DeformParams::default(), &Default::default(), None, Default::default())
             .unwrap();
         let glb = dir.join(&format!("bar{threads}.glb"));
         let exr = dir.join(&format!("bar{threads}.exr"));

@@ -482,6 +482,17 @@ fn surface_index_matches_brute_force() {
         for p in &queries {
             let (got, want) = (index.distance(p), brute_force_distance(p, mesh));
             assert!((got - want).abs() <= 1e-12 * want.max(scale), "{name}: {p:?}: {got} vs brute force {want}");
+            // The closest point is that far and on the surface, with a unit
+            // normal.
+            let (c, n) = index.closest_point(p).expect("triangles");
+            assert!(((c - p).norm() - want).abs() <= 1e-12 * want.max(scale), "{name}: {p:?}");
+            assert!(brute_force_distance(&c, mesh) <= 1e-12 * scale && (n.norm() - 1.0).abs() < 1e-9, "{name}: {p:?}");
+            // Told the surface is within twice the distance, the search finds
+            // the same point; told it is within half, it finds none.
+            assert_eq!(index.closest_point_within(p, 2.0 * want + 1e-9 * scale), Some((c, n)), "{name}: {p:?}");
+            if want > 1e-6 * scale {
+                assert_eq!(index.closest_point_within(p, 0.5 * want), None, "{name}: {p:?}");
+            }
         }
         // A vertex is on the surface.
         assert_eq!(index.distance(&mesh.positions[mesh.triangles[0][1] as usize]), 0.0, "{name}");

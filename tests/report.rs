@@ -8,7 +8,7 @@ use voltrack::deform::DynamicMesh;
 use voltrack::fixtures::{bending_bar_motion, BENDING_BAR_FRAMES};
 use voltrack::math::Real;
 use voltrack::metrics::{fit_to_inputs, DistanceSummary};
-use voltrack::params::{DeformParams, RefineParams, TrackParams};
+use voltrack::params::{ConformParams, DeformParams, RefineParams, TrackParams};
 use voltrack::report::{report_html, write_report, Measurements, ReportInput};
 use voltrack::voxel::VoxelParams;
 use voltrack::{Aabb, Error, Progress};
@@ -88,7 +88,7 @@ fn report_of_a_conversion() {
     let track = TrackParams { centers: 150, seed: 3, ..Default::default() };
     let refine = RefineParams { remove: Some(3), batches: 2, ..Default::default() };
     let deform = DeformParams::default();
-    let conv = voltrack::pipeline::convert(std::slice::from_ref(&input), &voxel, &track, Some(&refine), &deform, None, Progress::none()).unwrap();
+    let conv = voltrack::pipeline::convert(std::slice::from_ref(&input), &voxel, &track, Some(&refine), &deform, &Default::default(), None, Progress::none()).unwrap();
     let measured = Measurements::of(&conv, Progress::none()).unwrap();
 
     // The fit: frame 0 is the input mesh itself; later frames are close (the
@@ -110,11 +110,12 @@ fn report_of_a_conversion() {
     let glb = dir.join("out <b>.glb");
     let seconds: Vec<_> = conv.seconds.iter().copied().chain([(voltrack::Stage::Export, 0.25)]).collect();
     let command = format!("voltrack convert '{}' -r 48 -n 150 --report r.html", input.display());
+    let conform = ConformParams::default();
     let report = ReportInput {
         seconds: &seconds,
         output: Some(&glb),
         command: Some(&command),
-        ..ReportInput::new(&conv, &measured, &voxel, &track, Some(&refine), &deform)
+        ..ReportInput::new(&conv, &measured, &voxel, &track, Some(&refine), &deform, &conform)
     };
     let html = report_html(&report);
     assert!(html.starts_with("<!DOCTYPE html>"));
@@ -200,10 +201,10 @@ fn report_of_a_conversion() {
     assert!(dir.files().iter().all(|f| !f.contains("partial")), "{:?}", dir.files());
 
     // Without refinement: no refinement section, one curve per quality plot.
-    let conv = voltrack::pipeline::convert(&[input], &voxel, &track, None, &deform, None, Progress::none()).unwrap();
+    let conv = voltrack::pipeline::convert(&[input], &voxel, &track, None, &deform, &Default::default(), None, Progress::none()).unwrap();
     let measured = Measurements::of(&conv, Progress::none()).unwrap();
     assert!(measured.refined.is_none());
-    let html = report_html(&ReportInput::new(&conv, &measured, &voxel, &track, None, &deform));
+    let html = report_html(&ReportInput::new(&conv, &measured, &voxel, &track, None, &deform, &Default::default()));
     assert_well_formed(&html);
     let svgs = between(&html, "<svg", "</svg>");
     assert_eq!(svgs.len(), 6);

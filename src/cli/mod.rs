@@ -254,6 +254,12 @@ fn convert(args: ConvertArgs) -> Result<()> {
     let refine = (!args.no_refine).then(|| args.refine.params());
     let deform = args.deform_params();
     let format = args.format()?;
+    let mut conform = args.conform_params();
+    conform.validate()?;
+    if format == OutputFormat::Exr && args.report.is_none() {
+        // Only the trajectories are written: the fitted mesh would go unused.
+        conform.iterations = 0;
+    }
     // Bad export options and output paths fail now, not after the whole
     // pipeline has run.
     args.gltf_options().validate()?;
@@ -263,7 +269,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
     }
     let bars = bars::Bars::new();
     let checkpoint = args.track.checkpointing();
-    let conv = pipeline::convert(&args.input.input, &voxel, &track, refine.as_ref(), &deform, checkpoint.as_ref(), bars.progress())?;
+    let conv = pipeline::convert(&args.input.input, &voxel, &track, refine.as_ref(), &deform, &conform, checkpoint.as_ref(), bars.progress())?;
     let clock = std::time::Instant::now();
     bars.progress().report(Stage::Export, 0, 1);
     let out = &args.output;
@@ -311,7 +317,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
                 seconds: &seconds,
                 output: Some(out),
                 command: Some(&command),
-                ..voltrack::report::ReportInput::new(&conv, &measured, &voxel, &track, refine.as_ref(), &deform)
+                ..voltrack::report::ReportInput::new(&conv, &measured, &voxel, &track, refine.as_ref(), &deform, &conform)
             };
             voltrack::report::write_report(path, &report)?;
             notes.push(format!("report: {}", path.display()));

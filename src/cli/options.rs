@@ -5,7 +5,7 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use voltrack::export::gltf::{BasisChoice, GltfExportOptions};
-use voltrack::params::{AffinityKind, Blending, DeformParams, RefineParams, TrackParams};
+use voltrack::params::{AffinityKind, Blending, ConformParams, DeformParams, RefineParams, TrackParams};
 use voltrack::track::Checkpointing;
 use voltrack::voxel::VoxelParams;
 
@@ -210,6 +210,12 @@ pub struct ConvertArgs {
     /// Blending of the centers' motions
     #[arg(long, value_enum, default_value = "dq")]
     pub blend: BlendArg,
+    /// Rounds of fitting every frame's mesh onto its input surface, keeping its frame-0 edges as far as it can (0: off, the mesh stays as blended)
+    #[arg(long, default_value_t = ConformParams::default().iterations)]
+    pub conform_iterations: usize,
+    /// Stiffness of that fit: weight of keeping the frame-0 edges against lying on the input surface
+    #[arg(long, default_value_t = ConformParams::default().stiffness)]
+    pub conform_stiffness: f64,
     /// Also write a self-contained HTML report: fit to the input per frame, PCAC/DFU, irregularity, time per stage
     #[arg(long, value_name = "HTML")]
     pub report: Option<PathBuf>,
@@ -247,6 +253,15 @@ impl ConvertArgs {
                 BlendArg::Dq => Blending::DualQuaternion,
                 BlendArg::Linear => Blending::Linear,
             },
+            ..Default::default()
+        }
+    }
+
+    pub fn conform_params(&self) -> ConformParams {
+        ConformParams {
+            iterations: self.conform_iterations,
+            stiffness: self.conform_stiffness,
+            absolute_units: self.track.absolute_units,
             ..Default::default()
         }
     }

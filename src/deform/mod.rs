@@ -9,8 +9,10 @@
 //! the set of centers changes gradually from vertex to vertex.
 
 mod blend;
+mod conform;
 
 pub use blend::DualQuaternion;
+pub use conform::{conform_frame, conform_to_inputs};
 
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};

@@ -21,7 +21,7 @@
 
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
-use crate::math::{Point3, Real};
+use crate::math::{Point3, Real, Vector3};
 use crate::mesh::TriangleMesh;
 use crate::progress::{Progress, Stage};
 use rayon::prelude::*;
@@ -137,23 +137,51 @@ impl SurfaceIndex {
 
     /// Squared distance from `p` to the surface (infinite without triangles).
     pub fn distance_squared(&self, p: &Point3) -> Real {
-        let mut best = Real::INFINITY;
+        self.nearest_triangle(p, Real::INFINITY).map_or(Real::INFINITY, |(_, d)| d)
+    }
+
+    /// The point of the surface nearest to `p` and the unit normal of the
+    /// triangle it lies on (zero for a degenerate triangle); None without
+    /// triangles.
+    pub fn closest_point(&self, p: &Point3) -> Option<(Point3, Vector3)> {
+        self.closest_point_within(p, Real::INFINITY)
+    }
+
+    /// [`SurfaceIndex::closest_point`], knowing that the surface comes within
+    /// `bound` of `p` (a point found before): boxes farther away are skipped.
+    /// None also when nothing is nearer than `bound`.
+    pub fn closest_point_within(&self, p: &Point3, bound: Real) -> Option<(Point3, Vector3)> {
+        let (t, _) = self.nearest_triangle(p, bound * bound)?;
+        let [a, b, c] = &self.triangles[t];
+        let normal = (b - a).cross(&(c - a)).try_normalize(0.0).unwrap_or_else(Vector3::zeros);
+        Some((closest_point_on_triangle(p, a, b, c), normal))
+    }
+
+    /// The triangle (in leaf order) nearest to `p` and its squared distance,
+    /// if one is at most `bound_squared` away.
+    fn nearest_triangle(&self, p: &Point3, bound_squared: Real) -> Option<(usize, Real)> {
+        // The bound is widened by a hair so that the triangle it was measured
+        // to, at exactly that distance, is still found despite rounding.
+        let mut best = (usize::MAX, bound_squared * (1.0 + 1e-9));
         if self.nodes.is_empty() {
-            return best;
+            return None;
         }
         // Depth is at most log2 of the triangle count (median splits), and the
         // stack holds at most one pending sibling per level.
         let mut stack: Vec<(u32, Real)> = Vec::with_capacity(64);
         stack.push((0, self.nodes[0].distance_squared(p)));
         while let Some((n, d)) = stack.pop() {
-            if d >= best {
+            if d >= best.1 {
                 continue;
             }
             let node = &self.nodes[n as usize];
             if node.count > 0 {
                 let (first, count) = (node.first as usize, node.count as usize);
-                for [a, b, c] in &self.triangles[first..first + count] {
-                    best = best.min(point_triangle_distance_squared(p, a, b, c));
+                for (t, [a, b, c]) in self.triangles[first..first + count].iter().enumerate() {
+                    let d = point_triangle_distance_squared(p, a, b, c);
+                    if d < best.1 {
+                        best = (first + t, d);
+                    }
                 }
                 continue;
             }
@@ -162,14 +190,14 @@ impl SurfaceIndex {
             // The nearer child is popped first, so its triangles tighten `best`
             // before the farther one is considered.
             let (near, far) = if dl <= dr { ((l, dl), (r, dr)) } else { ((r, dr), (l, dl)) };
-            if far.1 < best {
+            if far.1 < best.1 {
                 stack.push(far);
             }
-            if near.1 < best {
+            if near.1 < best.1 {
                 stack.push(near);
             }
         }
-        best
+        (best.0 != usize::MAX).then_some(best)
     }
 
     /// Distance from `p` to the surface.

@@ -14,5 +14,5 @@ mod trajectories;
 
 pub use checkpoint::Checkpointing;
 pub use forward::{cell_moments, predict, track, track_with_checkpoints, FrameTiming, TrackResult};
-pub use rigid::{fit_rigid, Rigid, RigidFits};
+pub use rigid::{fit_rigid, rotation_from_covariance, Rigid, RigidFits};
 pub use trajectories::Trajectories;

@@ -66,6 +66,13 @@ pub fn fit_rigid(src: &[Point3], dst: &[Point3], pairs: impl Iterator<Item = (us
 /// The rigid motion carrying the weighted mean `pm` to `qm` whose rotation
 /// best aligns the weighted cross-covariance H = Σ w (p - pm)(q - qm)ᵀ.
 fn rigid_from_covariance(h: &Matrix3, pm: &Vector3, qm: &Vector3) -> Rigid {
+    let rotation = rotation_from_covariance(h);
+    Rigid { rotation, translation: qm - rotation * pm }
+}
+
+/// The proper rotation R that best carries the p's onto the q's, given their
+/// cross-covariance H = Σ w (p - pm)(q - qm)ᵀ: maximises trace(R H).
+pub fn rotation_from_covariance(h: &Matrix3) -> Matrix3 {
     let mut svd = h.svd(true, true);
     if svd.singular_values[1] <= 1e-10 * svd.singular_values[0] {
         // Rank <= 1 (collinear or too few points): the rotation about the line
@@ -76,8 +83,7 @@ fn rigid_from_covariance(h: &Matrix3, pm: &Vector3, qm: &Vector3) -> Rigid {
     let (u, v_t) = (svd.u.unwrap(), svd.v_t.unwrap());
     let v = v_t.transpose();
     let d = (v * u.transpose()).determinant().signum();
-    let rotation = v * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
-    Rigid { rotation, translation: qm - rotation * pm }
+    v * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose()
 }
 
 /// Many weighted rigid fits from one source set, each over its own weighted
