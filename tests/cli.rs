@@ -105,6 +105,16 @@ fn convert_with_a_report() {
 }
 
 #[test]
+fn absolute_units_reach_every_stage_with_lengths() {
+    let dir = Scratch::new("cli", "absolute");
+    ok(&dir, &convert_args("a.glb", &["--absolute-units", "--report", "a.html"]));
+    let html = std::fs::read_to_string(dir.join("a.html")).unwrap();
+    // Tracking, refinement and conforming all take lengths in the input's units.
+    let row = |v: &str| html.matches(&format!("<tr><th>absolute_units</th><td>{v}</td></tr>")).count();
+    assert_eq!((row("true"), row("false")), (3, 0), "{html}");
+}
+
+#[test]
 fn convert_to_glb_with_a_compact_basis() {
     let dir = Scratch::new("cli", "glb-basis");
     let stdout = ok(&dir, &convert_args("b.glb", &["--basis", "3", "--fps", "24"]));

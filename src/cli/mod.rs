@@ -7,6 +7,7 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use options::{ConvertArgs, InputArgs, OutputFormat, RefineArgs, TrackArgs};
 use std::path::{Path, PathBuf};
+use voltrack::params::RefineParams;
 use voltrack::pipeline::{self, Quality};
 use voltrack::Stage;
 
@@ -148,7 +149,7 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
     let before = pipeline::measure_with_counts(&tracked.trajectories, &tracked.cell_counts);
     let (traj, refined, refine_params) = match refine {
         Some(r) => {
-            let rp = r.params();
+            let rp = RefineParams { absolute_units: track.absolute_units, ..r.params() };
             let res = pipeline::refine_tracked(&tracked.trajectories, &seq, &rp, track.checkpointing().as_ref(), bars.progress())?;
             (res.trajectories.clone(), Some(res), Some(rp))
         }
@@ -251,7 +252,7 @@ fn metrics(centers: PathBuf, input: Vec<PathBuf>, json: bool, plot: Option<PathB
 fn convert(args: ConvertArgs) -> Result<()> {
     let voxel = args.input.voxel_params();
     let track = args.track.params();
-    let refine = (!args.no_refine).then(|| args.refine.params());
+    let refine = (!args.no_refine).then(|| RefineParams { absolute_units: args.track.absolute_units, ..args.refine.params() });
     let deform = args.deform_params();
     let format = args.format()?;
     let mut conform = args.conform_params();
