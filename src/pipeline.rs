@@ -79,6 +79,18 @@ pub fn refine_attributes(params: &RefineParams, removed: &[usize]) -> [(String, 
     ]
 }
 
+/// Whether trajectories were tracked with lengths in the input's units, from
+/// their `voltrack.track` attribute (false when absent): refining them later
+/// takes its lengths the same way.
+pub fn absolute_units_of(attrs: &[(String, String)]) -> bool {
+    attrs
+        .iter()
+        .find(|(k, _)| k == "voltrack.track")
+        .and_then(|(_, v)| serde_json::from_str::<serde_json::Value>(v).ok())
+        .and_then(|track| track.get("absolute_units")?.as_bool())
+        .unwrap_or(false)
+}
+
 /// The resolution trajectories were tracked at, from their attributes.
 pub fn resolution_of(attrs: &[(String, String)], path: &Path) -> Result<usize> {
     attrs

@@ -112,6 +112,19 @@ fn absolute_units_reach_every_stage_with_lengths() {
     // Tracking, refinement and conforming all take lengths in the input's units.
     let row = |v: &str| html.matches(&format!("<tr><th>absolute_units</th><td>{v}</td></tr>")).count();
     assert_eq!((row("true"), row("false")), (3, 0), "{html}");
+    // The refine command takes them as the trajectories were tracked.
+    let input = fixture().to_string_lossy().into_owned();
+    for (flag, absolute) in [(Some("--absolute-units"), true), (None, false)] {
+        let mut args = vec!["track", &input];
+        args.extend(SMALL);
+        args.extend(["-o", "c.exr"]);
+        args.extend(flag);
+        ok(&dir, &args);
+        ok(&dir, &["refine", "c.exr", "--input", &input, "-o", "r.exr"]);
+        let (_, attrs) = voltrack::io::exr::read_trajectories_exr(&dir.join("r.exr")).unwrap();
+        let refine = &attrs.iter().find(|(k, _)| k == "voltrack.refine").expect("refine attribute").1;
+        assert!(refine.contains(&format!("\"absolute_units\":{absolute}")), "{refine}");
+    }
 }
 
 #[test]

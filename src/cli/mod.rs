@@ -198,7 +198,7 @@ fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: 
     voltrack::export::check_writable(&output)?;
     let bars = bars::Bars::new();
     let (traj, attrs, seq) = load_tracked(&centers, &input, &bars)?;
-    let params = args.params();
+    let params = RefineParams { absolute_units: pipeline::absolute_units_of(&attrs), ..args.params() };
     let before = pipeline::measure(&traj, &seq);
     let res = voltrack::refine::refine(&traj, &seq, &params, bars.progress())?;
     let after = pipeline::measure(&res.trajectories, &seq);
