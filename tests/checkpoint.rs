@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
-use voltrack::params::{AffinityKind, TrackParams};
+use voltrack::params::{AffinityKind, ConformParams, DeformParams, RefineParams, TrackParams};
+use voltrack::pipeline::convert;
 use voltrack::progress::ProgressSink;
 use voltrack::track::{track, track_with_checkpoints, Checkpointing, TrackResult};
 use voltrack::{Error, Progress, Stage};
@@ -175,4 +176,41 @@ fn a_killed_or_interrupted_command_resumes_to_the_same_bytes() {
         run(&args);
         assert!(std::fs::read(&target).unwrap() == whole, "{name} after frame {k} and resumed: EXR differs from the uninterrupted run");
     }
+}
+
+/// Asks to stop as soon as its stage starts, like Ctrl-C would.
+struct StopAt(Stage, AtomicBool);
+
+impl ProgressSink for StopAt {
+    fn report(&self, stage: Stage, _done: usize, _total: usize) {
+        if stage == self.0 {
+            self.1.store(true, Ordering::Relaxed);
+        }
+    }
+    fn cancelled(&self) -> bool {
+        self.1.load(Ordering::Relaxed)
+    }
+}
+
+#[test]
+fn interrupted_while_conforming_names_the_finished_tracking_and_resumes() {
+    let inputs = [PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/bending_bar"))];
+    let voxel = voltrack::voxel::VoxelParams { resolution: 48, ..Default::default() };
+    let track = TrackParams { centers: 100, ..Default::default() };
+    let (refine, deform, conform) = (RefineParams::default(), DeformParams::default(), ConformParams::default());
+    let run = |ckpt: Option<&Checkpointing>, progress| convert(&inputs, &voxel, &track, Some(&refine), &deform, &conform, ckpt, progress);
+    let dir = Scratch::new("checkpoint", "conform");
+    let ckpt = Checkpointing { dir: dir.join("state"), every: 4, resume: false };
+    let sink = StopAt(Stage::Conform, AtomicBool::new(false));
+    match run(Some(&ckpt), Progress(Some(&sink))).map(|_| ()).unwrap_err() {
+        Error::Interrupted { saved: Some((path, frames)) } => {
+            assert_eq!(path, ckpt.path());
+            assert_eq!(frames, voltrack::fixtures::BENDING_BAR_FRAMES, "every frame was tracked");
+        }
+        other => panic!("expected an interruption naming the checkpoint, got {other}"),
+    }
+    // Resumed, it ends as a run that was never interrupted.
+    let resumed = run(Some(&Checkpointing { resume: true, ..ckpt }), Progress::none()).unwrap();
+    let whole = run(None, Progress::none()).unwrap();
+    assert_eq!(resumed.mesh.frames, whole.mesh.frames);
 }

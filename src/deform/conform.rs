@@ -113,7 +113,8 @@ pub fn conform_to_inputs(mesh: DynamicMesh, inputs: &[PathBuf], longest_side: Re
             }
             let input = crate::io::read_mesh(&inputs[f])?;
             input.validate(&inputs[f])?;
-            let frame = fit_frame(&mesh.base, &edges, &mesh.frames[f], &input, max_distance, params);
+            let frame = fit_frame(&mesh.base, &edges, &mesh.frames[f], &input, max_distance, params, &|| progress.cancelled())
+                .ok_or(Error::Interrupted { saved: None })?;
             counter.tick();
             Ok(frame)
         })
@@ -133,9 +134,12 @@ pub fn conform_frame(base: &TriangleMesh, blended: &[Point3], input: &TriangleMe
         return Err(Error::InvalidInput(format!("{} positions for a mesh of {} vertices", blended.len(), base.positions.len())));
     }
     let max_distance = params.length_scale_for(longest_side) * params.max_distance;
-    Ok(fit_frame(base, &Edges::new(base.positions.len(), &base.triangles), blended, input, max_distance, params))
+    let edges = Edges::new(base.positions.len(), &base.triangles);
+    fit_frame(base, &edges, blended, input, max_distance, params, &|| false).ok_or(Error::Interrupted { saved: None })
 }
 
+/// [`conform_frame`] with the mesh's edges at hand; None when `cancelled`
+/// says so (it is asked before every round).
 fn fit_frame(
     base: &TriangleMesh,
     edges: &Edges,
@@ -143,7 +147,8 @@ fn fit_frame(
     input: &TriangleMesh,
     max_distance: Real,
     params: &ConformParams,
-) -> Vec<Point3> {
+    cancelled: &dyn Fn() -> bool,
+) -> Option<Vec<Point3>> {
     let rest = &base.positions;
     let n = rest.len();
     let surface = SurfaceIndex::new(&input.positions, &input.triangles);
@@ -158,6 +163,9 @@ fn fit_frame(
     // is at most that far, which prunes the next search.
     let mut surface_points: Vec<Option<Point3>> = vec![None; n];
     for round in 0..params.iterations {
+        if cancelled() {
+            return None;
+        }
         for (v, q) in rotations.iter_mut().enumerate() {
             // A = Σ (y_v − y_u)(X_v − X_u)ᵀ: its rotation carries the frame-0
             // edges onto the current ones.
@@ -193,7 +201,7 @@ fn fit_frame(
         }
         solve(edges, stiffness, &diagonal, &data, &rhs, SOLVER_TOLERANCE * max_distance, &mut y);
     }
-    y.into_iter().map(Point3::from).collect()
+    Some(y.into_iter().map(Point3::from).collect())
 }
 
 /// Whether the input is oriented the other way from the mesh: most of the
