@@ -127,7 +127,8 @@ pub fn conform_to_inputs(mesh: DynamicMesh, inputs: &[PathBuf], longest_side: Re
 
 /// One frame: `blended` (positions of `base`'s vertices after method.md
 /// §10) fitted to `input`, as [`conform_to_inputs`] fits each frame.
-/// `longest_side` is what `params.max_distance` is a fraction of.
+/// `longest_side` is what `params.max_distance` is a fraction of. Both
+/// meshes' indices must be in range, as [`TriangleMesh::validate`] checks.
 pub fn conform_frame(base: &TriangleMesh, blended: &[Point3], input: &TriangleMesh, longest_side: Real, params: &ConformParams) -> Result<Vec<Point3>> {
     params.validate()?;
     if blended.len() != base.positions.len() {
