@@ -7,7 +7,6 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use options::{ConvertArgs, InputArgs, OutputFormat, RefineArgs, TrackArgs};
 use std::path::{Path, PathBuf};
-use voltrack::params::RefineParams;
 use voltrack::pipeline::{self, Quality};
 use voltrack::Stage;
 
@@ -149,7 +148,7 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
     let before = pipeline::measure_with_counts(&tracked.trajectories, &tracked.cell_counts);
     let (traj, refined, refine_params) = match refine {
         Some(r) => {
-            let rp = RefineParams { absolute_units: track.absolute_units, ..r.params() };
+            let rp = r.params(track.absolute_units);
             let res = pipeline::refine_tracked(&tracked.trajectories, &seq, &rp, track.checkpointing().as_ref(), bars.progress())?;
             (res.trajectories.clone(), Some(res), Some(rp))
         }
@@ -198,7 +197,7 @@ fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: 
     voltrack::export::check_writable(&output)?;
     let bars = bars::Bars::new();
     let (traj, attrs, seq) = load_tracked(&centers, &input, &bars)?;
-    let params = RefineParams { absolute_units: pipeline::absolute_units_of(&attrs), ..args.params() };
+    let params = args.params(pipeline::absolute_units_of(&attrs));
     let before = pipeline::measure(&traj, &seq);
     let res = voltrack::refine::refine(&traj, &seq, &params, bars.progress())?;
     let after = pipeline::measure(&res.trajectories, &seq);
@@ -252,7 +251,7 @@ fn metrics(centers: PathBuf, input: Vec<PathBuf>, json: bool, plot: Option<PathB
 fn convert(args: ConvertArgs) -> Result<()> {
     let voxel = args.input.voxel_params();
     let track = args.track.params();
-    let refine = (!args.no_refine).then(|| RefineParams { absolute_units: args.track.absolute_units, ..args.refine.params() });
+    let refine = (!args.no_refine).then(|| args.refine.params(args.track.absolute_units));
     let deform = args.deform_params();
     let format = args.format()?;
     let mut conform = args.conform_params();

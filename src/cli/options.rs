@@ -141,8 +141,12 @@ pub struct RefineArgs {
 }
 
 impl RefineArgs {
-    pub fn params(&self) -> RefineParams {
+    /// The refinement's parameters; `absolute_units` comes from the tracking
+    /// (its flag, or the attributes of the trajectories being refined), so
+    /// every caller must say it.
+    pub fn params(&self, absolute_units: bool) -> RefineParams {
         RefineParams {
+            absolute_units,
             remove: self.remove,
             batches: self.batches,
             optimise: !self.no_optimise,
