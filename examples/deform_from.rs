@@ -41,7 +41,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         min_normal_cosine: env("VOLTRACK_CONFORM_NORMAL_COSINE").unwrap_or(defaults.min_normal_cosine),
         ..defaults
     };
-    let mesh = voltrack::deform::conform_to_inputs(mesh, &seq.paths, seq.bounds.longest_side(), &conform, Default::default())?;
+    let mesh = voltrack::deform::conform_to_inputs(mesh, &seq.paths, &seq.bounds, &conform, Default::default())?;
     let report = voltrack::export::gltf::write_dynamic_glb(args[2].as_ref(), &mesh, &Default::default())?;
     println!("wrote {} ({} targets)", args[2], report.targets);
     Ok(())

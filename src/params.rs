@@ -337,12 +337,7 @@ impl ConformParams {
         Ok(())
     }
 
-    /// What lengths are fractions of, given the input's longest side.
-    pub fn length_scale_for(&self, longest_side: Real) -> Real {
-        if self.absolute_units {
-            1.0
-        } else {
-            longest_side
-        }
+    pub fn length_scale(&self, bounds: &crate::mesh::Aabb) -> Real {
+        length_scale(self.absolute_units, bounds)
     }
 }

@@ -168,7 +168,7 @@ pub fn convert(
     progress.report(Stage::Deform, 1, 1);
     seconds.push((Stage::Deform, clock.elapsed().as_secs_f64()));
     let clock = Instant::now();
-    let mesh = conform_to_inputs(mesh, &sequence.paths, sequence.bounds.longest_side(), conform_params, progress)
+    let mesh = conform_to_inputs(mesh, &sequence.paths, &sequence.bounds, conform_params, progress)
         .map_err(|e| tracking_saved(e, checkpoint, &sequence))?;
     if conform_params.iterations > 0 {
         seconds.push((Stage::Conform, clock.elapsed().as_secs_f64()));

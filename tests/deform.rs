@@ -139,12 +139,12 @@ fn conforming_keeps_a_mesh_already_on_the_surface_and_pulls_an_offset_one_onto_i
     let input = voltrack::TriangleMesh { positions: moved(&base.positions, &m), ..base.clone() };
     let params = ConformParams::default();
     // Already right: every term of the energy is zero, so nothing moves.
-    let kept = conform_frame(&base, &input.positions, &input, 2.0, &params).unwrap();
+    let kept = conform_frame(&base, &input.positions, &input, &base.bounding_box(), &params).unwrap();
     assert!(mean_distance(&kept, &input.positions) < 1e-9);
     // 2 % too large: lands on the surface, back where it belongs.
     let centre = m.apply(&Point3::origin());
     let offset: Vec<Point3> = input.positions.iter().map(|p| centre + (p - centre) * 1.02).collect();
-    let fitted = conform_frame(&base, &offset, &input, 2.0, &params).unwrap();
+    let fitted = conform_frame(&base, &offset, &input, &base.bounding_box(), &params).unwrap();
     let surface = SurfaceIndex::new(&input.positions, &input.triangles);
     let off_surface = fitted.iter().map(|p| surface.distance(p)).fold(0.0, Real::max);
     let (before, after) = (mean_distance(&offset, &input.positions), mean_distance(&fitted, &input.positions));
@@ -157,11 +157,11 @@ fn conforming_undoes_a_twist_that_blending_left_on_the_surface() {
     // Each latitude turned about the axis by 0.3 z radians: still on the
     // sphere, but sheared, which the frame-0 edges rule out.
     let twisted: Vec<Point3> = base.positions.iter().map(|p| Rotation3::new(Vector3::z() * 0.3 * p.z) * p).collect();
-    let fitted = conform_frame(&base, &twisted, &base, 2.0, &ConformParams::default()).unwrap();
+    let fitted = conform_frame(&base, &twisted, &base, &base.bounding_box(), &ConformParams::default()).unwrap();
     let (before, after) = (mean_distance(&twisted, &base.positions), mean_distance(&fitted, &base.positions));
     assert!(after < 0.05 * before, "mean error {before} -> {after}");
     // Off: the blended positions stay.
-    let off = conform_frame(&base, &twisted, &base, 2.0, &ConformParams { iterations: 0, ..Default::default() }).unwrap();
+    let off = conform_frame(&base, &twisted, &base, &base.bounding_box(), &ConformParams { iterations: 0, ..Default::default() }).unwrap();
     assert_eq!(off, twisted);
 }
 
@@ -173,7 +173,7 @@ fn conforming_to_an_inside_out_input_gives_the_same_mesh() {
     let centre = m.apply(&Point3::origin());
     let offset: Vec<Point3> = input.positions.iter().map(|p| centre + (p - centre) * 1.02).collect();
     let params = ConformParams::default();
-    let a = conform_frame(&base, &offset, &input, 2.0, &params).unwrap();
-    let b = conform_frame(&base, &offset, &inside_out, 2.0, &params).unwrap();
+    let a = conform_frame(&base, &offset, &input, &base.bounding_box(), &params).unwrap();
+    let b = conform_frame(&base, &offset, &inside_out, &base.bounding_box(), &params).unwrap();
     assert!(mean_distance(&a, &b) < 1e-9, "{}", mean_distance(&a, &b));
 }

@@ -22,7 +22,7 @@
 use super::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Matrix3, Point3, Real, UnitQuaternion, Vector3};
-use crate::mesh::TriangleMesh;
+use crate::mesh::{Aabb, TriangleMesh};
 use crate::metrics::SurfaceIndex;
 use crate::params::ConformParams;
 use crate::progress::{Counter, Progress, Stage};
@@ -83,14 +83,14 @@ impl Edges {
 
 /// Moves every frame after the first of `mesh` onto the input surface of
 /// the same frame, read again from `inputs` (one file per frame, as
-/// [`crate::voxel::VoxelSequence::paths`]). `longest_side` is the input's
-/// bounding box's longest side, which `params.max_distance` is a fraction of.
+/// [`crate::voxel::VoxelSequence::paths`]). `bounds` is the input's bounding
+/// box, whose longest side `params.max_distance` is a fraction of.
 ///
 /// Frames are fitted in parallel, each independently of the others; frame 0
 /// is the mesh as loaded and stays. Reports `(Stage::Conform, frames done,
 /// frames after the first)` and stops with [`Error::Interrupted`] when
 /// cancelled.
-pub fn conform_to_inputs(mesh: DynamicMesh, inputs: &[PathBuf], longest_side: Real, params: &ConformParams, progress: Progress) -> Result<DynamicMesh> {
+pub fn conform_to_inputs(mesh: DynamicMesh, inputs: &[PathBuf], bounds: &Aabb, params: &ConformParams, progress: Progress) -> Result<DynamicMesh> {
     params.validate()?;
     if params.iterations == 0 {
         return Ok(mesh);
@@ -103,7 +103,7 @@ pub fn conform_to_inputs(mesh: DynamicMesh, inputs: &[PathBuf], longest_side: Re
         )));
     }
     let edges = Edges::new(mesh.base.positions.len(), &mesh.base.triangles);
-    let max_distance = params.length_scale_for(longest_side) * params.max_distance;
+    let max_distance = params.length_scale(bounds) * params.max_distance;
     let counter = Counter::new(progress, Stage::Conform, inputs.len().saturating_sub(1));
     let fitted: Vec<Vec<Point3>> = (1..inputs.len())
         .into_par_iter()
@@ -127,14 +127,15 @@ pub fn conform_to_inputs(mesh: DynamicMesh, inputs: &[PathBuf], longest_side: Re
 
 /// One frame: `blended` (positions of `base`'s vertices after method.md
 /// §10) fitted to `input`, as [`conform_to_inputs`] fits each frame.
-/// `longest_side` is what `params.max_distance` is a fraction of. Both
+/// `bounds` is the box whose longest side `params.max_distance` is a
+/// fraction of (the whole input's, in a sequence). Both
 /// meshes' indices must be in range, as [`TriangleMesh::validate`] checks.
-pub fn conform_frame(base: &TriangleMesh, blended: &[Point3], input: &TriangleMesh, longest_side: Real, params: &ConformParams) -> Result<Vec<Point3>> {
+pub fn conform_frame(base: &TriangleMesh, blended: &[Point3], input: &TriangleMesh, bounds: &Aabb, params: &ConformParams) -> Result<Vec<Point3>> {
     params.validate()?;
     if blended.len() != base.positions.len() {
         return Err(Error::InvalidInput(format!("{} positions for a mesh of {} vertices", blended.len(), base.positions.len())));
     }
-    let max_distance = params.length_scale_for(longest_side) * params.max_distance;
+    let max_distance = params.length_scale(bounds) * params.max_distance;
     let edges = Edges::new(base.positions.len(), &base.triangles);
     fit_frame(base, &edges, blended, input, max_distance, params, &|| false).ok_or(Error::Interrupted { saved: None })
 }
