@@ -156,17 +156,32 @@ fn fit_frame(
     let surface = SurfaceIndex::new(&input.positions, &input.triangles);
     let stiffness = 2.0 * params.stiffness;
     let mut y: Vec<Vector3> = blended.iter().map(|p| p.coords).collect();
-    let flip = faces_away(&surface, blended, &vertex_normals(&y, &base.triangles), max_distance);
+    // Round 0's search, from the blended positions with the full reach, also
+    // tells which way the input faces.
+    let mut normals = vertex_normals(&y, &base.triangles);
+    let mut found: Vec<Option<(Point3, Vector3)>> = blended.iter().map(|p| surface.closest_point_within(p, max_distance)).collect();
+    let flip = faces_away(&found, &normals);
     let diagonal: Vec<Real> = (0..n).map(|v| stiffness * edges.of(v).len() as Real + ANCHOR).collect();
     let mut data = vec![Matrix3::zeros(); n];
     let mut rhs = vec![Vector3::zeros(); n];
     let mut rotations = vec![UnitQuaternion::identity(); n];
-    // The surface point each vertex was pulled to last round: the surface
-    // is at most that far, which prunes the next search.
-    let mut surface_points: Vec<Option<Point3>> = vec![None; n];
     for round in 0..params.iterations {
         if cancelled() {
             return None;
+        }
+        if round > 0 {
+            normals = vertex_normals(&y, &base.triangles);
+            // The point found last round is still on the surface: the
+            // nearest one is at most that far, which prunes the search.
+            found = y
+                .iter()
+                .zip(&found)
+                .map(|(y, last)| {
+                    let p = Point3::from(*y);
+                    let bound = last.map_or(max_distance, |(c, _)| (c - p).norm().min(max_distance));
+                    surface.closest_point_within(&p, bound)
+                })
+                .collect();
         }
         for (v, q) in rotations.iter_mut().enumerate() {
             // A = Σ (y_v − y_u)(X_v − X_u)ᵀ: its rotation carries the frame-0
@@ -179,7 +194,6 @@ fn fit_frame(
             }
         }
         let matrices: Vec<Matrix3> = rotations.iter().map(|q| q.to_rotation_matrix().into_inner()).collect();
-        let normals = vertex_normals(&y, &base.triangles);
         for v in 0..n {
             let mut b = Vector3::zeros();
             for &u in edges.of(v) {
@@ -188,11 +202,7 @@ fn fit_frame(
             }
             rhs[v] = stiffness * b + ANCHOR * blended[v].coords;
             data[v] = Matrix3::zeros();
-            let p = Point3::from(y[v]);
-            let bound = surface_points[v].map_or(max_distance, |c| (c - p).norm().min(max_distance));
-            let found = surface.closest_point_within(&p, bound);
-            surface_points[v] = found.map(|(c, _)| c);
-            let Some((c, mut normal)) = found else { continue };
+            let Some((c, mut normal)) = found[v] else { continue };
             if flip {
                 normal = -normal;
             }
@@ -207,15 +217,12 @@ fn fit_frame(
 }
 
 /// Whether the input is oriented the other way from the mesh: most of the
-/// mesh's normals point against the surface's where it is near. An input
+/// mesh's normals point against those of the surface points `found` within
+/// reach. An input
 /// that is consistently inside-out (another exporter's winding) is then used
 /// turned round instead of rejecting every surface point.
-fn faces_away(surface: &SurfaceIndex, points: &[Point3], normals: &[Vector3], max_distance: Real) -> bool {
-    let agreement: Real = points
-        .iter()
-        .zip(normals)
-        .filter_map(|(p, n)| surface.closest_point_within(p, max_distance).map(|(_, m)| m.dot(n)))
-        .sum();
+fn faces_away(found: &[Option<(Point3, Vector3)>], normals: &[Vector3]) -> bool {
+    let agreement: Real = found.iter().zip(normals).filter_map(|(f, n)| f.map(|(_, m)| m.dot(n))).sum();
     agreement < 0.0
 }
 
