@@ -4,7 +4,9 @@
 //! R = 256, N = 1000 and the authors' R = 512, N = 2000.
 //! `VOLTRACK_BENCH_FRAMES=K` tracks only the first K frames;
 //! `VOLTRACK_BENCH_DATA=DIR` tracks another sequence;
-//! `VOLTRACK_BENCH_RESOLUTION=256` runs only the configuration at that R.
+//! `VOLTRACK_BENCH_RESOLUTION=256` runs only the configuration at that R;
+//! `VOLTRACK_BENCH_SINGLE_GUESS=1` tracks from the paper's constant-velocity
+//! guess alone (`--single-guess`), without the damped second run.
 
 use std::time::Instant;
 use voltrack::params::TrackParams;
@@ -22,13 +24,15 @@ fn main() {
     };
     paths.truncate(frames);
     let only: Option<usize> = std::env::var("VOLTRACK_BENCH_RESOLUTION").ok().and_then(|s| s.parse().ok());
-    println!("threads: {}", rayon::current_num_threads());
+    let single = std::env::var_os("VOLTRACK_BENCH_SINGLE_GUESS").is_some();
+    let params = TrackParams { damped_guess: if single { None } else { TrackParams::default().damped_guess }, ..Default::default() };
+    println!("threads: {}; {}", rayon::current_num_threads(), if single { "single guess" } else { "constant-velocity and damped guesses (default)" });
     for (r, n) in [(256, 1000), (512, 2000)].into_iter().filter(|&(r, _)| only.map_or(true, |o| o == r)) {
         let clock = Instant::now();
         let seq = voxelize_sequence(&paths, &VoxelParams { resolution: r, ..Default::default() }, Default::default()).expect("voxelising");
         let read_voxelize = clock.elapsed().as_secs_f64();
         let occupied: usize = seq.frames.iter().map(|f| f.len()).sum::<usize>() / seq.frames.len();
-        let res = voltrack::track::track(&seq, &TrackParams { centers: n, ..Default::default() }, Default::default()).expect("tracking");
+        let res = voltrack::track::track(&seq, &TrackParams { centers: n, ..params.clone() }, Default::default()).expect("tracking");
         let tracked = &res.timings[1..];
         let k = tracked.len() as f64;
         let mean = |f: fn(&voltrack::track::FrameTiming) -> f64| tracked.iter().map(f).sum::<f64>() / k;
@@ -39,14 +43,17 @@ fn main() {
             1000.0 * seq.voxelize_seconds / seq.frames.len() as f64,
             res.timings[0].total
         );
+        // With two guesses the parts add up both runs, which overlap in time.
         println!(
-            "  tracking {:.3} s/frame: assign {:.3}, fit {:.3}, affinity {:.3}, other {:.3}; {:.1} iterations/frame",
+            "  tracking {:.3} s/frame: assign {:.3}, fit {:.3}, affinity {:.3}{}; {:.1} iterations/frame; damped guess kept in {} of {} frames",
             mean(|t| t.total),
             mean(|t| t.assign),
             mean(|t| t.fit),
             mean(|t| t.affinity),
-            mean(|t| t.total - t.assign - t.fit - t.affinity),
-            mean(|t| t.iterations as f64)
+            if single { format!(", other {:.3}", mean(|t| t.total - t.assign - t.fit - t.affinity)) } else { " (both runs)".into() },
+            mean(|t| t.iterations as f64),
+            tracked.iter().filter(|t| t.damped_guess_kept).count(),
+            tracked.len()
         );
     }
 }

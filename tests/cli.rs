@@ -309,7 +309,7 @@ fn unwritable_outputs_fail_and_leave_nothing() {
 fn invalid_parameters_exit_with_2() {
     let dir = Scratch::new("cli", "params");
     let input = fixture().to_string_lossy().into_owned();
-    let cases: [(Vec<&str>, &str); 7] = [
+    let cases: [(Vec<&str>, &str); 8] = [
         (vec!["convert", &input, "-r", "32", "--centers", "0", "-o", "x.glb"], "centers"),
         (vec!["track", &input, "-r", "32", "-n", "0", "-o", "c.exr"], "centers"),
         (vec!["track", &input, "-r", "1", "-n", "10", "-o", "c.exr"], "resolution"),
@@ -317,6 +317,7 @@ fn invalid_parameters_exit_with_2() {
         (vec!["convert", &input, "-r", "32", "-n", "20", "--no-refine", "--basis", "0", "-o", "x.glb"], "component"),
         (vec!["convert", &input, "-r", "32", "-n", "20", "--no-refine", "--fps", "0", "-o", "x.pc2"], "frame rate"),
         (vec!["convert", &input, "-r", "32", "-n", "20", "--conform-stiffness", "0", "-o", "x.glb"], "stiffness"),
+        (vec!["track", &input, "-r", "32", "-n", "10", "--damped-guess", "1", "-o", "c.exr"], "damped-guess"),
     ];
     for (args, what) in cases {
         let stderr = fails(&dir, &args, 2);
@@ -326,6 +327,7 @@ fn invalid_parameters_exit_with_2() {
     fails(&dir, &["convert", &input, "--no-such-flag", "-o", "x.glb"], 2);
     fails(&dir, &["convert", &input, "-n", "many", "-o", "x.glb"], 2);
     fails(&dir, &["convert", &input, "--format", "fbx", "-o", "x.fbx"], 2);
+    fails(&dir, &["track", &input, "--single-guess", "--damped-guess", "0.5", "-o", "c.exr"], 2);
     fails(&dir, &["convert", &input], 2);
     assert!(dir.files().is_empty(), "{:?}", dir.files());
     // A failed run leaves an existing output as it was.

@@ -342,3 +342,37 @@ fn voronoi_ties_go_to_the_lower_index() {
         }
     }
 }
+
+/// A block at rest and a cube that rushes at it, stops against it for two
+/// frames and then leaves upwards: the constant-velocity guess puts the
+/// cube's centers inside the block in the first frame of the stop.
+fn cube_stopping_at_a_block() -> (Vec<voltrack::TriangleMesh>, Vec<Point3>) {
+    let path: Vec<Point3> = [(2.05, 0.0), (1.6, 0.0), (1.15, 0.0), (0.72, 0.0), (0.72, 0.0), (0.72, 0.0), (0.72, 0.3), (0.72, 0.6)]
+        .iter()
+        .map(|&(x, y)| Point3::new(x, y, 0.0))
+        .collect();
+    let meshes = path
+        .iter()
+        .map(|&c| voltrack::fixtures::merge(&[voltrack::fixtures::cube(Point3::origin(), 1.0), voltrack::fixtures::cube(c, 0.4)]))
+        .collect();
+    (meshes, path)
+}
+
+#[test]
+fn a_cube_that_stops_at_a_block_keeps_its_centers() {
+    let (meshes, path) = cube_stopping_at_a_block();
+    let seq = common::voxel_sequence(&meshes, 96);
+    let error = |params: &TrackParams| {
+        let traj = track(&seq, params, Default::default()).unwrap().trajectories;
+        let on_cube: Vec<usize> = (0..traj.centers).filter(|&i| (traj.get(0, i) - path[0]).norm() < 0.2).collect();
+        let worst = (0..traj.frames)
+            .map(|f| on_cube.iter().map(|&i| (traj.get(f, i) - (traj.get(0, i) + (path[f] - path[0]))).norm()).fold(0.0, Real::max))
+            .collect::<Vec<_>>();
+        assert!(on_cube.len() >= 5, "only {} centers on the cube", on_cube.len());
+        worst.iter().copied().fold(0.0, Real::max) / seq.grid.voxel_size
+    };
+    let params = TrackParams { centers: 150, ..Default::default() };
+    let single = error(&TrackParams { damped_guess: None, ..params.clone() });
+    let both = error(&params);
+    assert!(both < 3.0 && single > 10.0, "cube centers' worst error: {both:.1} voxels with the damped guess, {single:.1} from the constant-velocity guess alone");
+}

@@ -66,6 +66,12 @@ pub struct TrackArgs {
     /// Iteration limit per frame
     #[arg(long, default_value_t = TrackParams::default().max_iterations)]
     pub max_iterations: usize,
+    /// Also track every frame from the previous velocity scaled by K, and keep the run with the lower energy [default: 0.25]
+    #[arg(long, value_name = "K")]
+    pub damped_guess: Option<f64>,
+    /// Track every frame from the paper's constant-velocity guess alone: half the tracking time, but fast limbs that turn back get lost
+    #[arg(long, conflicts_with = "damped_guess")]
+    pub single_guess: bool,
     /// Lloyd iterations placing the centers in frame 0
     #[arg(long, default_value_t = TrackParams::default().lloyd_iterations)]
     pub lloyd_iterations: usize,
@@ -108,6 +114,7 @@ impl TrackArgs {
             presmooth_steps: self.presmooth,
             threshold: self.threshold,
             max_iterations: self.max_iterations,
+            damped_guess: if self.single_guess { None } else { self.damped_guess.or(TrackParams::default().damped_guess) },
             lloyd_iterations: self.lloyd_iterations,
             over_relaxation: self.over_relaxation,
             absolute_units: self.absolute_units,

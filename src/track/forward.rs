@@ -1,6 +1,9 @@
 //! Forward tracking, frame by frame (method.md §3): extrapolate, presmooth
 //! with rigid predictions, then alternate Voronoi centroids and rigid
 //! predictions until no center moves more than the threshold.
+//!
+//! Beyond the paper, each frame is also tracked from a damped guess and the
+//! result with the lower energy is kept (see [`TrackParams::damped_guess`]).
 
 use super::affinity::Affinity;
 use super::checkpoint::{self, Checkpointing, Snapshot};
@@ -15,7 +18,8 @@ use crate::progress::{Progress, Stage};
 use crate::voxel::{GridSpec, VoxelSequence};
 use std::time::Instant;
 
-/// Where the time of one frame went, in seconds.
+/// Where the time of one frame went, in seconds. With a damped guess the
+/// parts and the iterations add up both runs.
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct FrameTiming {
     pub total: f64,
@@ -23,6 +27,27 @@ pub struct FrameTiming {
     pub fit: f64,
     pub affinity: f64,
     pub iterations: usize,
+    /// The run from the damped guess ended with the lower energy and was kept.
+    pub damped_guess_kept: bool,
+}
+
+impl FrameTiming {
+    /// The parts of two runs of one frame, added.
+    fn add(&mut self, other: &FrameTiming) {
+        self.assign += other.assign;
+        self.fit += other.fit;
+        self.affinity += other.affinity;
+        self.iterations += other.iterations;
+    }
+}
+
+/// One frame tracked from one guess.
+struct FrameResult {
+    centers: Vec<Point3>,
+    counts: Vec<u32>,
+    timing: FrameTiming,
+    /// E = Es + β Eu at the final positions (method.md §3).
+    energy: Real,
 }
 
 /// The tracker's result.
@@ -38,6 +63,7 @@ pub struct TrackResult {
 }
 
 /// The state the tracker carries from one frame to the next.
+#[derive(Clone)]
 struct Tracker<'a> {
     grid: &'a GridSpec,
     params: &'a TrackParams,
@@ -127,18 +153,48 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
         Ok(())
     };
     for f in first..frames {
-        let guess: Vec<Point3> = if f == 1 {
-            traj.frame(0).to_vec()
-        } else {
-            traj.frame(f - 1).iter().zip(traj.frame(f - 2)).map(|(a, b)| a + (a - b)).collect()
+        let start = Instant::now();
+        let (prev, voxels) = (traj.frame(f - 1), &seq.frames[f].indices);
+        let extrapolate = |k: Real| -> Vec<Point3> { prev.iter().zip(traj.frame(f - 2)).map(|(a, b)| a + (a - b) * k).collect() };
+        let kept = match params.damped_guess.filter(|_| f >= 2) {
+            None => {
+                let guess = if f == 1 { prev.to_vec() } else { extrapolate(1.0) };
+                tracker.track_frame(prev, guess, voxels, progress)
+            }
+            Some(k) => {
+                // Both runs at once: each is parallel inside, but not evenly.
+                // On copies, so that an interrupted frame leaves the state as it was.
+                let (mut full, mut damped) = (tracker.clone(), tracker.clone());
+                let (a, b) = rayon::join(
+                    || full.track_frame(prev, extrapolate(1.0), voxels, progress),
+                    || damped.track_frame(prev, extrapolate(k), voxels, progress),
+                );
+                match (a, b) {
+                    (Some(mut a), Some(mut b)) => {
+                        log::debug!("frame {f}: energy {:.4e} from the constant-velocity guess, {:.4e} from the damped one", a.energy, b.energy);
+                        if b.energy < a.energy {
+                            tracker = damped;
+                            b.timing.add(&a.timing);
+                            b.timing.damped_guess_kept = true;
+                            Some(b)
+                        } else {
+                            tracker = full;
+                            a.timing.add(&b.timing);
+                            Some(a)
+                        }
+                    }
+                    _ => None,
+                }
+            }
         };
-        let Some((centers, counts, timing)) = tracker.track_frame(traj.frame(f - 1), guess, &seq.frames[f].indices, progress) else {
+        let Some(FrameResult { centers, counts, mut timing, .. }) = kept else {
             // Frame f was abandoned; the state is still that after frame f - 1.
             if saved < f {
                 save(&tracker, &traj, &cell_counts, &timings)?;
             }
             return Err(Error::Interrupted { saved: checkpoint.map(|c| (c.path(), f)) });
         };
+        timing.total = start.elapsed().as_secs_f64();
         traj.frame_mut(f).copy_from_slice(&centers);
         cell_counts.push(counts);
         log::debug!("frame {f}: {} iterations, {:.3} s", timing.iterations, timing.total);
@@ -153,9 +209,9 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
 }
 
 impl<'a> Tracker<'a> {
-    /// One frame: returns the centers, their cells' voxel counts and the timing.
-    /// None when `progress` asks to stop; the state is then left as it was.
-    fn track_frame(&mut self, prev: &[Point3], mut cur: Vec<Point3>, voxels: &'a [u32], progress: Progress) -> Option<(Vec<Point3>, Vec<u32>, FrameTiming)> {
+    /// One frame from the guess `cur`. None when `progress` asks to stop; the
+    /// state is then left as it was.
+    fn track_frame(&mut self, prev: &[Point3], mut cur: Vec<Point3>, voxels: &'a [u32], progress: Progress) -> Option<FrameResult> {
         let start = Instant::now();
         let mut t = FrameTiming::default();
         let beta = self.params.beta;
@@ -211,12 +267,13 @@ impl<'a> Tracker<'a> {
         t.assign += clock.elapsed().as_secs_f64();
         let clock = Instant::now();
         let motions = fits.fit(&cur);
+        let energy = energy(&cur, &predict(&motions, prev), &stats, self.grid, beta);
         self.affinity.update(&cur, &motions, &cell_moments(&stats, self.grid));
         t.affinity += clock.elapsed().as_secs_f64();
         self.owners = cells.owners;
         self.prev_voxels = voxels;
         t.total = start.elapsed().as_secs_f64();
-        Some((cur, stats.count, t))
+        Some(FrameResult { centers: cur, counts: stats.count, timing: t, energy })
     }
 }
 
@@ -224,6 +281,14 @@ impl<'a> Tracker<'a> {
 /// occupied volume.
 pub(super) fn rho_p(params: &TrackParams, seq: &VoxelSequence, scale: Real) -> Real {
     params.rho_p_in_units(scale, seq.frames[0].indices.len() as Real * seq.grid.voxel_size.powi(3))
+}
+
+/// E = Es + β Eu = ½ Σ ‖c_i − p_i‖² + β ½ Σ ‖c_i − x̄_i‖² (method.md §3);
+/// an empty cell adds nothing to Eu.
+fn energy(centers: &[Point3], predictions: &[Point3], stats: &CellStats, grid: &GridSpec, beta: Real) -> Real {
+    let smooth: Real = centers.iter().zip(predictions).map(|(c, p)| (c - p).norm_squared()).sum();
+    let data: Real = centers.iter().enumerate().filter_map(|(i, c)| Some((c - stats.centroid(i, grid)?).norm_squared())).sum();
+    0.5 * (smooth + beta * data)
 }
 
 /// Rigid predictions p_i = A_i(c_i^{f-1}).
