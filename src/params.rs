@@ -2,7 +2,7 @@
 //! of the longest side of the sequence's bounding box unless
 //! `absolute_units` is set (method.md §9): the paper's ρ = 0.125 m on a
 //! 1.8 m human becomes 0.07, so one default serves millimetres and metres.
-//! ρ_p defaults to 1.8 center spacings instead: see [`TrackParams::rho_p`].
+//! ρ_p defaults to 1.5 center spacings instead: see [`TrackParams::rho_p`].
 
 use crate::math::Real;
 
@@ -26,14 +26,15 @@ pub struct TrackParams {
     /// Affinity kind. Default [`AffinityKind::Max`].
     pub affinity: AffinityKind,
     /// ρ_p: distance at which the positional affinity is 0.5; > 0. Default
-    /// None: [`RHO_P_SPACINGS`] = 1.8 typical center spacings in frame 0,
+    /// None: [`RHO_P_SPACINGS`] = 1.5 typical center spacings in frame 0,
     /// (occupied volume / N)^(1/3), which on a ~1.8 m human at N = 1000 is
-    /// about 0.04 of the longest side. The paper's 0.125 m is 0.07 there,
+    /// about 0.033 of the longest side. The paper's 0.125 m is 0.07 there,
     /// about 3 spacings: a center's rigid fit then reaches across joints,
     /// so the torso's centers turn with the swinging legs, and nothing pulls
     /// them back because a torso's volume barely changes when it spins
     /// about its own axis. At 1.8 spacings the centers' mean error against
-    /// the ground truth falls by about 40 % on walker and crane_tvm. Why
+    /// the ground truth fell by about 40 % on walker and crane_tvm; at 1.5
+    /// it falls further (see [`RHO_P_SPACINGS`]). Why
     /// spacings and not a fixed fraction: with 200 centers in the prism,
     /// 0.035 is only 0.39 spacings, and the fits, left with hardly a
     /// neighbour each, let centers stray 6 voxels. `Some(ρ)`: ρ relative
@@ -161,11 +162,18 @@ impl TrackParams {
 
 /// ρ_p's default, in typical center spacings (see [`TrackParams::rho_p`]).
 /// Chosen from walker and crane_tvm at N = 1000, seeds 0-2. Their centers'
-/// error against the ground truth is lowest at about 1.5 spacings, but below
-/// 1.7 crane loses track with some seeds (4.3 % of the diagonal at 1.6 with
-/// seed 2, 3.5 % at 1.36 with seed 1, against 2.9 % at the paper's ρ_p); at
-/// 1.8 all three seeds stay within 1.73-1.85 % (the paper's: 2.85-2.99 %).
-pub const RHO_P_SPACINGS: Real = 1.8;
+/// error against the ground truth is lowest at about 1.5 spacings. From the
+/// constant-velocity guess alone crane lost track there with some seeds
+/// (4.3 % of the diagonal at 1.6 with seed 2, 3.5 % at 1.36 with seed 1,
+/// against 2.9 % at the paper's ρ_p), so the default was 1.8, where all three
+/// stayed within 1.73-1.85 %. With the damped guess as well
+/// ([`TrackParams::damped_guess`]) no seed loses track at 1.5, and the
+/// centers are closer to the truth than at 1.8. Measured against the local
+/// rigid motion of the 12 nearest ground-truth vertices (a different measure
+/// from the one above), crane's centers are off by 1.10 % at 1.5 (seed 0;
+/// 1.01-1.08 % for seeds 0-2 at 1.55), 1.32-1.61 % at 1.8 and 3.10 % at the
+/// paper's ρ_p; walker's by 0.62 % at 1.5 and 1.32 % at the paper's.
+pub const RHO_P_SPACINGS: Real = 1.5;
 
 /// σ such that exp(-σ ρ²) = 0.5.
 pub fn sigma_for(rho: Real) -> Real {

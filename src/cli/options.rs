@@ -42,7 +42,7 @@ pub struct TrackArgs {
     /// Seed of the initial center placement
     #[arg(long, default_value_t = TrackParams::default().seed)]
     pub seed: u64,
-    /// ρ_p: distance at which the positional affinity is 0.5 [default: 1.8 typical center spacings in frame 0; the paper's is 0.07]
+    /// ρ_p: distance at which the positional affinity is 0.5 [default: 1.5 typical center spacings in frame 0; the paper's is 0.07]
     #[arg(long)]
     pub rho_p: Option<f64>,
     /// ρ_m: motion dissimilarity at which the motion affinity is 0.5
