@@ -472,9 +472,14 @@ fn time_html(input: &ReportInput) -> String {
         ),
         &format!(
             "Seconds spent tracking each frame, and on what. Frame 0 (placing the centers by {} Lloyd iterations, {}) is \
-             not drawn. Lower is faster; peaks mark frames with fast or large motion.",
+             not drawn. Lower is faster; peaks mark frames with fast or large motion.{}",
             lloyd.iterations,
-            seconds(lloyd.total)
+            seconds(lloyd.total),
+            if input.track.damped_guess.is_some() {
+                " Each frame is tracked twice side by side (from two guesses), so the parts add up both runs and can exceed the total."
+            } else {
+                ""
+            }
         ),
     ));
     let limit = input.track.max_iterations;
@@ -487,7 +492,7 @@ fn time_html(input: &ReportInput) -> String {
             &[Series::new("iterations", per_frame(|t| t.iterations as f64))],
         ),
         &format!(
-            "Iterations until no center moved farther than the threshold, at most {limit}. Fewer is better; a frame at \
+            "Iterations until no center moved farther than the threshold, at most {limit}, in the run kept. Fewer is better; a frame at \
              the limit did not converge and its centers may lag behind the surface ({}).",
             match at_limit {
                 0 => "none did".to_string(),

@@ -120,6 +120,7 @@ pub(super) fn save(ckpt: &Checkpointing, fingerprint: u64, s: &Snapshot) -> Resu
         for t in &s.timings[..s.frames_done] {
             put_reals(w, &[t.total, t.assign, t.fit, t.affinity])?;
             put_u64(w, t.iterations as u64)?;
+            put_u64(w, t.dropped_iterations as u64)?;
             put_u64(w, t.damped_guess_kept as u64)?;
         }
         let a = s.affinity;
@@ -164,7 +165,7 @@ pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, seq: &VoxelSequence, 
     }
     let cell_counts = (0..frames_done).map(|_| r.u32s(centers)).collect::<Result<_>>()?;
     let timings = (0..frames_done)
-        .map(|_| Ok(FrameTiming { total: r.real()?, assign: r.real()?, fit: r.real()?, affinity: r.real()?, iterations: r.usize()?, damped_guess_kept: r.usize()? != 0 }))
+        .map(|_| Ok(FrameTiming { total: r.real()?, assign: r.real()?, fit: r.real()?, affinity: r.real()?, iterations: r.usize()?, dropped_iterations: r.usize()?, damped_guess_kept: r.usize()? != 0 }))
         .collect::<Result<_>>()?;
     if r.usize()? != centers {
         return Err(Error::parse(&path, None, "affinity lists do not match the number of centers"));

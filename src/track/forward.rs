@@ -19,25 +19,28 @@ use crate::voxel::{GridSpec, VoxelSequence};
 use std::time::Instant;
 
 /// Where the time of one frame went, in seconds. With a damped guess the
-/// parts and the iterations add up both runs.
+/// parts add up both runs, which run side by side: they can exceed `total`.
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct FrameTiming {
     pub total: f64,
     pub assign: f64,
     pub fit: f64,
     pub affinity: f64,
+    /// Iterations of the run that was kept.
     pub iterations: usize,
+    /// Iterations of the run from the other guess, dropped (0 with one guess).
+    pub dropped_iterations: usize,
     /// The run from the damped guess ended with the lower energy and was kept.
     pub damped_guess_kept: bool,
 }
 
 impl FrameTiming {
-    /// The parts of two runs of one frame, added.
-    fn add(&mut self, other: &FrameTiming) {
-        self.assign += other.assign;
-        self.fit += other.fit;
-        self.affinity += other.affinity;
-        self.iterations += other.iterations;
+    /// Adds the parts of the dropped run of the same frame.
+    fn add_dropped(&mut self, dropped: &FrameTiming) {
+        self.assign += dropped.assign;
+        self.fit += dropped.fit;
+        self.affinity += dropped.affinity;
+        self.dropped_iterations = dropped.iterations;
     }
 }
 
@@ -174,12 +177,12 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
                         log::debug!("frame {f}: energy {:.4e} from the constant-velocity guess, {:.4e} from the damped one", a.energy, b.energy);
                         if b.energy < a.energy {
                             tracker = damped;
-                            b.timing.add(&a.timing);
+                            b.timing.add_dropped(&a.timing);
                             b.timing.damped_guess_kept = true;
                             Some(b)
                         } else {
                             tracker = full;
-                            a.timing.add(&b.timing);
+                            a.timing.add_dropped(&b.timing);
                             Some(a)
                         }
                     }
