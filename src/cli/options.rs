@@ -69,7 +69,7 @@ pub struct TrackArgs {
     /// Also track every frame from the previous velocity scaled by K, and keep the run with the lower energy [default: 0.25]
     #[arg(long, value_name = "K")]
     pub damped_guess: Option<f64>,
-    /// Track every frame from the paper's constant-velocity guess alone: half the tracking time, but fast limbs that turn back get lost
+    /// Track every frame from the paper's constant-velocity guess alone: half the tracking work, but fast limbs that turn back get lost
     #[arg(long, conflicts_with = "damped_guess")]
     pub single_guess: bool,
     /// Lloyd iterations placing the centers in frame 0
