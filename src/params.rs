@@ -314,15 +314,17 @@ fn length_scale(absolute_units: bool, bounds: &crate::mesh::Aabb) -> Real {
 /// spin about its own axis, and blending leaves folds where bound centers
 /// disagree. Keeping the mesh's edges as in frame 0 while it lies on the
 /// input surface corrects both. At the defaults it takes the correspondence
-/// error (evaluate.py, % of the diagonal) from 1.97 to 1.22 on crane_tvm and
-/// from 0.99 to 0.41 on walker, and the worst frame's inverted area from
-/// 6.96 to 1.82 % and from 1.05 to 0.34 %.
+/// error (evaluate.py, % of the diagonal) from 1.11 to 0.76 on crane_tvm and
+/// from 0.78 to 0.37 on walker, and the worst frame's inverted area from
+/// 1.86 to 1.07 % and from 0.92 to 0.36 %. (Before tracking took a damped
+/// guess as well, it took crane from 1.97 to 1.22 and 6.96 to 1.82 %.)
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct ConformParams {
     /// Rounds of (rotations, nearest surface points, solve) per frame: the
     /// mesh slides along the surface slowly, so more rounds keep helping a
-    /// little (crane_tvm's correspondence error: 1.27 after 30, 1.22 after
-    /// 60, 1.16 after 150). Default 60; 0 = off (the mesh stays as blended).
+    /// little (crane_tvm's correspondence error, on trajectories tracked from
+    /// the constant-velocity guess alone: 1.27 after 30, 1.22 after 60, 1.16
+    /// after 150). Default 60; 0 = off (the mesh stays as blended).
     pub iterations: usize,
     /// Weight of keeping every edge as in frame 0 (up to a rotation per
     /// vertex) against lying on the surface. Larger: stiffer, fits the

@@ -66,9 +66,9 @@ pub struct TrackArgs {
     /// Iteration limit per frame
     #[arg(long, default_value_t = TrackParams::default().max_iterations)]
     pub max_iterations: usize,
-    /// Also track every frame from the previous velocity scaled by K, and keep the run with the lower energy [default: 0.25]
-    #[arg(long, value_name = "K")]
-    pub damped_guess: Option<f64>,
+    /// Also track every frame from the previous velocity scaled by K, and keep the run with the lower energy
+    #[arg(long, value_name = "K", default_value_t = TrackParams::default().damped_guess.expect("on by default"))]
+    pub damped_guess: f64,
     /// Track every frame from the paper's constant-velocity guess alone: half the tracking work, but fast limbs that turn back get lost
     #[arg(long, conflicts_with = "damped_guess")]
     pub single_guess: bool,
@@ -114,7 +114,7 @@ impl TrackArgs {
             presmooth_steps: self.presmooth,
             threshold: self.threshold,
             max_iterations: self.max_iterations,
-            damped_guess: if self.single_guess { None } else { self.damped_guess.or(TrackParams::default().damped_guess) },
+            damped_guess: (!self.single_guess).then_some(self.damped_guess),
             lloyd_iterations: self.lloyd_iterations,
             over_relaxation: self.over_relaxation,
             absolute_units: self.absolute_units,

@@ -213,9 +213,8 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
 
 impl<'a> Tracker<'a> {
     /// One frame from the guess `cur`. None when `progress` asks to stop; the
-    /// state is then left as it was.
+    /// state is then left as it was. The caller times the whole frame.
     fn track_frame(&mut self, prev: &[Point3], mut cur: Vec<Point3>, voxels: &'a [u32], progress: Progress) -> Option<FrameResult> {
-        let start = Instant::now();
         let mut t = FrameTiming::default();
         let beta = self.params.beta;
         let mut cells = Assignment::new(self.grid, voxels, carry_owners(self.prev_voxels, &self.owners, voxels));
@@ -275,7 +274,6 @@ impl<'a> Tracker<'a> {
         t.affinity += clock.elapsed().as_secs_f64();
         self.owners = cells.owners;
         self.prev_voxels = voxels;
-        t.total = start.elapsed().as_secs_f64();
         Some(FrameResult { centers: cur, counts: stats.count, timing: t, energy })
     }
 }
