@@ -60,9 +60,26 @@ impl Aabb {
     }
 }
 
+/// Per vertex, the first vertex at exactly the same position: copies a loader
+/// made along UV or normal seams map to one vertex, so the seam can be
+/// treated as the surface it is.
+pub fn weld_by_position(positions: &[Point3]) -> Vec<u32> {
+    let mut first = std::collections::HashMap::new();
+    // `+ 0.0` turns −0 into +0, so both weld.
+    (0..positions.len() as u32).map(|v| *first.entry(positions[v as usize].coords.map(|c| (c + 0.0).to_bits())).or_insert(v)).collect()
+}
+
 impl TriangleMesh {
     pub fn bounding_box(&self) -> Aabb {
         Aabb::from_points(&self.positions)
+    }
+
+    /// [`weld_by_position`] of the vertices, and the triangles over the
+    /// welded indices (copies then keep no triangle of their own).
+    pub fn welded(&self) -> (Vec<u32>, Vec<[u32; 3]>) {
+        let weld = weld_by_position(&self.positions);
+        let triangles = self.triangles.iter().map(|t| t.map(|v| weld[v as usize])).collect();
+        (weld, triangles)
     }
 
     /// Checks what every stage relies on: at least one triangle, finite

@@ -177,3 +177,60 @@ fn conforming_to_an_inside_out_input_gives_the_same_mesh() {
     let b = conform_frame(&base, &offset, &inside_out, &base.bounding_box(), &params).unwrap();
     assert!(mean_distance(&a, &b) < 1e-9, "{}", mean_distance(&a, &b));
 }
+
+/// [`conform_sphere`]'s mesh with a UV-style seam along one meridian: the
+/// triangles on one side of it use copies of its vertices, as an OBJ with
+/// texture coordinates loads. Returns the mesh and (copy, original) pairs.
+fn sphere_with_a_seam() -> (voltrack::TriangleMesh, Vec<(usize, usize)>) {
+    let (segments, rings) = (32u32, 16u32);
+    let mut mesh = voltrack::fixtures::sphere(Point3::origin(), 1.0, segments, rings);
+    let on_seam = |v: u32| v >= 1 && v < 1 + (rings - 1) * segments && (v - 1) % segments == 0;
+    let last_segment = |v: u32| v >= 1 && v < 1 + (rings - 1) * segments && (v - 1) % segments == segments - 1;
+    let mut copies = std::collections::HashMap::new();
+    for t in 0..mesh.triangles.len() {
+        if !mesh.triangles[t].iter().any(|&v| last_segment(v)) {
+            continue;
+        }
+        for k in 0..3 {
+            let v = mesh.triangles[t][k];
+            if on_seam(v) {
+                let copy = *copies.entry(v).or_insert_with(|| {
+                    mesh.positions.push(mesh.positions[v as usize]);
+                    mesh.positions.len() as u32 - 1
+                });
+                mesh.triangles[t][k] = copy;
+            }
+        }
+    }
+    let pairs = copies.into_iter().map(|(v, c)| (c as usize, v as usize)).collect();
+    (mesh, pairs)
+}
+
+#[test]
+fn conforming_keeps_a_seam_closed() {
+    let (base, seam) = sphere_with_a_seam();
+    assert_eq!(seam.len(), 15);
+    let twisted: Vec<Point3> = base.positions.iter().map(|p| Rotation3::new(Vector3::z() * 0.3 * p.z) * p).collect();
+    let fitted = conform_frame(&base, &twisted, &base, &base.bounding_box(), &ConformParams::default()).unwrap();
+    let gap = seam.iter().map(|&(c, v)| (fitted[c] - fitted[v]).norm()).fold(0.0, Real::max);
+    assert!(gap == 0.0, "the seam opened by {gap}");
+    // And the twist is undone as on the welded sphere.
+    let (before, after) = (mean_distance(&twisted, &base.positions), mean_distance(&fitted, &base.positions));
+    assert!(after < 0.05 * before, "mean error {before} -> {after}");
+}
+
+#[test]
+fn blending_keeps_a_seam_closed() {
+    let (mesh, seam) = sphere_with_a_seam();
+    // Centers on the axis and around it, each latitude turned its own way.
+    let centers0: Vec<Point3> = (0..12).map(|i| Rotation3::new(Vector3::z() * i as Real) * Point3::new(0.5, 0.0, -0.8 + 0.15 * i as Real)).collect();
+    let frames: Vec<Vec<Point3>> = (0..3).map(|f| centers0.iter().map(|p| Rotation3::new(Vector3::z() * (0.2 * f as Real * p.z)) * p).collect()).collect();
+    let traj = Trajectories::from_frames(frames);
+    let n = traj.centers;
+    let omega = SparseAffinity { lists: (0..n).map(|_| (0..n as u32).map(|j| (j, 1.0)).collect()).collect() };
+    let dm = deform(&mesh, &traj, &omega, &DeformParams::default()).unwrap();
+    for frame in &dm.frames {
+        let gap = seam.iter().map(|&(c, v)| (frame[c] - frame[v]).norm()).fold(0.0, Real::max);
+        assert!(gap == 0.0, "the seam opened by {gap}");
+    }
+}

@@ -43,6 +43,26 @@ const MAX_SOLVER_ITERATIONS: usize = 50;
 /// absolute positions and would loosen the tolerance far from the origin.
 const SOLVER_TOLERANCE: Real = 2e-4;
 
+/// The frame-0 mesh's connectivity, the same for every frame, with copies of
+/// a vertex (a UV seam: same frame-0 position) welded into the first: the
+/// copies would otherwise each keep only their own side's edges and be fitted
+/// apart, opening the seam.
+struct Topology {
+    /// Per vertex, the first vertex at its frame-0 position.
+    weld: Vec<u32>,
+    /// The triangles over welded indices.
+    triangles: Vec<[u32; 3]>,
+    edges: Edges,
+}
+
+impl Topology {
+    fn new(base: &TriangleMesh) -> Self {
+        let (weld, triangles) = base.welded();
+        let edges = Edges::new(base.positions.len(), &triangles);
+        Topology { weld, triangles, edges }
+    }
+}
+
 /// The frame-0 mesh's edges, the same for every frame.
 struct Edges {
     /// Vertex v's neighbours are `neighbours[start[v]..start[v + 1]]`.
@@ -102,7 +122,7 @@ pub fn conform_to_inputs(mesh: DynamicMesh, inputs: &[PathBuf], bounds: &Aabb, p
             inputs.len()
         )));
     }
-    let edges = Edges::new(mesh.base.positions.len(), &mesh.base.triangles);
+    let topology = Topology::new(&mesh.base);
     let max_distance = params.length_scale(bounds) * params.max_distance;
     let counter = Counter::new(progress, Stage::Conform, inputs.len().saturating_sub(1));
     let fitted: Vec<Vec<Point3>> = (1..inputs.len())
@@ -113,7 +133,7 @@ pub fn conform_to_inputs(mesh: DynamicMesh, inputs: &[PathBuf], bounds: &Aabb, p
             }
             let input = crate::io::read_mesh(&inputs[f])?;
             input.validate(&inputs[f])?;
-            let frame = fit_frame(&mesh.base, &edges, &mesh.frames[f], &input, max_distance, params, &|| progress.cancelled())
+            let frame = fit_frame(&mesh.base, &topology, &mesh.frames[f], &input, max_distance, params, &|| progress.cancelled())
                 .ok_or(Error::Interrupted { saved: None })?;
             counter.tick();
             Ok(frame)
@@ -136,29 +156,30 @@ pub fn conform_frame(base: &TriangleMesh, blended: &[Point3], input: &TriangleMe
         return Err(Error::InvalidInput(format!("{} positions for a mesh of {} vertices", blended.len(), base.positions.len())));
     }
     let max_distance = params.length_scale(bounds) * params.max_distance;
-    let edges = Edges::new(base.positions.len(), &base.triangles);
-    fit_frame(base, &edges, blended, input, max_distance, params, &|| false).ok_or(Error::Interrupted { saved: None })
+    fit_frame(base, &Topology::new(base), blended, input, max_distance, params, &|| false).ok_or(Error::Interrupted { saved: None })
 }
 
-/// [`conform_frame`] with the mesh's edges at hand; None when `cancelled`
-/// says so (it is asked before every round).
+/// [`conform_frame`] with the mesh's topology at hand; None when `cancelled`
+/// says so (it is asked before every round). Only the first copy of a welded
+/// vertex is fitted (the others, left without edges, stay put), and the
+/// others take its place at the end.
 fn fit_frame(
     base: &TriangleMesh,
-    edges: &Edges,
+    topology: &Topology,
     blended: &[Point3],
     input: &TriangleMesh,
     max_distance: Real,
     params: &ConformParams,
     cancelled: &dyn Fn() -> bool,
 ) -> Option<Vec<Point3>> {
-    let rest = &base.positions;
+    let (rest, edges) = (&base.positions, &topology.edges);
     let n = rest.len();
     let surface = SurfaceIndex::new(&input.positions, &input.triangles);
     let stiffness = 2.0 * params.stiffness;
     let mut y: Vec<Vector3> = blended.iter().map(|p| p.coords).collect();
     // Round 0's search, from the blended positions with the full reach, also
     // tells which way the input faces.
-    let mut normals = vertex_normals(&y, &base.triangles);
+    let mut normals = vertex_normals(&y, &topology.triangles);
     let mut found: Vec<Option<(Point3, Vector3)>> = blended.iter().map(|p| surface.closest_point_within(p, max_distance)).collect();
     let flip = faces_away(&found, &normals);
     let diagonal: Vec<Real> = (0..n).map(|v| stiffness * edges.of(v).len() as Real + ANCHOR).collect();
@@ -170,7 +191,7 @@ fn fit_frame(
             return None;
         }
         if round > 0 {
-            normals = vertex_normals(&y, &base.triangles);
+            normals = vertex_normals(&y, &topology.triangles);
             // The point found last round is still on the surface: the
             // nearest one is at most that far, which prunes the search.
             found = y
@@ -213,7 +234,7 @@ fn fit_frame(
         }
         solve(edges, stiffness, &diagonal, &data, &rhs, SOLVER_TOLERANCE * max_distance, &mut y);
     }
-    Some(y.into_iter().map(Point3::from).collect())
+    Some(topology.weld.iter().map(|&w| Point3::from(y[w as usize])).collect())
 }
 
 /// Whether the input is oriented the other way from the mesh: most of the

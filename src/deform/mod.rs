@@ -105,7 +105,11 @@ pub fn deform(mesh: &TriangleMesh, traj: &Trajectories, omega: &SparseAffinity, 
     if traj.centers == 0 || omega.lists.len() != traj.centers {
         return Err(Error::InvalidInput("no centers to deform the mesh with".into()));
     }
-    let bindings = smooth_bindings(&mesh.triangles, bind(mesh, traj.frame(0), omega, params), omega, params.smoothing, 2 * params.neighbors);
+    // Copies of a vertex (a UV seam) are smoothed as the one vertex they are
+    // and share its weights, or the seam would open as the mesh moves.
+    let (weld, welded) = mesh.welded();
+    let smoothed = smooth_bindings(&welded, bind(mesh, traj.frame(0), omega, params), omega, params.smoothing, 2 * params.neighbors);
+    let bindings: Vec<Binding> = weld.iter().map(|&w| smoothed[w as usize].clone()).collect();
     let motions = center_motions(traj, omega);
     let mut frames = vec![mesh.positions.clone()];
     for m in motions.iter().skip(1) {

@@ -13,7 +13,7 @@ use crate::math::{Point3, Real, Vector3};
 use crate::mesh::{Aabb, TriangleMesh};
 use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 use std::path::Path;
 
 /// How [`write_dynamic_glb`] encodes the animation.
@@ -149,11 +149,7 @@ struct FrameNormals<'a> {
 
 impl<'a> FrameNormals<'a> {
     fn new(triangles: &'a [[u32; 3]], frame0: &[Point3]) -> Self {
-        let mut first = HashMap::new();
-        // `+ 0.0` turns −0 into +0, so both weld.
-        let weld = (0..frame0.len() as u32)
-            .map(|v| *first.entry(frame0[v as usize].coords.map(|c| (c + 0.0).to_bits())).or_insert(v))
-            .collect();
+        let weld = crate::mesh::weld_by_position(frame0);
         let mut n = FrameNormals { triangles, weld, base: Vec::new() };
         n.base = n.raw(frame0).into_iter().map(|v| if v == Vector3::zeros() { Vector3::z() } else { v }).collect();
         n
