@@ -161,8 +161,8 @@ pub fn conform_frame(base: &TriangleMesh, blended: &[Point3], input: &TriangleMe
 
 /// [`conform_frame`] with the mesh's topology at hand; None when `cancelled`
 /// says so (it is asked before every round). Only the first copy of a welded
-/// vertex is fitted (the others, left without edges, stay put), and the
-/// others take its place at the end.
+/// vertex is fitted (the others, left without edges or surface points, stay
+/// put), and the others take its place at the end.
 fn fit_frame(
     base: &TriangleMesh,
     topology: &Topology,
@@ -179,8 +179,11 @@ fn fit_frame(
     let mut y: Vec<Vector3> = blended.iter().map(|p| p.coords).collect();
     // Round 0's search, from the blended positions with the full reach, also
     // tells which way the input faces.
+    // Copies of a welded vertex need no surface point: they take the first's.
+    let first_copy = |v: usize| topology.weld[v] as usize == v;
     let mut normals = vertex_normals(&y, &topology.triangles);
-    let mut found: Vec<Option<(Point3, Vector3)>> = blended.iter().map(|p| surface.closest_point_within(p, max_distance)).collect();
+    let mut found: Vec<Option<(Point3, Vector3)>> =
+        blended.iter().enumerate().map(|(v, p)| if first_copy(v) { surface.closest_point_within(p, max_distance) } else { None }).collect();
     let flip = faces_away(&found, &normals);
     let diagonal: Vec<Real> = (0..n).map(|v| stiffness * edges.of(v).len() as Real + ANCHOR).collect();
     let mut data = vec![Matrix3::zeros(); n];
@@ -197,7 +200,11 @@ fn fit_frame(
             found = y
                 .iter()
                 .zip(&found)
-                .map(|(y, last)| {
+                .enumerate()
+                .map(|(v, (y, last))| {
+                    if !first_copy(v) {
+                        return None;
+                    }
                     let p = Point3::from(*y);
                     let bound = last.map_or(max_distance, |(c, _)| (c - p).norm().min(max_distance));
                     surface.closest_point_within(&p, bound)
