@@ -496,6 +496,25 @@ fn surface_index_matches_brute_force() {
         }
         // A vertex is on the surface.
         assert_eq!(index.distance(&mesh.positions[mesh.triangles[0][1] as usize]), 0.0, "{name}");
+        // Refitted to moved vertices (twisted, jittered), the index answers
+        // as a brute-force scan of the moved mesh, and names the triangle.
+        let moved: Vec<Point3> = mesh
+            .positions
+            .iter()
+            .map(|p| Rotation3::new(Vector3::z() * (p.z / scale)) * p + rng.point().coords * 0.01 * scale)
+            .collect();
+        let moved_mesh = TriangleMesh { positions: moved, ..mesh.clone() };
+        let mut refitted = index;
+        refitted.refit(&moved_mesh.positions, &moved_mesh.triangles);
+        for p in &queries {
+            let want = brute_force_distance(p, &moved_mesh);
+            let (got, _) = refitted.closest_point(p).expect("triangles");
+            assert!(((got - p).norm() - want).abs() <= 1e-12 * want.max(scale), "{name} refitted: {p:?}");
+            let (t, c) = refitted.closest_triangle_within(p, Real::INFINITY).expect("triangles");
+            let [a, b, d] = moved_mesh.triangles[t as usize].map(|i| moved_mesh.positions[i as usize]);
+            assert!((point_triangle_distance_squared(p, &a, &b, &d).sqrt() - want).abs() <= 1e-12 * want.max(scale), "{name} refitted: triangle {t}");
+            assert_eq!(c, got, "{name} refitted: {p:?}");
+        }
     }
     assert_eq!(SurfaceIndex::new(&[], &[]).distance(&Point3::origin()), Real::INFINITY);
 }

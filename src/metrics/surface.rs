@@ -119,6 +119,8 @@ pub struct SurfaceIndex {
     nodes: Vec<Node>,
     /// Corners of every triangle, in leaf order.
     triangles: Vec<[Point3; 3]>,
+    /// Every leaf-order triangle's index in the mesh given.
+    ids: Vec<u32>,
 }
 
 impl SurfaceIndex {
@@ -132,7 +134,7 @@ impl SurfaceIndex {
         if !order.is_empty() {
             build(&mut nodes, &mut order, 0, &corners, &centroids);
         }
-        SurfaceIndex { nodes, triangles: order.iter().map(|&t| corners[t as usize]).collect() }
+        SurfaceIndex { nodes, triangles: order.iter().map(|&t| corners[t as usize]).collect(), ids: order }
     }
 
     /// Squared distance from `p` to the surface (infinite without triangles).
@@ -155,6 +157,48 @@ impl SurfaceIndex {
         let [a, b, c] = &self.triangles[t];
         let normal = (b - a).cross(&(c - a)).try_normalize(0.0).unwrap_or_else(Vector3::zeros);
         Some((closest_point_on_triangle(p, a, b, c), normal))
+    }
+
+    /// The same index over moved vertices: `positions` of the mesh indexed,
+    /// same `triangles`. The boxes are recomputed over the tree as it was
+    /// split, in time linear in the triangles; a mesh that moves smoothly
+    /// keeps a tree nearly as tight as a new one.
+    pub fn refit(&mut self, positions: &[Point3], triangles: &[[u32; 3]]) {
+        for (corners, &t) in self.triangles.iter_mut().zip(&self.ids) {
+            *corners = triangles[t as usize].map(|i| positions[i as usize]);
+        }
+        // Children come after their parent, so a reverse sweep sees them first.
+        for n in (0..self.nodes.len()).rev() {
+            let node = self.nodes[n];
+            let (mut min, mut max) = ([Real::INFINITY; 3], [Real::NEG_INFINITY; 3]);
+            let mut grow = |lo: &[Real; 3], hi: &[Real; 3]| {
+                for k in 0..3 {
+                    min[k] = min[k].min(lo[k]);
+                    max[k] = max[k].max(hi[k]);
+                }
+            };
+            if node.count > 0 {
+                for p in self.triangles[node.first as usize..(node.first + node.count) as usize].iter().flatten() {
+                    let c = [p.x, p.y, p.z];
+                    grow(&c, &c);
+                }
+            } else {
+                for child in [n + 1, node.first as usize] {
+                    let c = self.nodes[child];
+                    grow(&c.min, &c.max);
+                }
+            }
+            self.nodes[n].min = min;
+            self.nodes[n].max = max;
+        }
+    }
+
+    /// The triangle nearest to `p` (its index in the mesh given) and the
+    /// point of it nearest to `p`, if one is at most `bound` away.
+    pub fn closest_triangle_within(&self, p: &Point3, bound: Real) -> Option<(u32, Point3)> {
+        let (t, _) = self.nearest_triangle(p, bound * bound)?;
+        let [a, b, c] = &self.triangles[t];
+        Some((self.ids[t], closest_point_on_triangle(p, a, b, c)))
     }
 
     /// The triangle (in leaf order) nearest to `p` and its squared distance,
