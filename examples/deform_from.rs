@@ -1,7 +1,8 @@
 //! Deforms the first frame of a sequence by trajectories already tracked
 //! (`voltrack track -o centers.exr`), to try deformation settings without
 //! tracking again: `cargo run --release --example deform_from -- centers.exr
-//! INPUT_DIR out.glb [neighbors]`. `VOLTRACK_RHO_GP`, `VOLTRACK_RHO_GM`,
+//! INPUT_DIR out.glb [neighbors]` (an output not ending in .glb is a
+//! directory of OBJ files). `VOLTRACK_RHO_GP`, `VOLTRACK_RHO_GM`,
 //! `VOLTRACK_MIN_AFFINITY` and `VOLTRACK_BLEND=linear` override the affinity
 //! the mesh is bound with and the blending; `VOLTRACK_CONFORM_ITERATIONS`,
 //! `_STIFFNESS`, `_POINT_WEIGHT`, `_MAX_DISTANCE` and `_NORMAL_COSINE` the fit
@@ -42,7 +43,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..defaults
     };
     let mesh = voltrack::deform::conform_to_inputs(mesh, &seq.paths, &seq.bounds, &conform, Default::default())?;
-    let report = voltrack::export::gltf::write_dynamic_glb(args[2].as_ref(), &mesh, &Default::default())?;
-    println!("wrote {} ({} targets)", args[2], report.targets);
+    if args[2].ends_with(".glb") {
+        let report = voltrack::export::gltf::write_dynamic_glb(args[2].as_ref(), &mesh, &Default::default())?;
+        println!("wrote {} ({} targets)", args[2], report.targets);
+    } else {
+        let files = voltrack::export::obj::write_obj_sequence(args[2].as_ref(), &mesh)?;
+        println!("wrote {} OBJ files into {}", files.len(), args[2]);
+    }
     Ok(())
 }
