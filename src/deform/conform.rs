@@ -261,14 +261,16 @@ fn fit_frame(
         // Compatible: the mesh's triangle faces within the least cosine's
         // angle of every input triangle at the vertex. A vertex whose
         // triangles turn sharply (beside a crease they cut) pulls fewer
-        // parts of the mesh, and one on a sliver pulls none.
+        // parts of the mesh, and one on a sliver pulls none, nor one in no
+        // triangle (a stray point, not surface).
         let facing = if flip { -1.0 } else { 1.0 };
         for (j, (q, found)) in input.positions.iter().zip(&matches).enumerate() {
             let Some((t, weights)) = *found else { continue };
             let corners = triangles[t as usize];
             let [a, b, c] = corners.map(|i| points[i as usize]);
             let Some(normal) = (b - a).cross(&(c - a)).try_normalize(0.0) else { continue };
-            if fans.of(j).iter().any(|n| facing * n.dot(&normal) < params.min_normal_cosine) {
+            let fan = fans.of(j);
+            if fan.is_empty() || fan.iter().any(|n| facing * n.dot(&normal) < params.min_normal_cosine) {
                 continue;
             }
             let m = normal * normal.transpose() + Matrix3::identity() * params.point_weight;
