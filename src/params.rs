@@ -343,8 +343,9 @@ pub struct ConformParams {
     /// Least cosine between the normal of the mesh's triangle an input
     /// vertex pulls and the normal of every input triangle at that vertex,
     /// so a surface is never pulled onto the back of another one it
-    /// touches, nor a side by the input's vertices beside a crease its
-    /// triangles cut (36–45° off the sides at a prism's edges). Default 0.7
+    /// touches, and a vertex whose triangles turn across a crease they cut
+    /// (36–45° off the sides at a prism's edges) pulls only mesh triangles
+    /// facing close to all of them. Default 0.7
     /// (46°); in [-1, 1]. On crane_tvm 0.6 fits a little closer (fidelity
     /// 0.091 against 0.094 % of the diagonal, correspondence 0.766 against
     /// 0.771); on pent_tvm 0.7 strays less from the rigid motion (at most
