@@ -8,10 +8,13 @@
 //! `... -- vertices` converts `pent_tvm` (the prism re-meshed per frame) at
 //! default settings and measures the same for every vertex of the dynamic
 //! mesh (issue 5). Distances are in voxels of the grid used.
-//! `VOLTRACK_R`, `VOLTRACK_CENTERS` override the resolution and center count.
+//! `VOLTRACK_R`, `VOLTRACK_CENTERS` override the resolution and center count;
+//! `VOLTRACK_THRESHOLD` and `VOLTRACK_CONFORM_STIFFNESS` the tracking
+//! threshold and the conform stage's stiffness (`--threshold`,
+//! `--conform-stiffness`), the settings for a rigid body.
 
 use voltrack::math::{Point3, Real};
-use voltrack::params::{DeformParams, RefineParams, TrackParams};
+use voltrack::params::{ConformParams, DeformParams, RefineParams, TrackParams};
 use voltrack::track::{fit_rigid, Rigid};
 use voltrack::voxel::VoxelParams;
 
@@ -43,8 +46,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
         "vertices" => {
             let inputs = [format!("{data}/pent_tvm").into()];
-            let track = TrackParams { centers: env("VOLTRACK_CENTERS", 1000), ..Default::default() };
-            let conv = voltrack::pipeline::convert(&inputs, &voxel, &track, Some(&RefineParams::default()), &DeformParams::default(), &Default::default(), None, Default::default())?;
+            let real = |k: &str| std::env::var(k).ok().and_then(|s| s.parse::<Real>().ok());
+            let defaults = TrackParams::default();
+            let track = TrackParams { centers: env("VOLTRACK_CENTERS", 1000), threshold: real("VOLTRACK_THRESHOLD").unwrap_or(defaults.threshold), ..defaults };
+            let conform = ConformParams { stiffness: real("VOLTRACK_CONFORM_STIFFNESS").unwrap_or(ConformParams::default().stiffness), ..Default::default() };
+            let conv = voltrack::pipeline::convert(&inputs, &voxel, &track, Some(&RefineParams::default()), &DeformParams::default(), &conform, None, Default::default())?;
             (conv.mesh.frames, conv.sequence.grid.voxel_size)
         }
         other => return Err(format!("unknown mode {other}: centers or vertices").into()),

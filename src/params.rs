@@ -56,6 +56,10 @@ pub struct TrackParams {
     pub presmooth_steps: usize,
     /// Convergence: stop when no center moves farther than this in one
     /// iteration. Default 5.6e-5 (relative; the reference's 1e-4 m); > 0.
+    /// The iterations stop short of where they lead, on the side of the
+    /// guess: on pent_tvm (a prism spinning 7.35° a frame) the centers lag
+    /// the spin by 0.3–1.3° at the default and by at most 0.55° at 1e-5,
+    /// which takes 1.5–1.7 times the tracking time.
     pub threshold: Real,
     /// Iteration limit per frame. Default 1000; >= 1.
     pub max_iterations: usize,
