@@ -84,47 +84,73 @@ struct Topology {
 impl Topology {
     fn new(base: &TriangleMesh) -> Self {
         let (weld, triangles) = base.welded();
-        let edges = Edges::new(base.positions.len(), &triangles);
+        let edges = edges(base.positions.len(), &triangles);
         Topology { weld, triangles, edges }
     }
 }
 
-/// The frame-0 mesh's edges, the same for every frame.
-struct Edges {
-    /// Vertex v's neighbours are `neighbours[start[v]..start[v + 1]]`.
+/// Lists per vertex in one array: vertex v's are `items[start[v]..start[v + 1]]`.
+struct PerVertex<T> {
     start: Vec<usize>,
-    neighbours: Vec<u32>,
+    items: Vec<T>,
 }
 
-impl Edges {
-    fn new(vertices: usize, triangles: &[[u32; 3]]) -> Self {
-        let mut pairs: Vec<(u32, u32)> =
-            triangles.iter().flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3])))).filter(|(a, b)| a != b).collect();
-        pairs.sort_unstable();
-        pairs.dedup();
-        let mut count = vec![0usize; vertices + 1];
-        for &(a, b) in &pairs {
-            count[a as usize + 1] += 1;
-            count[b as usize + 1] += 1;
+impl<T: Copy + Default> PerVertex<T> {
+    /// Every `(v, item)` of `entries` into v's list, in the order given.
+    fn new(vertices: usize, entries: &[(u32, T)]) -> Self {
+        let mut start = vec![0usize; vertices + 1];
+        for &(v, _) in entries {
+            start[v as usize + 1] += 1;
         }
         for v in 0..vertices {
-            count[v + 1] += count[v];
+            start[v + 1] += start[v];
         }
-        let start = count.clone();
-        let mut neighbours = vec![0u32; 2 * pairs.len()];
-        let mut next = count;
-        for &(a, b) in &pairs {
-            neighbours[next[a as usize]] = b;
-            next[a as usize] += 1;
-            neighbours[next[b as usize]] = a;
-            next[b as usize] += 1;
+        let mut next = start.clone();
+        let mut items = vec![T::default(); entries.len()];
+        for &(v, item) in entries {
+            items[next[v as usize]] = item;
+            next[v as usize] += 1;
         }
-        Edges { start, neighbours }
+        PerVertex { start, items }
     }
 
-    fn of(&self, v: usize) -> &[u32] {
-        &self.neighbours[self.start[v]..self.start[v + 1]]
+    fn of(&self, v: usize) -> &[T] {
+        &self.items[self.start[v]..self.start[v + 1]]
     }
+}
+
+/// The frame-0 mesh's edges, the same for every frame: every vertex's
+/// neighbours.
+type Edges = PerVertex<u32>;
+
+fn edges(vertices: usize, triangles: &[[u32; 3]]) -> Edges {
+    let mut pairs: Vec<(u32, u32)> =
+        triangles.iter().flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3])))).filter(|(a, b)| a != b).collect();
+    pairs.sort_unstable();
+    pairs.dedup();
+    let entries: Vec<(u32, u32)> = pairs.iter().flat_map(|&(a, b)| [(a, b), (b, a)]).collect();
+    PerVertex::new(vertices, &entries)
+}
+
+/// The unit normals of the triangles around every vertex of a mesh, zero
+/// for a degenerate one: that faces no way, so (for a positive least
+/// cosine) its vertices pull nothing. Re-meshing leaves such slivers along
+/// creases (pent_tvm has them), where a vertex's place is least certain;
+/// on pent_tvm leaving them out took the largest distance from the rigid
+/// motion from 1.9 to 2.6 voxels.
+type Fans = PerVertex<Vector3>;
+
+fn fans(mesh: &TriangleMesh) -> Fans {
+    let entries: Vec<(u32, Vector3)> = mesh
+        .triangles
+        .iter()
+        .flat_map(|t| {
+            let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+            let normal = (b - a).cross(&(c - a)).try_normalize(0.0).unwrap_or_else(Vector3::zeros);
+            t.map(|v| (v, normal))
+        })
+        .collect();
+    PerVertex::new(mesh.positions.len(), &entries)
 }
 
 /// Moves every frame after the first of `mesh` onto the input surface of
@@ -202,8 +228,7 @@ fn fit_frame(
     let n = rest.len();
     let stiffness = 2.0 * params.stiffness;
     let mut y: Vec<Vector3> = blended.iter().map(|p| p.coords).collect();
-    let input_normals = vertex_normals(&input.positions.iter().map(|p| p.coords).collect::<Vec<_>>(), &input.triangles);
-    let fans = Fans::new(input);
+    let fans = fans(input);
     let diagonal: Vec<Real> = (0..n).map(|v| stiffness * edges.of(v).len() as Real + ANCHOR).collect();
     let mut rhs = vec![Vector3::zeros(); n];
     let mut rotations = vec![UnitQuaternion::identity(); n];
@@ -235,7 +260,7 @@ fn fit_frame(
                 });
             }
             if round == 0 {
-                flip = faces_away(&matches, &input_normals, &points, triangles);
+                flip = faces_away(&matches, &fans, &points, triangles);
             }
         }
         for (v, q) in rotations.iter_mut().enumerate() {
@@ -285,54 +310,6 @@ fn fit_frame(
     Some(topology.weld.iter().map(|&w| Point3::from(y[w as usize])).collect())
 }
 
-/// The unit normals of the triangles around every vertex of a mesh, zero
-/// for a degenerate one: that faces no way, so (for a positive least
-/// cosine) its vertices pull nothing. Re-meshing leaves such slivers along
-/// creases (pent_tvm has them), where a vertex's place is least certain;
-/// on pent_tvm leaving them out took the largest distance from the rigid
-/// motion from 1.9 to 2.6 voxels.
-struct Fans {
-    start: Vec<usize>,
-    normals: Vec<Vector3>,
-}
-
-impl Fans {
-    fn new(mesh: &TriangleMesh) -> Self {
-        let n = mesh.positions.len();
-        let faces: Vec<([u32; 3], Vector3)> = mesh
-            .triangles
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
-                (*t, (b - a).cross(&(c - a)).try_normalize(0.0).unwrap_or_else(Vector3::zeros))
-            })
-            .collect();
-        let mut count = vec![0usize; n + 1];
-        for (t, _) in &faces {
-            for &v in t {
-                count[v as usize + 1] += 1;
-            }
-        }
-        for v in 0..n {
-            count[v + 1] += count[v];
-        }
-        let start = count.clone();
-        let mut next = count;
-        let mut normals = vec![Vector3::zeros(); start[n]];
-        for (t, normal) in &faces {
-            for &v in t {
-                normals[next[v as usize]] = *normal;
-                next[v as usize] += 1;
-            }
-        }
-        Fans { start, normals }
-    }
-
-    fn of(&self, v: usize) -> &[Vector3] {
-        &self.normals[self.start[v]..self.start[v + 1]]
-    }
-}
-
 /// One input vertex q pulling the mesh's point nearest to it, s = Σ_k w_k
 /// y_{corners[k]}: the term is (s − q)ᵀ m (s − q), with m = n nᵀ + μ I for
 /// the normal n of the mesh's triangle there.
@@ -358,16 +335,17 @@ fn barycentric(p: &Point3, a: &Point3, b: &Point3, c: &Point3) -> [Real; 3] {
 
 /// Whether the input is oriented the other way from the mesh: at most of
 /// the input vertices `matches` pairs with a mesh triangle, the input's
-/// normal points against the triangle's. An input that is consistently
-/// inside-out (another exporter's winding) is then used turned round instead
-/// of rejecting every match.
-fn faces_away(matches: &[Option<(u32, [Real; 3])>], input_normals: &[Vector3], points: &[Point3], triangles: &[[u32; 3]]) -> bool {
+/// triangles there (`fans`) face against the mesh's. An input that is
+/// consistently inside-out (another exporter's winding) is then used turned
+/// round instead of rejecting every match.
+fn faces_away(matches: &[Option<(u32, [Real; 3])>], fans: &Fans, points: &[Point3], triangles: &[[u32; 3]]) -> bool {
     let agreement: Real = matches
         .iter()
-        .zip(input_normals)
-        .filter_map(|(m, q_normal)| {
+        .enumerate()
+        .filter_map(|(j, m)| {
             let [a, b, c] = triangles[m.as_ref()?.0 as usize].map(|i| points[i as usize]);
-            Some((b - a).cross(&(c - a)).try_normalize(0.0)?.dot(q_normal))
+            let normal = (b - a).cross(&(c - a)).try_normalize(0.0)?;
+            Some(fans.of(j).iter().map(|n| n.dot(&normal)).sum::<Real>())
         })
         .sum();
     agreement < 0.0
@@ -395,19 +373,6 @@ fn refine_rotation(a: &Matrix3, q: &mut UnitQuaternion) {
         }
         *q = UnitQuaternion::from_axis_angle(&Unit::new_unchecked(omega / angle), angle) * *q;
     }
-}
-
-/// Area-weighted unit vertex normals (zero where the triangles cancel).
-fn vertex_normals(positions: &[Vector3], triangles: &[[u32; 3]]) -> Vec<Vector3> {
-    let mut normals = vec![Vector3::zeros(); positions.len()];
-    for t in triangles {
-        let [a, b, c] = t.map(|i| positions[i as usize]);
-        let area_normal = (b - a).cross(&(c - a));
-        for &i in t {
-            normals[i as usize] += area_normal;
-        }
-    }
-    normals.iter().map(|n| n.try_normalize(0.0).unwrap_or_else(Vector3::zeros)).collect()
 }
 
 /// Solves A y = rhs by conjugate gradients preconditioned with A's 3×3
