@@ -173,18 +173,14 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
                     || damped.track_frame(prev, extrapolate(k), voxels, progress),
                 );
                 match (a, b) {
-                    (Some(mut a), Some(mut b)) => {
+                    (Some(a), Some(b)) => {
                         log::debug!("frame {f}: energy {:.4e} from the constant-velocity guess, {:.4e} from the damped one", a.energy, b.energy);
-                        if b.energy < a.energy {
-                            tracker = damped;
-                            b.timing.add_dropped(&a.timing);
-                            b.timing.damped_guess_kept = true;
-                            Some(b)
-                        } else {
-                            tracker = full;
-                            a.timing.add_dropped(&b.timing);
-                            Some(a)
-                        }
+                        let damped_kept = b.energy < a.energy;
+                        let (mut kept, dropped, state) = if damped_kept { (b, a, damped) } else { (a, b, full) };
+                        tracker = state;
+                        kept.timing.add_dropped(&dropped.timing);
+                        kept.timing.damped_guess_kept = damped_kept;
+                        Some(kept)
                     }
                     _ => None,
                 }
