@@ -12,7 +12,7 @@ use voltrack::Stage;
 
 #[derive(Parser)]
 #[command(name = "voltrack", version, about = "Time-varying meshes to dynamic meshes by volume tracking")]
-struct Cli {
+pub(crate) struct Cli {
     #[command(subcommand)]
     command: Command,
 }
