@@ -29,6 +29,10 @@ pub enum Error {
     InvalidParameter(String),
     #[error("{}: cannot write: {message}", path.display())]
     Write { path: PathBuf, message: String },
+    /// An output the run refuses to write, found before any work: it would
+    /// replace an input or another output, or its place takes no file.
+    #[error("{}: cannot write: {message}", path.display())]
+    OutputRefused { path: PathBuf, message: String },
     /// Stopped on request (Ctrl-C). `saved` names the checkpoint file and the
     /// frames it holds when tracking state was saved.
     #[error("interrupted{}", saved.as_ref().map(|(p, k)| format!(
@@ -47,6 +51,9 @@ impl Error {
     }
     pub(crate) fn mesh(path: &Path, message: impl Into<String>) -> Self {
         Error::InvalidMesh { path: path.to_path_buf(), message: message.into() }
+    }
+    pub(crate) fn refuse(path: &Path, message: impl std::fmt::Display) -> Self {
+        Error::OutputRefused { path: path.to_path_buf(), message: message.to_string() }
     }
     pub(crate) fn write(path: &Path, message: impl std::fmt::Display) -> Self {
         Error::Write { path: path.to_path_buf(), message: message.to_string() }

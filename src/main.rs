@@ -15,7 +15,7 @@ fn main() {
                 eprintln!("  caused by: {cause}");
             }
             std::process::exit(match err.downcast_ref::<voltrack::Error>() {
-                Some(voltrack::Error::InvalidParameter(_)) => 2,
+                Some(voltrack::Error::InvalidParameter(_) | voltrack::Error::OutputRefused { .. }) => 2,
                 Some(voltrack::Error::Interrupted { .. }) => 130,
                 _ => 1,
             });

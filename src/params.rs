@@ -117,35 +117,23 @@ impl Default for TrackParams {
 impl TrackParams {
     /// Checks every field's range.
     pub fn validate(&self) -> crate::Result<()> {
-        let bad = |what: &str| Err(crate::Error::InvalidParameter(what.to_string()));
-        if self.centers == 0 {
-            return bad("--centers must be at least 1");
+        check_count("the number of centers", self.centers, 1..=MAX_CENTERS)?;
+        if let Some(rho_p) = self.rho_p {
+            check("rho_p", rho_p, LENGTH)?;
         }
-        let positive = |rho: Real| rho > 0.0 && rho.is_finite();
-        if !(self.rho_p.is_none_or(positive) && positive(self.rho_m)) {
-            return bad("rho_p and rho_m must be positive");
+        check("rho_m", self.rho_m, LENGTH)?;
+        check("alpha", self.alpha, Span::open_closed(0.0, 1.0))?;
+        check("beta", self.beta, WEIGHT)?;
+        check("mu", self.mu, Span::open(0.0, 1.0))?;
+        check_count("the presmoothing steps", self.presmooth_steps, 0..=MAX_ROUNDS)?;
+        check("the convergence threshold", self.threshold, LENGTH)?;
+        check_count("the iteration limit per frame", self.max_iterations, 1..=MAX_ITERATIONS)?;
+        if let Some(k) = self.damped_guess {
+            check("the damped guess's factor", k, Span::closed_open(0.0, 1.0))?;
         }
-        if !(self.alpha > 0.0 && self.alpha <= 1.0) {
-            return bad("alpha must be in (0, 1]");
-        }
-        if !(self.beta > 0.0 && self.beta.is_finite()) {
-            return bad("beta must be positive");
-        }
-        if !(self.mu > 0.0 && self.mu < 1.0) {
-            return bad("mu must be in (0, 1)");
-        }
-        if self.damped_guess.is_some_and(|k| !(0.0..1.0).contains(&k)) {
-            return bad("--damped-guess must be in [0, 1)");
-        }
-        if !(self.threshold > 0.0 && self.threshold.is_finite()) {
-            return bad("threshold must be positive");
-        }
-        if self.max_iterations == 0 {
-            return bad("max_iterations must be at least 1");
-        }
-        if !(self.over_relaxation > 0.0 && self.over_relaxation < 2.0) {
-            return bad("over_relaxation must be in (0, 2)");
-        }
+        // 0 would leave the centers where the seeding put them, unplaced.
+        check_count("the Lloyd iterations", self.lloyd_iterations, 1..=MAX_ITERATIONS)?;
+        check("the over-relaxation", self.over_relaxation, Span::open(0.0, 2.0))?;
         Ok(())
     }
 
@@ -241,20 +229,25 @@ impl RefineParams {
         self.remove.unwrap_or((n / 100).max(1))
     }
 
+    /// Checks every field's range for `n` tracked centers.
     pub fn validate(&self, n: usize) -> crate::Result<()> {
         let bad = |what: String| Err(crate::Error::InvalidParameter(what));
-        if self.total_removed(n) + 2 > n {
-            return bad(format!("cannot remove {} of {n} centers", self.total_removed(n)));
+        if n < 3 {
+            return bad(format!(
+                "refinement removes at least 1 irregular center and keeps at least 2, so it needs at least 3 centers, not {n}; track more centers or skip refinement"
+            ));
         }
-        if self.batches == 0 {
-            return bad("--batches must be at least 1".into());
+        if self.total_removed(n).saturating_add(2) > n {
+            return bad(format!("cannot remove {} of {n} centers: at most {} (2 must stay)", self.total_removed(n), n - 2));
         }
-        if !(self.beta_hat > 0.0 && self.rho_gp > 0.0 && self.rho_gm > 0.0 && self.lambda > 0.0) {
-            return bad("beta_hat, rho_gp, rho_gm and lambda must be positive".into());
-        }
-        if !(self.mu > 0.0 && self.mu < 1.0) {
-            return bad("mu must be in (0, 1)".into());
-        }
+        check_count("the number of batches", self.batches, 1..=MAX_BATCHES)?;
+        check("beta_hat", self.beta_hat, WEIGHT)?;
+        check("rho_gp", self.rho_gp, LENGTH)?;
+        check("rho_gm", self.rho_gm, LENGTH)?;
+        check_count("the global iterations per batch", self.max_iterations, 0..=MAX_ITERATIONS)?;
+        check("lambda", self.lambda, WEIGHT)?;
+        check_count("the step halvings", self.max_halvings, 0..=60)?;
+        check("mu", self.mu, Span::open(0.0, 1.0))?;
         Ok(())
     }
 
@@ -291,6 +284,16 @@ pub struct DeformParams {
     pub smoothing: usize,
     /// Blending. Default dual quaternions.
     pub blending: Blending,
+}
+
+impl DeformParams {
+    /// Checks every field's range.
+    pub fn validate(&self) -> crate::Result<()> {
+        check_count("the centers each vertex follows", self.neighbors, 1..=MAX_NEIGHBORS)?;
+        check("the least binding affinity", self.min_affinity, Span::open_closed(0.0, 1.0))?;
+        check_count("the binding smoothing rounds", self.smoothing, 0..=MAX_ROUNDS)?;
+        Ok(())
+    }
 }
 
 impl Default for DeformParams {
@@ -366,20 +369,94 @@ impl Default for ConformParams {
 }
 
 impl ConformParams {
+    /// Checks every field's range.
     pub fn validate(&self) -> crate::Result<()> {
-        if !(self.stiffness > 0.0 && self.stiffness.is_finite() && self.max_distance > 0.0 && self.max_distance.is_finite()) {
-            return Err(crate::Error::InvalidParameter("conform stiffness and max distance must be positive".into()));
-        }
-        if !(self.point_weight >= 0.0 && self.point_weight.is_finite()) {
-            return Err(crate::Error::InvalidParameter("conform point weight must be at least 0".into()));
-        }
-        if !(-1.0..=1.0).contains(&self.min_normal_cosine) {
-            return Err(crate::Error::InvalidParameter("conform normal cosine must be in [-1, 1]".into()));
-        }
+        check_count("the conform iterations", self.iterations, 0..=MAX_ROUNDS)?;
+        check("the conform stiffness", self.stiffness, WEIGHT)?;
+        check("the conform point weight", self.point_weight, Span::closed(0.0, WEIGHT.hi))?;
+        check("the conform distance", self.max_distance, LENGTH)?;
+        check("the conform normal cosine", self.min_normal_cosine, Span::closed(-1.0, 1.0))?;
         Ok(())
     }
 
     pub fn length_scale(&self, bounds: &crate::mesh::Aabb) -> Real {
         length_scale(self.absolute_units, bounds)
+    }
+}
+
+/// Largest number of centers: far more than any capture needs, small enough
+/// that per-center tables stay addressable.
+pub const MAX_CENTERS: usize = 1_000_000;
+/// Largest iteration or round count any stage accepts.
+pub const MAX_ITERATIONS: usize = 100_000;
+/// Largest number of refinement batches (each one a global optimisation).
+pub const MAX_BATCHES: usize = 100;
+/// Largest number of rounds of the steps that run every round to the end
+/// (presmoothing, binding smoothing, conforming), unlike the iterations that
+/// stop once converged.
+pub const MAX_ROUNDS: usize = 1_000;
+/// Largest number of centers a vertex may follow.
+pub const MAX_NEIGHBORS: usize = 64;
+
+/// Every length (ρ, thresholds, distances), relative or in the input's units:
+/// beyond these, squares and inverses of squares leave f64's range.
+pub const LENGTH: Span = Span::closed(1e-12, 1e12);
+/// Every weight or step size (β, β̂, λ, stiffness): larger would overflow
+/// the weighted sums it scales.
+pub const WEIGHT: Span = Span::open_closed(0.0, 1e6);
+
+/// A range of a real parameter, each end open or closed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Span {
+    pub lo: Real,
+    pub hi: Real,
+    pub lo_open: bool,
+    pub hi_open: bool,
+}
+
+impl Span {
+    pub const fn closed(lo: Real, hi: Real) -> Self {
+        Span { lo, hi, lo_open: false, hi_open: false }
+    }
+    pub const fn open(lo: Real, hi: Real) -> Self {
+        Span { lo, hi, lo_open: true, hi_open: true }
+    }
+    pub const fn open_closed(lo: Real, hi: Real) -> Self {
+        Span { lo, hi, lo_open: true, hi_open: false }
+    }
+    pub const fn closed_open(lo: Real, hi: Real) -> Self {
+        Span { lo, hi, lo_open: false, hi_open: true }
+    }
+    /// Whether `v` lies in the span (never for NaN).
+    pub fn contains(&self, v: Real) -> bool {
+        let above = if self.lo_open { v > self.lo } else { v >= self.lo };
+        let below = if self.hi_open { v < self.hi } else { v <= self.hi };
+        above && below
+    }
+}
+
+impl std::fmt::Display for Span {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (l, r) = (if self.lo_open { '(' } else { '[' }, if self.hi_open { ')' } else { ']' });
+        write!(f, "{l}{:e}, {:e}{r}", self.lo, self.hi)
+    }
+}
+
+/// Fails unless `value` is in `span`.
+pub(crate) fn check(name: &str, value: Real, span: Span) -> crate::Result<()> {
+    if span.contains(value) {
+        Ok(())
+    } else {
+        let shown = if value != 0.0 && !(1e-4..1e6).contains(&value.abs()) { format!("{value:e}") } else { value.to_string() };
+        Err(crate::Error::InvalidParameter(format!("{name}: {shown} is outside {span}")))
+    }
+}
+
+/// Fails unless the count `value` is in `range`.
+pub(crate) fn check_count(name: &str, value: usize, range: std::ops::RangeInclusive<usize>) -> crate::Result<()> {
+    if range.contains(&value) {
+        Ok(())
+    } else {
+        Err(crate::Error::InvalidParameter(format!("{name}: {value} is outside {}..={}", range.start(), range.end())))
     }
 }

@@ -99,7 +99,8 @@ fn print_json(value: &serde_json::Value) -> Result<()> {
 
 fn voxelize(input: InputArgs, output: PathBuf, json: bool) -> Result<()> {
     let params = input.voxel_params();
-    voltrack::export::check_dir_creatable(&output)?;
+    params.validate()?;
+    input.plan()?.dir(&output, "the output folder").check()?;
     let bars = bars::Bars::new();
     let seq = pipeline::load(&input.input, &params, bars.progress())?;
     let written = voltrack::export::write_binvox_frames(&seq, &output)?;
@@ -141,15 +142,25 @@ fn quality_json(q: &Quality) -> serde_json::Value {
 fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Option<RefineArgs>, json: bool) -> Result<()> {
     let voxel = input.voxel_params();
     let params = track.params();
-    voltrack::export::check_writable(&output)?;
+    voxel.validate()?;
+    params.validate()?;
+    if let Some(r) = &refine {
+        r.params(track.absolute_units).validate(params.centers)?;
+    }
+    let checkpoint = track.checkpointing()?;
+    let mut plan = input.plan()?.file(&output, "the output");
+    if let Some(c) = &checkpoint {
+        plan = plan.dir(&c.dir, "the checkpoint folder");
+    }
+    plan.check()?;
     let bars = bars::Bars::new();
     let seq = pipeline::load(&input.input, &voxel, bars.progress())?;
-    let tracked = voltrack::track::track_with_checkpoints(&seq, &params, track.checkpointing().as_ref(), bars.progress())?;
+    let tracked = voltrack::track::track_with_checkpoints(&seq, &params, checkpoint.as_ref(), bars.progress())?;
     let before = pipeline::measure_with_counts(&tracked.trajectories, &tracked.cell_counts);
     let (traj, refined, refine_params) = match refine {
         Some(r) => {
             let rp = r.params(track.absolute_units);
-            let res = pipeline::refine_tracked(&tracked.trajectories, &seq, &rp, track.checkpointing().as_ref(), bars.progress())?;
+            let res = pipeline::refine_tracked(&tracked.trajectories, &seq, &rp, checkpoint.as_ref(), bars.progress())?;
             (res.trajectories.clone(), Some(res), Some(rp))
         }
         None => (tracked.trajectories.clone(), None, None),
@@ -183,21 +194,37 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
     Ok(())
 }
 
-/// Reads trajectories and re-voxelises their input at the stored resolution.
-fn load_tracked(centers: &Path, input: &[PathBuf], bars: &bars::Bars) -> Result<(voltrack::track::Trajectories, Vec<(String, String)>, voltrack::voxel::VoxelSequence)> {
-    let (traj, attrs) = voltrack::io::exr::read_trajectories_exr(centers)?;
-    let resolution = pipeline::resolution_of(&attrs, centers)?;
+type Tracked = (voltrack::track::Trajectories, Vec<(String, String)>);
+
+/// Reads trajectories written by `voltrack track`.
+fn read_tracked(centers: &Path) -> Result<Tracked> {
+    Ok(voltrack::io::exr::read_trajectories_exr(centers)?)
+}
+
+/// Re-voxelises the input of trajectories at their stored resolution.
+fn load_tracked_input(centers: &Path, tracked: &Tracked, input: &[PathBuf], bars: &bars::Bars) -> Result<voltrack::voxel::VoxelSequence> {
+    let (traj, attrs) = tracked;
+    let resolution = pipeline::resolution_of(attrs, centers)?;
     let voxel = voltrack::voxel::VoxelParams { resolution, ..Default::default() };
     let seq = pipeline::load(input, &voxel, bars.progress())?;
-    pipeline::check_grid(&attrs, &seq.grid, &traj, &seq, centers)?;
-    Ok((traj, attrs, seq))
+    pipeline::check_grid(attrs, &seq.grid, traj, &seq, centers)?;
+    Ok(seq)
+}
+
+/// What a command reads: the frames its inputs name, for [`voltrack::export::OutputPlan`].
+fn plan_reading(inputs: &[PathBuf]) -> Result<voltrack::export::OutputPlan> {
+    let frames = voltrack::io::discover_frames(inputs)?;
+    Ok(voltrack::export::OutputPlan::new().reading(inputs, &frames))
 }
 
 fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: RefineArgs, json: bool) -> Result<()> {
-    voltrack::export::check_writable(&output)?;
+    let tracked = read_tracked(&centers)?;
+    let params = args.params(pipeline::absolute_units_of(&tracked.1));
+    params.validate(tracked.0.centers)?;
+    plan_reading(&input)?.reading_file(&centers).file(&output, "the output").check()?;
     let bars = bars::Bars::new();
-    let (traj, attrs, seq) = load_tracked(&centers, &input, &bars)?;
-    let params = args.params(pipeline::absolute_units_of(&attrs));
+    let seq = load_tracked_input(&centers, &tracked, &input, &bars)?;
+    let (traj, attrs) = tracked;
     let before = pipeline::measure(&traj, &seq);
     let res = voltrack::refine::refine(&traj, &seq, &params, bars.progress())?;
     let after = pipeline::measure(&res.trajectories, &seq);
@@ -223,8 +250,15 @@ fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: 
 }
 
 fn metrics(centers: PathBuf, input: Vec<PathBuf>, json: bool, plot: Option<PathBuf>) -> Result<()> {
+    let tracked = read_tracked(&centers)?;
+    let mut plan = plan_reading(&input)?.reading_file(&centers);
+    if let Some(p) = &plot {
+        plan = plan.file(p, "the plot");
+    }
+    plan.check()?;
     let bars = bars::Bars::new();
-    let (traj, _, seq) = load_tracked(&centers, &input, &bars)?;
+    let seq = load_tracked_input(&centers, &tracked, &input, &bars)?;
+    let traj = tracked.0;
     let q = pipeline::measure(&traj, &seq);
     bars.finish();
     if let Some(p) = &plot {
@@ -249,26 +283,36 @@ fn metrics(centers: PathBuf, input: Vec<PathBuf>, json: bool, plot: Option<PathB
 }
 
 fn convert(args: ConvertArgs) -> Result<()> {
+    // Every parameter and every output location is checked now, before a
+    // frame is read, not after the whole pipeline has run.
     let voxel = args.input.voxel_params();
     let track = args.track.params();
     let refine = (!args.no_refine).then(|| args.refine.params(args.track.absolute_units));
     let deform = args.deform_params();
     let format = args.format()?;
     let mut conform = args.conform_params();
+    voxel.validate()?;
+    track.validate()?;
+    if let Some(r) = &refine {
+        r.validate(track.centers)?;
+    }
+    deform.validate()?;
     conform.validate()?;
+    args.gltf_options().validate()?;
     if format == OutputFormat::Exr && args.report.is_none() {
         // Only the trajectories are written: the fitted mesh would go unused.
         conform.iterations = 0;
     }
-    // Bad export options and output paths fail now, not after the whole
-    // pipeline has run.
-    args.gltf_options().validate()?;
-    check_outputs(format, &args.output)?;
+    let checkpoint = args.track.checkpointing()?;
+    let mut plan = planned_outputs(format, &args.output, args.input.plan()?);
     if let Some(report) = &args.report {
-        voltrack::export::check_writable(report)?;
+        plan = plan.file(report, "the report");
     }
+    if let Some(c) = &checkpoint {
+        plan = plan.dir(&c.dir, "the checkpoint folder");
+    }
+    plan.check()?;
     let bars = bars::Bars::new();
-    let checkpoint = args.track.checkpointing();
     let conv = pipeline::convert(&args.input.input, &voxel, &track, refine.as_ref(), &deform, &conform, checkpoint.as_ref(), bars.progress())?;
     let clock = std::time::Instant::now();
     bars.progress().report(Stage::Export, 0, 1);
@@ -352,18 +396,14 @@ fn convert(args: ConvertArgs) -> Result<()> {
     Ok(())
 }
 
-/// Checks every path `format` writes for `out`.
-fn check_outputs(format: OutputFormat, out: &Path) -> Result<()> {
-    let files = match format {
-        OutputFormat::Glb | OutputFormat::Exr => vec![out.to_path_buf()],
-        OutputFormat::Vat => vec![out.to_path_buf(), out.with_extension("json")],
-        OutputFormat::Pc2 => vec![out.to_path_buf(), out.with_extension("obj")],
-        OutputFormat::ObjSequence => return Ok(voltrack::export::check_dir_creatable(out)?),
-    };
-    for file in &files {
-        voltrack::export::check_writable(file)?;
+/// Adds every path `format` writes for `out` to `plan`.
+fn planned_outputs(format: OutputFormat, out: &Path, plan: voltrack::export::OutputPlan) -> voltrack::export::OutputPlan {
+    match format {
+        OutputFormat::Glb | OutputFormat::Exr => plan.file(out, "the output"),
+        OutputFormat::Vat => plan.file(out, "the output").sidecar(&out.with_extension("json"), "its JSON sidecar", voltrack::export::exr::VAT_SIDECAR_MARK),
+        OutputFormat::Pc2 => plan.file(out, "the output").sidecar(&out.with_extension("obj"), "its OBJ mesh", voltrack::export::pc2::MESH_MARK),
+        OutputFormat::ObjSequence => plan.dir(out, "the output folder"),
     }
-    Ok(())
 }
 
 /// Bytes under `path` (a file, or a directory of files).

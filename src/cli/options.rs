@@ -14,14 +14,22 @@ pub struct InputArgs {
     /// Frames: a directory, a pattern such as 'seq/frame_*.obj', or files in order
     #[arg(required = true, value_name = "INPUT")]
     pub input: Vec<PathBuf>,
-    /// Voxels along the longest side of the sequence's bounding box
+    /// Voxels along the longest side of the sequence's bounding box (range: 2..=1596)
     #[arg(long, short = 'r', default_value_t = VoxelParams::default().resolution)]
     pub resolution: usize,
+    /// Memory the run may take, in GiB, beyond the frames read [default: what the system has available]; a resolution estimated to need more is refused before voxelising (range: 0 < GIB <= 1e9)
+    #[arg(long, value_name = "GIB")]
+    pub max_memory: Option<f64>,
 }
 
 impl InputArgs {
+    /// An output plan that knows what this command reads.
+    pub fn plan(&self) -> Result<voltrack::export::OutputPlan> {
+        super::plan_reading(&self.input)
+    }
+
     pub fn voxel_params(&self) -> VoxelParams {
-        VoxelParams { resolution: self.resolution, ..Default::default() }
+        VoxelParams { resolution: self.resolution, max_memory: self.max_memory.map(|g| g * (1u64 << 30) as f64), ..Default::default() }
     }
 }
 
@@ -33,7 +41,7 @@ pub enum AffinityArg {
 
 #[derive(Args)]
 pub struct TrackArgs {
-    /// Number of tracked volume elements
+    /// Number of tracked volume elements (range: 1..=1000000)
     #[arg(long, short = 'n', default_value_t = TrackParams::default().centers)]
     pub centers: usize,
     /// Affinity weighting the rigid fits
@@ -42,40 +50,40 @@ pub struct TrackArgs {
     /// Seed of the initial center placement
     #[arg(long, default_value_t = TrackParams::default().seed)]
     pub seed: u64,
-    /// ρ_p: distance at which the positional affinity is 0.5 [default: 1.5 typical center spacings in frame 0; the paper's is 0.07]
+    /// ρ_p: distance at which the positional affinity is 0.5 [default: 1.5 typical center spacings in frame 0; the paper's is 0.07] (range: 1e-12..=1e12)
     #[arg(long)]
     pub rho_p: Option<f64>,
-    /// ρ_m: motion dissimilarity at which the motion affinity is 0.5
+    /// ρ_m: motion dissimilarity at which the motion affinity is 0.5 (range: 1e-12..=1e12)
     #[arg(long, default_value_t = TrackParams::default().rho_m)]
     pub rho_m: f64,
-    /// α: IIR filter weight (--affinity iir)
+    /// α: IIR filter weight (--affinity iir) (range: 0 < α <= 1)
     #[arg(long, default_value_t = TrackParams::default().alpha)]
     pub alpha: f64,
-    /// β: weight of the centroid term
+    /// β: weight of the centroid term (range: 0 < β <= 1e6)
     #[arg(long, default_value_t = TrackParams::default().beta)]
     pub beta: f64,
-    /// μ: smallest affinity kept
+    /// μ: smallest affinity kept (range: 0 < μ < 1)
     #[arg(long, default_value_t = TrackParams::default().mu)]
     pub mu: f64,
-    /// Rigid-prediction steps before the centroid term enters
+    /// Rigid-prediction steps before the centroid term enters (range: 0..=1000)
     #[arg(long, default_value_t = TrackParams::default().presmooth_steps)]
     pub presmooth: usize,
-    /// Convergence threshold on the largest move per iteration
+    /// Convergence threshold on the largest move per iteration (range: 1e-12..=1e12)
     #[arg(long, default_value_t = TrackParams::default().threshold)]
     pub threshold: f64,
-    /// Iteration limit per frame
+    /// Iteration limit per frame (range: 1..=100000)
     #[arg(long, default_value_t = TrackParams::default().max_iterations)]
     pub max_iterations: usize,
-    /// Also track every frame from the previous velocity scaled by K, and keep the run with the lower energy
+    /// Also track every frame from the previous velocity scaled by K, and keep the run with the lower energy (range: 0 <= K < 1)
     #[arg(long, value_name = "K", default_value_t = TrackParams::default().damped_guess.expect("on by default"))]
     pub damped_guess: f64,
     /// Track every frame from the paper's constant-velocity guess alone: half the tracking work, but fast limbs that turn back get lost
     #[arg(long, conflicts_with = "damped_guess")]
     pub single_guess: bool,
-    /// Lloyd iterations placing the centers in frame 0
+    /// Lloyd iterations placing the centers in frame 0 (range: 1..=100000)
     #[arg(long, default_value_t = TrackParams::default().lloyd_iterations)]
     pub lloyd_iterations: usize,
-    /// Over-relaxation of those Lloyd iterations
+    /// Over-relaxation of those Lloyd iterations (range: 0 < ω < 2)
     #[arg(long, default_value_t = TrackParams::default().over_relaxation)]
     pub over_relaxation: f64,
     /// Take lengths (ρ, thresholds) in the input's units, not as fractions of the bounding box's longest side
@@ -84,7 +92,7 @@ pub struct TrackArgs {
     /// Save the tracking state in this folder every few frames, on Ctrl-C and at the end, so an interrupted run can --resume
     #[arg(long, value_name = "DIR")]
     pub checkpoint: Option<PathBuf>,
-    /// Frames between checkpoints
+    /// Frames between checkpoints (range: 1..=1000000)
     #[arg(long, value_name = "FRAMES", default_value_t = Checkpointing::new("").every, requires = "checkpoint")]
     pub checkpoint_every: usize,
     /// Continue from the checkpoint in --checkpoint DIR (same command, same input); start over if there is none yet
@@ -93,9 +101,13 @@ pub struct TrackArgs {
 }
 
 impl TrackArgs {
-    pub fn checkpointing(&self) -> Option<Checkpointing> {
-        let dir = self.checkpoint.clone()?;
-        Some(Checkpointing { dir, every: self.checkpoint_every, resume: self.resume })
+    /// The checkpoint settings (None without --checkpoint); the interval must be in range.
+    pub fn checkpointing(&self) -> Result<Option<Checkpointing>> {
+        let Some(dir) = self.checkpoint.clone() else { return Ok(None) };
+        if !(1..=1_000_000).contains(&self.checkpoint_every) {
+            return Err(voltrack::Error::InvalidParameter(format!("--checkpoint-every is {}, outside 1..=1000000", self.checkpoint_every)).into());
+        }
+        Ok(Some(Checkpointing { dir, every: self.checkpoint_every, resume: self.resume }))
     }
 
     pub fn params(&self) -> TrackParams {
@@ -124,25 +136,25 @@ impl TrackArgs {
 
 #[derive(Args)]
 pub struct RefineArgs {
-    /// Irregular centers to remove in all [default: 1 % of the centers, at least 1]
+    /// Irregular centers to remove in all [default: 1 % of the centers, at least 1] (range: 0..=centers - 2)
     #[arg(long)]
     pub remove: Option<usize>,
-    /// n_go: batches the removal is split into, each followed by a global optimisation
+    /// n_go: batches the removal is split into, each followed by a global optimisation (range: 1..=100)
     #[arg(long, default_value_t = RefineParams::default().batches)]
     pub batches: usize,
     /// Remove irregular centers without the global optimisation
     #[arg(long)]
     pub no_optimise: bool,
-    /// β̂: weight of the centroid term in the global energy
+    /// β̂: weight of the centroid term in the global energy (range: 0 < β̂ <= 1e6)
     #[arg(long, default_value_t = RefineParams::default().beta_hat)]
     pub beta_hat: f64,
-    /// ρ_gp: largest distance at which ω_max is 0.5
+    /// ρ_gp: largest distance at which ω_max is 0.5 (range: 1e-12..=1e12)
     #[arg(long, default_value_t = RefineParams::default().rho_gp)]
     pub rho_gp: f64,
-    /// ρ_gm: largest motion dissimilarity at which ω is 0.5
+    /// ρ_gm: largest motion dissimilarity at which ω is 0.5 (range: 1e-12..=1e12)
     #[arg(long, default_value_t = RefineParams::default().rho_gm)]
     pub rho_gm: f64,
-    /// Global iterations per batch
+    /// Global iterations per batch (range: 0..=100000)
     #[arg(long, default_value_t = RefineParams::default().max_iterations)]
     pub global_iterations: usize,
 }
@@ -180,6 +192,18 @@ pub enum OutputFormat {
     ObjSequence,
 }
 
+impl OutputFormat {
+    pub fn name(self) -> &'static str {
+        match self {
+            OutputFormat::Glb => "glb",
+            OutputFormat::Exr => "exr",
+            OutputFormat::Vat => "vat",
+            OutputFormat::Pc2 => "pc2",
+            OutputFormat::ObjSequence => "obj-sequence",
+        }
+    }
+}
+
 #[derive(Clone, Copy, ValueEnum)]
 pub enum BlendArg {
     Dq,
@@ -197,34 +221,34 @@ pub struct ConvertArgs {
     #[arg(long, value_enum)]
     pub format: Option<OutputFormat>,
     /// Per-vertex animation as an EXR texture (same as --format vat)
-    #[arg(long)]
+    #[arg(long, conflicts_with = "format")]
     pub vat: bool,
     #[command(flatten)]
     pub track: TrackArgs,
     /// Skip irregular-center removal and the global optimisation
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["remove", "batches", "no_optimise", "beta_hat", "rho_gp", "rho_gm", "global_iterations"])]
     pub no_refine: bool,
     #[command(flatten)]
     pub refine: RefineArgs,
-    /// Frames per second of the animation
+    /// Frames per second of the animation (range: 0.001..=100000)
     #[arg(long, default_value_t = GltfExportOptions::default().fps)]
     pub fps: f32,
-    /// Compact glTF: K principal components as morph targets [default: one target per frame up to 256 frames]
+    /// Compact glTF: K principal components as morph targets [default: one target per frame up to 256 frames] (range: 1..=100000)
     #[arg(long)]
     pub basis: Option<usize>,
-    /// Centers each vertex follows
+    /// Centers each vertex follows (range: 1..=64)
     #[arg(long, default_value_t = DeformParams::default().neighbors)]
     pub bind_neighbors: usize,
-    /// Rounds of spreading each vertex's center weights to its mesh neighbours (0: off)
+    /// Rounds of spreading each vertex's center weights to its mesh neighbours (0: off) (range: 0..=1000)
     #[arg(long, default_value_t = DeformParams::default().smoothing)]
     pub bind_smoothing: usize,
     /// Blending of the centers' motions
     #[arg(long, value_enum, default_value = "dq")]
     pub blend: BlendArg,
-    /// Rounds of fitting every frame's mesh onto its input surface, keeping its frame-0 edges as far as it can (0: off, the mesh stays as blended)
+    /// Rounds of fitting every frame's mesh onto its input surface, keeping its frame-0 edges as far as it can (0: off, the mesh stays as blended) (range: 0..=1000)
     #[arg(long, default_value_t = ConformParams::default().iterations)]
     pub conform_iterations: usize,
-    /// Stiffness of that fit: weight of keeping the frame-0 edges against lying on the input surface
+    /// Stiffness of that fit: weight of keeping the frame-0 edges against lying on the input surface (range: 0 < s <= 1e6)
     #[arg(long, default_value_t = ConformParams::default().stiffness)]
     pub conform_stiffness: f64,
     /// Also write a self-contained HTML report: fit to the input per frame, PCAC/DFU, irregularity, time per stage
@@ -233,27 +257,38 @@ pub struct ConvertArgs {
 }
 
 impl ConvertArgs {
+    /// The output format: as given (`--format`, `--vat`), which must agree
+    /// with the output's extension when that names a format, or from the
+    /// extension.
     pub fn format(&self) -> Result<OutputFormat> {
-        if self.vat {
-            return Ok(OutputFormat::Vat);
-        }
-        if let Some(f) = self.format {
-            return Ok(f);
-        }
+        let bad = |m: String| Err(voltrack::Error::InvalidParameter(m).into());
         let ext = self.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-        Ok(match ext.as_str() {
-            "glb" => OutputFormat::Glb,
-            "exr" => OutputFormat::Exr,
-            "pc2" => OutputFormat::Pc2,
-            "" => OutputFormat::ObjSequence,
-            other => {
-                return Err(voltrack::Error::InvalidParameter(format!(
-                    "{}: cannot tell the output format from '.{other}'; use --format",
-                    self.output.display()
+        let implied = match ext.as_str() {
+            "glb" => Some(OutputFormat::Glb),
+            "exr" => Some(OutputFormat::Exr),
+            "pc2" => Some(OutputFormat::Pc2),
+            _ => None,
+        };
+        let given = if self.vat { Some(OutputFormat::Vat) } else { self.format };
+        let format = match (given, implied) {
+            (Some(f), None) | (None, Some(f)) => f,
+            (Some(OutputFormat::Vat), Some(OutputFormat::Exr)) => OutputFormat::Vat,
+            (Some(f), Some(i)) if f == i => f,
+            (Some(f), Some(i)) => {
+                return bad(format!(
+                    "{}: the extension says {} but {} was asked for; name the output after its format",
+                    self.output.display(),
+                    i.name(),
+                    f.name()
                 ))
-                .into())
             }
-        })
+            (None, None) if ext.is_empty() => OutputFormat::ObjSequence,
+            (None, None) => return bad(format!("{}: cannot tell the output format from '.{ext}'; use --format", self.output.display())),
+        };
+        if self.basis.is_some() && format != OutputFormat::Glb {
+            return bad(format!("--basis shapes glTF morph targets, but the output is {}", format.name()));
+        }
+        Ok(format)
     }
 
     pub fn deform_params(&self) -> DeformParams {

@@ -27,6 +27,10 @@ pub fn write_trajectories_exr(path: &Path, traj: &Trajectories, attributes: &[(S
     write_atomic(path, |w| w.write_all(&bytes))
 }
 
+/// What every VAT sidecar holds near its start (its `software` field), by
+/// which a rerun knows it may replace the file.
+pub const VAT_SIDECAR_MARK: &str = "\"software\": \"voltrack ";
+
 /// Writes per-vertex positions as a vertex-animation texture (width =
 /// vertices, height = frames) and a JSON sidecar `path.with_extension("json")`
 /// with the frame count, vertex count and the bounds of all positions, which

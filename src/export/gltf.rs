@@ -20,7 +20,7 @@ use std::path::Path;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GltfExportOptions {
     /// Capture rate in frames per second: frame f is keyed at f / fps seconds.
-    /// Default 30; finite and > 0.
+    /// Default 30; in [0.001, 100000].
     pub fps: f32,
     /// Morph basis: one target per frame, a fixed number of principal
     /// components, or chosen by length and error. Default [`BasisChoice::Auto`].
@@ -49,8 +49,9 @@ impl GltfExportOptions {
         if self.basis == BasisChoice::Components(0) {
             return Err(Error::InvalidParameter("a compact basis needs at least one component".into()));
         }
-        if !(self.fps.is_finite() && self.fps > 0.0) {
-            return Err(Error::InvalidParameter(format!("the frame rate must be positive, not {}", self.fps)));
+        crate::params::check("the frame rate", self.fps as Real, crate::params::Span::closed(1e-3, 1e5))?;
+        if let BasisChoice::Components(k) = self.basis {
+            crate::params::check_count("the basis components", k, 1..=crate::params::MAX_ITERATIONS)?;
         }
         if !(self.max_basis_error.is_finite() && self.max_basis_error >= 0.0) {
             return Err(Error::InvalidParameter(format!(

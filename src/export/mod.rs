@@ -5,26 +5,79 @@
 pub mod basis;
 pub mod exr;
 pub mod gltf;
+pub mod guard;
 pub mod obj;
 pub mod pc2;
 pub mod ply;
 
 use crate::error::{Error, Result};
 use std::io::{BufWriter, Write};
+pub use guard::OutputPlan;
 use std::path::{Path, PathBuf};
 
 /// Writes `path` through a temporary file in the same directory, renamed into
-/// place only when `fill` succeeded.
+/// place only when `fill` succeeded. A symbolic link is followed (the file it
+/// names is replaced, the link stays); a character device or FIFO is written
+/// to directly, since renaming over it would replace the device.
 pub fn write_atomic<F>(path: &Path, fill: F) -> Result<()>
 where
     F: FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
 {
-    let tmp = temporary(path)?;
-    if let Err(e) = fill_temporary(&tmp, fill).and_then(|()| std::fs::rename(&tmp, path)) {
+    let target = match Target::of(path)? {
+        Target::Through(device) => return write_through(&device, fill).map_err(|e| Error::write(path, e)),
+        Target::Replace(target) => target,
+    };
+    let tmp = temporary(&target)?;
+    if let Err(e) = fill_temporary(&tmp, fill).and_then(|()| std::fs::rename(&tmp, &target)) {
         let _ = std::fs::remove_file(&tmp);
         return Err(Error::write(path, e));
     }
     Ok(())
+}
+
+/// Where writing `path` goes.
+enum Target {
+    /// A regular file (or none yet), replaced by a rename.
+    Replace(PathBuf),
+    /// A character device or FIFO, written to directly.
+    Through(PathBuf),
+}
+
+impl Target {
+    fn of(path: &Path) -> Result<Target> {
+        let is_link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
+        let target = if is_link { std::fs::canonicalize(path).map_err(|e| Error::write(path, format!("a symbolic link to nothing ({e})")))? } else { path.to_path_buf() };
+        match std::fs::metadata(&target) {
+            Ok(meta) if writes_through(&meta) => Ok(Target::Through(target)),
+            Ok(meta) if !meta.is_file() => Err(Error::write(path, "not a regular file; voltrack will not replace it")),
+            _ => Ok(Target::Replace(target)),
+        }
+    }
+}
+
+/// Whether an existing output is written to in place: character devices
+/// (`/dev/null`) and FIFOs, which a rename would replace with a regular file.
+pub(crate) fn writes_through(meta: &std::fs::Metadata) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let t = meta.file_type();
+        t.is_char_device() || t.is_fifo()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = meta;
+        false
+    }
+}
+
+fn write_through<F>(path: &Path, fill: F) -> std::io::Result<()>
+where
+    F: FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
+{
+    let mut w = BufWriter::new(std::fs::OpenOptions::new().write(true).open(path)?);
+    fill(&mut w)?;
+    w.flush()
 }
 
 /// What fills one file of [`write_atomic_all`].
@@ -37,8 +90,23 @@ pub type Fill<'a> = Box<dyn FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Re
 pub fn write_atomic_all(files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
     let mut written: Vec<(PathBuf, &Path)> = Vec::with_capacity(files.len());
     let discard = |temps: &[(PathBuf, &Path)]| temps.iter().for_each(|(tmp, _)| drop(std::fs::remove_file(tmp)));
+    let mut targets: Vec<PathBuf> = Vec::with_capacity(files.len());
+    let mut through: Vec<(&Path, Fill<'_>, PathBuf)> = Vec::new();
     for (path, fill) in files {
-        let filled = temporary(path).and_then(|tmp| {
+        let target = match Target::of(path) {
+            Ok(Target::Replace(t)) => t,
+            Ok(Target::Through(device)) => {
+                through.push((path, fill, device));
+                continue;
+            }
+            Err(e) => {
+                discard(&written);
+                return Err(e);
+            }
+        };
+        targets.push(target);
+        let target = targets.last().expect("just pushed").clone();
+        let filled = temporary(&target).and_then(|tmp| {
             written.push((tmp.clone(), path));
             fill_temporary(&tmp, fill).map_err(|e| Error::write(path, e))
         });
@@ -47,12 +115,16 @@ pub fn write_atomic_all(files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
             return Err(e);
         }
     }
-    for (k, (tmp, path)) in written.iter().enumerate() {
-        if let Err(e) = std::fs::rename(tmp, path) {
+    for (k, ((tmp, path), target)) in written.iter().zip(&targets).enumerate() {
+        if let Err(e) = std::fs::rename(tmp, target) {
             discard(&written[k..]);
-            written[..k].iter().for_each(|(_, done)| drop(std::fs::remove_file(done)));
+            targets[..k].iter().for_each(|done| drop(std::fs::remove_file(done)));
             return Err(Error::write(path, e));
         }
+    }
+    // Devices last: what went to them cannot be taken back.
+    for (path, fill, device) in through {
+        write_through(&device, fill).map_err(|e| Error::write(path, e))?;
     }
     Ok(())
 }

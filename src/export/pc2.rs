@@ -11,6 +11,10 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::Path;
 
+/// The first words of the mesh written beside a point cache, by which a
+/// rerun knows it may replace the file.
+pub const MESH_MARK: &str = "# Mesh Cache";
+
 /// Writes the frames of `mesh` as a PC2 point cache at `path` and frame 0 as
 /// an OBJ at `path.with_extension("obj")`, both listing the same vertices in
 /// the same order, so the Mesh Cache modifier on the imported OBJ replays the
@@ -68,7 +72,7 @@ pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32) -> Result<()> {
         Ok(())
     };
     let write_mesh = |w: &mut BufWriter<File>| {
-        writeln!(w, "# Mesh Cache {cache}: {samples} frames at {fps} fps, start frame 0, one sample per frame")?;
+        writeln!(w, "{MESH_MARK} {cache}: {samples} frames at {fps} fps, start frame 0, one sample per frame")?;
         write_obj(w, &obj, &obj.positions)
     };
     // Both or neither: a cache without its mesh is of no use.

@@ -90,7 +90,7 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
     let frames = seq.frames.len();
     let n0 = seq.frames[0].len();
     if params.centers > n0 {
-        return Err(Error::InvalidInput(format!(
+        return Err(Error::InvalidParameter(format!(
             "{}: only {n0} occupied voxels for {} centers; lower --centers or raise --resolution",
             seq.paths[0].display(),
             params.centers

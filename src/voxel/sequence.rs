@@ -19,11 +19,28 @@ pub struct VoxelParams {
     /// sequence's median one (either way); beyond it the frame is taken to be
     /// in other units. Default 100.
     pub max_extent_ratio: f64,
+    /// Bytes the run may take beyond the frames read; a resolution whose
+    /// estimated need ([`super::MemoryEstimate`]) is larger fails before any
+    /// voxel is filled. Default None: the memory available when the frames
+    /// have been read (no check where that is unknown); > 0.
+    pub max_memory: Option<f64>,
+}
+
+impl VoxelParams {
+    /// Checks every field's range.
+    pub fn validate(&self) -> Result<()> {
+        crate::params::check_count("the resolution", self.resolution, 2..=super::MAX_RESOLUTION)?;
+        crate::params::check("the largest extent ratio", self.max_extent_ratio, crate::params::Span::closed(1.0, 1e12))?;
+        if let Some(m) = self.max_memory {
+            crate::params::check("the memory limit", m, crate::params::Span::open_closed(0.0, 1e18))?;
+        }
+        Ok(())
+    }
 }
 
 impl Default for VoxelParams {
     fn default() -> Self {
-        VoxelParams { resolution: 256, max_extent_ratio: 100.0 }
+        VoxelParams { resolution: 256, max_extent_ratio: 100.0, max_memory: None }
     }
 }
 
@@ -50,6 +67,7 @@ const MAX_UNVOUCHED: f64 = 0.5;
 
 /// Reads and voxelises every frame on one grid.
 pub fn voxelize_sequence(paths: &[PathBuf], params: &VoxelParams, progress: Progress) -> Result<VoxelSequence> {
+    params.validate()?;
     if paths.len() < 2 {
         return Err(Error::InvalidInput(match paths.first() {
             Some(p) => format!("{}: a sequence needs at least 2 frames, got only this one", p.display()),
@@ -91,6 +109,12 @@ pub fn voxelize_sequence(paths: &[PathBuf], params: &VoxelParams, progress: Prog
     check_extents(paths, &boxes, params.max_extent_ratio)?;
     let bounds = boxes.iter().fold(Aabb::empty(), |a, b| a.union(b));
     let grid = GridSpec::for_bounds(&bounds, params.resolution)?;
+    if let Some(limit) = params.max_memory.or_else(super::available_memory) {
+        let meshes: Vec<&TriangleMesh> = data.iter().filter_map(|d| if let FrameData::Mesh(m) = d { Some(m) } else { None }).collect();
+        let estimate = super::MemoryEstimate::of(&meshes, &grid, rayon::current_num_threads());
+        log::info!("estimated memory: {:.2} GiB of {:.2} GiB allowed", estimate.bytes / (1u64 << 30) as f64, limit / (1u64 << 30) as f64);
+        estimate.check(limit, params.resolution, paths.len())?;
+    }
 
     let start = Instant::now();
     let counter = Counter::new(progress, Stage::Voxelize, paths.len());

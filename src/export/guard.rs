@@ -1,0 +1,260 @@
+//! What a run will write, checked as a whole before any work: no output may
+//! be one of the inputs, be taken as a frame by the next run on the same
+//! input, or be another output of the same run; and every output location
+//! must take a file now, not after an hour of tracking.
+
+use crate::error::{Error, Result};
+use crate::io::{glob_match, is_supported};
+use std::path::{Path, PathBuf};
+
+/// One place a run writes.
+#[derive(Clone, Debug)]
+enum Kind {
+    /// A file, written through a temporary file and renamed into place (or
+    /// written through when it is a character device or a FIFO).
+    File,
+    /// A file written beside the named output without being named itself:
+    /// it may replace only a file that starts with `mark` (an earlier run's).
+    Sidecar { mark: &'static str },
+    /// A directory the run creates if needed and fills with files.
+    Dir,
+}
+
+#[derive(Clone, Debug)]
+struct Planned {
+    path: PathBuf,
+    kind: Kind,
+    /// What it is, for messages ("the output", "the report").
+    what: String,
+}
+
+/// Every file and directory one run will write, with what it reads.
+#[derive(Clone, Debug, Default)]
+pub struct OutputPlan {
+    outputs: Vec<Planned>,
+    /// Input arguments as given: directories, patterns, files.
+    sources: Vec<PathBuf>,
+    /// Every file the run reads (the frames, trajectories).
+    inputs: Vec<PathBuf>,
+}
+
+impl OutputPlan {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// A file the run writes; `what` names it in messages.
+    pub fn file(mut self, path: &Path, what: &str) -> Self {
+        self.outputs.push(Planned { path: path.to_path_buf(), kind: Kind::File, what: what.into() });
+        self
+    }
+
+    /// A file written beside a named output (a texture's JSON, a point
+    /// cache's mesh), under a name the user did not give: an existing file
+    /// there is replaced only if its first bytes hold `mark`, as voltrack
+    /// writes it.
+    pub fn sidecar(mut self, path: &Path, what: &str, mark: &'static str) -> Self {
+        self.outputs.push(Planned { path: path.to_path_buf(), kind: Kind::Sidecar { mark }, what: what.into() });
+        self
+    }
+
+    /// A directory the run fills with files (created if missing).
+    pub fn dir(mut self, path: &Path, what: &str) -> Self {
+        self.outputs.push(Planned { path: path.to_path_buf(), kind: Kind::Dir, what: what.into() });
+        self
+    }
+
+    /// The input arguments (directories, patterns or files) and the frame
+    /// files they gave.
+    pub fn reading(mut self, sources: &[PathBuf], files: &[PathBuf]) -> Self {
+        self.sources.extend_from_slice(sources);
+        self.inputs.extend_from_slice(files);
+        self
+    }
+
+    /// Another file the run reads (trajectories to refine).
+    pub fn reading_file(mut self, path: &Path) -> Self {
+        self.inputs.push(path.to_path_buf());
+        self
+    }
+
+    /// Checks the plan; the first problem found is the error.
+    pub fn check(&self) -> Result<()> {
+        let inputs: Vec<(PathBuf, &PathBuf)> = self.inputs.iter().filter_map(|p| Some((std::fs::canonicalize(p).ok()?, p))).collect();
+        let ids: Vec<PathBuf> = self
+            .outputs
+            .iter()
+            .map(|out| match out.kind {
+                Kind::File => check_file(out),
+                Kind::Sidecar { mark } => check_file(out).and_then(|id| check_ours(out, id, mark)),
+                Kind::Dir => check_dir(out),
+            })
+            .collect::<Result<_>>()?;
+        for (k, (out, id)) in self.outputs.iter().zip(&ids).enumerate() {
+            if let Some((_, given)) = inputs.iter().find(|(i, _)| i == id) {
+                return Err(Error::refuse(
+                    &out.path,
+                    format!("{} would replace the input {}; voltrack never writes over its input: choose another name", out.what, given.display()),
+                ));
+            }
+            if let Some(first) = (0..k).find(|&j| ids[j] == *id) {
+                return Err(Error::refuse(&out.path, format!("{} and {} would be the same file", self.outputs[first].what, out.what)));
+            }
+            let dir_holding = self.outputs.iter().zip(&ids).find(|(o, d)| matches!(o.kind, Kind::Dir) && Some(d.as_path()) == id.parent());
+            if let (Kind::File | Kind::Sidecar { .. }, Some((dir, _))) = (&out.kind, dir_holding) {
+                return Err(Error::refuse(&out.path, format!("{} would be mixed with the files of {}: write it elsewhere", out.what, dir.what)));
+            }
+            match out.kind {
+                Kind::File | Kind::Sidecar { .. } => self.check_not_picked_up(out, id)?,
+                Kind::Dir => self.check_not_an_input_dir(out, id)?,
+            }
+        }
+        Ok(())
+    }
+
+    /// An output the next run on the same input would read as a frame.
+    fn check_not_picked_up(&self, out: &Planned, id: &Path) -> Result<()> {
+        let (Some(parent), Some(name)) = (id.parent(), id.file_name().and_then(|n| n.to_str())) else {
+            return Ok(());
+        };
+        if name.starts_with('.') || !is_supported(id) {
+            return Ok(());
+        }
+        for source in &self.sources {
+            let source_name = source.file_name().and_then(|n| n.to_str()).unwrap_or("");
+            let taken = if source.is_dir() {
+                std::fs::canonicalize(source).is_ok_and(|d| d == parent)
+            } else if source_name.contains(['*', '?']) {
+                let dir = source.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+                std::fs::canonicalize(dir).is_ok_and(|d| d == parent) && glob_match(source_name, name)
+            } else {
+                false
+            };
+            if taken {
+                return Err(Error::refuse(
+                    &out.path,
+                    format!(
+                        "{} would be written among the input frames of {}, and the next run on them would read it as a frame; write it elsewhere",
+                        out.what,
+                        source.display()
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// A directory of outputs that holds input files (or is an input
+    /// directory) would mix the two and could overwrite inputs.
+    fn check_not_an_input_dir(&self, out: &Planned, id: &Path) -> Result<()> {
+        let holds_input = self.inputs.iter().find(|i| std::fs::canonicalize(i).ok().and_then(|c| c.parent().map(Path::to_path_buf)).as_deref() == Some(id));
+        let is_source = self.sources.iter().find(|s| s.is_dir() && std::fs::canonicalize(s).ok().as_deref() == Some(id));
+        match holds_input.or(is_source) {
+            Some(input) => Err(Error::refuse(
+                &out.path,
+                format!("{} would be written into the folder of the input {}: choose another folder", out.what, input.display()),
+            )),
+            None => Ok(()),
+        }
+    }
+}
+
+/// What a path names once symlinks and `..` are resolved; for a file that
+/// does not exist yet, its resolved folder joined with its name.
+fn identity(path: &Path) -> Result<PathBuf> {
+    if let Ok(id) = std::fs::canonicalize(path) {
+        return Ok(id);
+    }
+    if std::fs::symlink_metadata(path).is_ok() {
+        return Err(Error::refuse(path, "is a symbolic link to nothing"));
+    }
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let name = path.file_name().ok_or_else(|| Error::refuse(path, "not a file name"))?;
+    let dir = std::fs::canonicalize(dir).map_err(|e| Error::refuse(path, format!("{}: {e}", dir.display())))?;
+    Ok(dir.join(name))
+}
+
+/// A file output: its folder exists and takes files, and what is there now
+/// (if anything) may be replaced or written through.
+fn check_file(out: &Planned) -> Result<PathBuf> {
+    let path = &out.path;
+    if path.as_os_str().is_empty() {
+        return Err(Error::refuse(path, format!("{} has an empty name", out.what)));
+    }
+    if path.as_os_str().as_encoded_bytes().ends_with(b"/") {
+        return Err(Error::refuse(path, format!("{} ends in '/', which names a folder; give a file name", out.what)));
+    }
+    super::check_writable(path).map_err(refused)?;
+    let id = identity(path)?;
+    match std::fs::metadata(&id) {
+        Ok(meta) if meta.is_dir() => return Err(Error::refuse(path, "a directory of this name exists")),
+        Ok(meta) if !meta.is_file() && !super::writes_through(&meta) => {
+            return Err(Error::refuse(path, "not a regular file, a character device or a FIFO; voltrack will not replace it"))
+        }
+        Ok(meta) if super::writes_through(&meta) => return Ok(id),
+        _ => {}
+    }
+    probe(id.parent().unwrap_or(Path::new("/")), path)?;
+    Ok(id)
+}
+
+/// A sidecar may replace only what an earlier run wrote.
+fn check_ours(out: &Planned, id: PathBuf, mark: &str) -> Result<PathBuf> {
+    let Ok(file) = std::fs::File::open(&id) else { return Ok(id) };
+    if !std::fs::metadata(&id).is_ok_and(|m| m.is_file()) {
+        return Ok(id);
+    }
+    let mut head = Vec::with_capacity(4096);
+    std::io::Read::read_to_end(&mut std::io::Read::take(file, 4096), &mut head).map_err(|e| Error::refuse(&out.path, e))?;
+    if String::from_utf8_lossy(&head).contains(mark) {
+        Ok(id)
+    } else {
+        Err(Error::refuse(&out.path, format!("{} would replace this file, which voltrack did not write: move it or name the output otherwise", out.what)))
+    }
+}
+
+/// A directory output: it is a directory or can be made one, and takes files.
+fn check_dir(out: &Planned) -> Result<PathBuf> {
+    let path = &out.path;
+    if path.as_os_str().is_empty() {
+        return Err(Error::refuse(path, format!("{} has an empty name", out.what)));
+    }
+    if path.exists() && !path.is_dir() {
+        return Err(Error::refuse(path, format!("{} must be a folder, and a file of this name exists", out.what)));
+    }
+    super::check_dir_creatable(path).map_err(refused)?;
+    let existing = path.ancestors().find(|a| a.as_os_str().is_empty() || a.exists()).unwrap_or(Path::new("."));
+    let existing = if existing.as_os_str().is_empty() { Path::new(".") } else { existing };
+    probe(existing, path)?;
+    if path.exists() {
+        return std::fs::canonicalize(path).map_err(|e| Error::refuse(path, e));
+    }
+    // Not there yet: its resolved nearest ancestor and the rest of the path.
+    let base = std::fs::canonicalize(existing).map_err(|e| Error::refuse(path, e))?;
+    let rest = path.strip_prefix(existing).unwrap_or(path);
+    Ok(base.join(rest))
+}
+
+/// Creates and removes a file in `dir`, so that a folder that refuses files
+/// (read-only, full, no permission) fails now.
+fn probe(dir: &Path, output: &Path) -> Result<()> {
+    let name = dir.join(format!(".voltrack-probe.{}", std::process::id()));
+    match std::fs::OpenOptions::new().write(true).create_new(true).open(&name) {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&name);
+            Ok(())
+        }
+        Err(e) => Err(Error::refuse(output, format!("{} does not take new files: {e}", dir.display()))),
+    }
+}
+
+/// A location check's failure, found before any work: a refusal.
+fn refused(e: Error) -> Error {
+    match e {
+        Error::Write { path, message } => Error::OutputRefused { path, message },
+        e => e,
+    }
+}

@@ -1,0 +1,73 @@
+//! How much memory a run will take, estimated from the grid and the frames
+//! before any voxel is filled, so that a resolution the machine cannot hold
+//! fails at once instead of after minutes of swapping.
+
+use super::GridSpec;
+use crate::error::{Error, Result};
+use crate::mesh::TriangleMesh;
+
+/// Bytes held per occupied voxel of every frame through the run: its index
+/// (4), and the refinement's per-frame assignment of it to a cell (owner and
+/// two distance bounds, 12), with room for the tracker's working copy.
+const BYTES_PER_VOXEL: f64 = 24.0;
+
+/// The estimate for one sequence on one grid.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MemoryEstimate {
+    /// Bytes the run needs on top of the frames already read.
+    pub bytes: f64,
+}
+
+impl MemoryEstimate {
+    /// Occupied voxels are estimated from each mesh's enclosed volume (its
+    /// signed volume, bounded by its own box of voxels); voxelising holds
+    /// one byte per voxel of a frame's box on each of `threads` threads.
+    pub fn of(meshes: &[&TriangleMesh], grid: &GridSpec, threads: usize) -> Self {
+        let voxel = grid.voxel_size.powi(3);
+        let mut held = 0.0;
+        let mut largest_box: f64 = 0.0;
+        for m in meshes {
+            let b = m.bounding_box();
+            let cells: f64 = (0..3).map(|k| (b.extent()[k] / grid.voxel_size).ceil() + 2.0).product();
+            held += (m.signed_volume().abs() / voxel).min(cells) * BYTES_PER_VOXEL;
+            largest_box = largest_box.max(cells);
+        }
+        MemoryEstimate { bytes: held + largest_box * threads.max(1) as f64 }
+    }
+
+    /// Fails when the estimate exceeds `limit` bytes, naming the largest
+    /// resolution that would fit (memory grows as the resolution cubed).
+    pub fn check(&self, limit: f64, resolution: usize, frames: usize) -> Result<()> {
+        if self.bytes <= limit {
+            return Ok(());
+        }
+        let fits = (resolution as f64 * (0.9 * limit / self.bytes).cbrt()).floor() as usize;
+        let gib = |b: f64| b / (1u64 << 30) as f64;
+        Err(Error::InvalidParameter(format!(
+            "resolution {resolution} over {frames} frames needs about {:.1} GiB, more than the {:.1} GiB allowed (the memory available now, unless a limit is set); \
+             the largest resolution that fits is about {}, or raise the memory limit if this estimate is too high",
+            gib(self.bytes),
+            gib(limit),
+            fits.max(2)
+        )))
+    }
+}
+
+/// Memory the process can still get now, if known (Linux): the system's
+/// available memory, or less under an address-space limit (`ulimit -v`).
+pub fn available_memory() -> Option<f64> {
+    let kib = |text: &str, key: &str| -> Option<f64> {
+        let line = text.lines().find(|l| l.starts_with(key))?;
+        Some(line.split_whitespace().nth(1)?.parse::<f64>().ok()? * 1024.0)
+    };
+    let system = kib(&std::fs::read_to_string("/proc/meminfo").ok()?, "MemAvailable:")?;
+    let limit = std::fs::read_to_string("/proc/self/limits").ok().and_then(|limits| {
+        let line = limits.lines().find(|l| l.starts_with("Max address space"))?;
+        line.split_whitespace().nth(3)?.parse::<f64>().ok()
+    });
+    let used = std::fs::read_to_string("/proc/self/status").ok().and_then(|s| kib(&s, "VmSize:"));
+    Some(match (limit, used) {
+        (Some(limit), Some(used)) => system.min((limit - used).max(0.0)),
+        _ => system,
+    })
+}
