@@ -30,7 +30,7 @@ fn main() {
     .expect("converting");
     let export = Instant::now();
     let out = std::env::temp_dir().join(format!("voltrack-bench-{}.glb", std::process::id()));
-    let report = write_dynamic_glb(&out, &conv.mesh, &GltfExportOptions::default()).expect("exporting");
+    let report = write_dynamic_glb(&out, &conv.mesh, &GltfExportOptions::default(), Default::default()).expect("exporting");
     let export_seconds = export.elapsed().as_secs_f64();
     let wall = clock.elapsed().as_secs_f64();
     let _ = std::fs::remove_file(&out);

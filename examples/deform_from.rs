@@ -44,7 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let mesh = voltrack::deform::conform_to_inputs(mesh, &seq.paths, &seq.bounds, &conform, Default::default())?;
     if args[2].ends_with(".glb") {
-        let report = voltrack::export::gltf::write_dynamic_glb(args[2].as_ref(), &mesh, &Default::default())?;
+        let report = voltrack::export::gltf::write_dynamic_glb(args[2].as_ref(), &mesh, &Default::default(), Default::default())?;
         println!("wrote {} ({} targets)", args[2], report.targets);
     } else {
         let files = voltrack::export::obj::write_obj_sequence(args[2].as_ref(), &mesh)?;

@@ -17,7 +17,7 @@ fn convert_bytes(threads: usize, dir: &Scratch) -> (Vec<u8>, Vec<u8>) {
             .unwrap();
         let glb = dir.join(&format!("bar{threads}.glb"));
         let exr = dir.join(&format!("bar{threads}.exr"));
-        voltrack::export::gltf::write_dynamic_glb(&glb, &conv.mesh, &Default::default()).unwrap();
+        voltrack::export::gltf::write_dynamic_glb(&glb, &conv.mesh, &Default::default(), Default::default()).unwrap();
         let refined = conv.refined.as_ref().unwrap();
         let attrs = voltrack::pipeline::trajectory_attributes(&conv.sequence, &voxel, &track, Some((&RefineParams::default(), &refined.removed)));
         voltrack::export::exr::write_trajectories_exr(&exr, &refined.trajectories, &attrs).unwrap();

@@ -9,6 +9,7 @@ use voltrack::export::gltf::{write_dynamic_glb, BasisChoice, GltfExportOptions, 
 use voltrack::fixtures;
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
 use voltrack::mesh::Aabb;
+use voltrack::Progress;
 
 mod common;
 use common::Scratch;
@@ -227,7 +228,7 @@ fn per_frame_glb_replays_every_frame() {
     for (name, mesh) in [("bar", bending_bar()), ("wobble", torus(12, wobble))] {
         let path = dir.join(&format!("{name}.glb"));
         let opts = GltfExportOptions { fps, ..options(BasisChoice::PerFrame) };
-        let report = write_dynamic_glb(&path, &mesh, &opts).unwrap();
+        let report = write_dynamic_glb(&path, &mesh, &opts, Progress::none()).unwrap();
         assert_eq!((report.targets, report.basis), (mesh.frames.len() - 1, None));
         assert_eq!((report.reconstruction_error_max, report.reconstruction_error_mean), (0.0, 0.0));
         let glb = Glb::read(&path);
@@ -264,7 +265,7 @@ fn compact_basis_reports_the_error_of_the_file() {
     let dir = Scratch::new("export", "components");
     for (name, mesh, k) in [("bar", bending_bar(), 2), ("wobble", torus(30, wobble), 4), ("turning", torus(40, turning), 2)] {
         let path = dir.join(&format!("{name}.glb"));
-        let report = write_dynamic_glb(&path, &mesh, &options(BasisChoice::Components(k))).unwrap();
+        let report = write_dynamic_glb(&path, &mesh, &options(BasisChoice::Components(k)), Progress::none()).unwrap();
         assert_eq!(report.basis, Some(k), "{name}");
         // Each component is one target, or two (positive and negative parts).
         assert!(report.targets >= k && report.targets <= 2 * k, "{name}: {} targets", report.targets);
@@ -286,7 +287,7 @@ fn compact_basis_reports_the_error_of_the_file() {
     }
     // The rank-3 turning motion is reproduced by three components.
     let mesh = torus(40, turning);
-    let report = write_dynamic_glb(&dir.join("t3.glb"), &mesh, &options(BasisChoice::Components(3))).unwrap();
+    let report = write_dynamic_glb(&dir.join("t3.glb"), &mesh, &options(BasisChoice::Components(3)), Progress::none()).unwrap();
     assert!(report.reconstruction_error_max < 1e-9, "{}", report.reconstruction_error_max);
 }
 
@@ -296,7 +297,7 @@ fn components_beyond_the_rank_are_not_written() {
     // A translation along one direction, back and forth: rank 1.
     let mesh = torus(20, |f, p| p + Vector3::new(1.0, 2.0, -0.5) * (0.7 * f as Real).sin());
     let path = dir.join("shift.glb");
-    let report = write_dynamic_glb(&path, &mesh, &options(BasisChoice::Components(5))).unwrap();
+    let report = write_dynamic_glb(&path, &mesh, &options(BasisChoice::Components(5)), Progress::none()).unwrap();
     assert_eq!(report.basis, Some(1));
     assert_eq!(report.targets, 2, "a signed coefficient: positive and negative target");
     assert!(report.reconstruction_error_max < 1e-9);
@@ -304,7 +305,7 @@ fn components_beyond_the_rank_are_not_written() {
     check_common(&glb, &mesh, &report, &path, 30.0);
     assert!(glb.errors(&mesh).0 < 1e-5 * diagonal(&mesh));
     // Zero components is a parameter error, and writes nothing.
-    let err = write_dynamic_glb(&dir.join("zero.glb"), &mesh, &options(BasisChoice::Components(0))).unwrap_err();
+    let err = write_dynamic_glb(&dir.join("zero.glb"), &mesh, &options(BasisChoice::Components(0)), Progress::none()).unwrap_err();
     assert!(matches!(err, voltrack::Error::InvalidParameter(_)), "{err}");
     assert!(!dir.join("zero.glb").exists());
 }
@@ -314,7 +315,7 @@ fn auto_picks_a_compact_basis_for_long_low_rank_motion() {
     let dir = Scratch::new("export", "auto");
     let mesh = torus(300, turning);
     let path = dir.join("long.glb");
-    let report = write_dynamic_glb(&path, &mesh, &GltfExportOptions::default()).unwrap();
+    let report = write_dynamic_glb(&path, &mesh, &GltfExportOptions::default(), Progress::none()).unwrap();
     let k = report.basis.expect("past 256 frames Auto picks a compact basis");
     assert!(k <= 3, "{k} components for a rank-3 motion");
     assert!(report.targets <= 2 * k);
@@ -326,7 +327,7 @@ fn auto_picks_a_compact_basis_for_long_low_rank_motion() {
     assert!((max / diagonal(&mesh) - report.reconstruction_error_max).abs() < 1e-5, "{max}");
     // Up to 256 frames Auto keeps one target per frame.
     let short = torus(256, turning);
-    let report = write_dynamic_glb(&dir.join("short.glb"), &short, &GltfExportOptions::default()).unwrap();
+    let report = write_dynamic_glb(&dir.join("short.glb"), &short, &GltfExportOptions::default(), Progress::none()).unwrap();
     assert_eq!((report.basis, report.targets), (None, 255));
 }
 
@@ -349,7 +350,7 @@ fn auto_keeps_per_frame_targets_when_a_basis_would_not_be_smaller() {
         .collect();
     let mesh = DynamicMesh { base, frames };
     let path = dir.join("full.glb");
-    let report = write_dynamic_glb(&path, &mesh, &GltfExportOptions::default()).unwrap();
+    let report = write_dynamic_glb(&path, &mesh, &GltfExportOptions::default(), Progress::none()).unwrap();
     assert_eq!((report.basis, report.targets), (None, 299), "{report:?}");
     let glb = Glb::read(&path);
     check_common(&glb, &mesh, &report, &path, 30.0);
@@ -364,7 +365,7 @@ fn glb_edge_cases() {
     let mut one = bending_bar();
     one.frames.truncate(1);
     let path = dir.join("one.glb");
-    let report = write_dynamic_glb(&path, &one, &GltfExportOptions::default()).unwrap();
+    let report = write_dynamic_glb(&path, &one, &GltfExportOptions::default(), Progress::none()).unwrap();
     assert_eq!(report.targets, 0);
     let glb = Glb::read(&path);
     check_common(&glb, &one, &report, &path, 30.0);
@@ -372,25 +373,25 @@ fn glb_edge_cases() {
     // Without normals: no NORMAL attribute nor NORMAL deltas.
     let mesh = torus(5, wobble);
     let path = dir.join("flat.glb");
-    let report = write_dynamic_glb(&path, &mesh, &GltfExportOptions { normals: false, ..options(BasisChoice::PerFrame) }).unwrap();
+    let report = write_dynamic_glb(&path, &mesh, &GltfExportOptions { normals: false, ..options(BasisChoice::PerFrame) }, Progress::none()).unwrap();
     let glb = Glb::read(&path);
     check_common(&glb, &mesh, &report, &path, 30.0);
     assert!(glb.normals.is_none() && glb.normal_targets.iter().all(Option::is_none));
     // Bad options and inconsistent meshes are errors and write nothing.
     let bad = dir.join("bad.glb");
     for fps in [0.0, -1.0, f32::NAN, f32::INFINITY] {
-        assert!(write_dynamic_glb(&bad, &mesh, &GltfExportOptions { fps, ..Default::default() }).is_err(), "fps {fps}");
+        assert!(write_dynamic_glb(&bad, &mesh, &GltfExportOptions { fps, ..Default::default() }, Progress::none()).is_err(), "fps {fps}");
     }
-    assert!(write_dynamic_glb(&bad, &mesh, &GltfExportOptions { max_basis_error: -1.0, ..Default::default() }).is_err());
+    assert!(write_dynamic_glb(&bad, &mesh, &GltfExportOptions { max_basis_error: -1.0, ..Default::default() }, Progress::none()).is_err());
     let mut ragged = mesh.clone();
     ragged.frames[2].pop();
-    assert!(write_dynamic_glb(&bad, &ragged, &GltfExportOptions::default()).is_err());
+    assert!(write_dynamic_glb(&bad, &ragged, &GltfExportOptions::default(), Progress::none()).is_err());
     let mut nan = mesh.clone();
     nan.frames[3][7].y = Real::NAN;
-    assert!(write_dynamic_glb(&bad, &nan, &GltfExportOptions::default()).is_err());
+    assert!(write_dynamic_glb(&bad, &nan, &GltfExportOptions::default(), Progress::none()).is_err());
     let empty = DynamicMesh { base: mesh.base.clone(), frames: vec![] };
-    assert!(write_dynamic_glb(&bad, &empty, &GltfExportOptions::default()).is_err());
-    assert!(write_dynamic_glb(&dir.join("missing/x.glb"), &mesh, &GltfExportOptions::default()).is_err());
+    assert!(write_dynamic_glb(&bad, &empty, &GltfExportOptions::default(), Progress::none()).is_err());
+    assert!(write_dynamic_glb(&dir.join("missing/x.glb"), &mesh, &GltfExportOptions::default(), Progress::none()).is_err());
     let left: Vec<_> = std::fs::read_dir(&dir.0).unwrap().flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect();
     let mut left = left;
     left.sort();
@@ -405,7 +406,7 @@ fn glb_bytes_do_not_depend_on_threads() {
         let write = |name: &str, threads: usize| {
             let path = dir.join(name);
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| write_dynamic_glb(&path, &mesh, &options(basis))).unwrap();
+            pool.install(|| write_dynamic_glb(&path, &mesh, &options(basis), Progress::none())).unwrap();
             std::fs::read(path).unwrap()
         };
         let one = write("a.glb", 1);

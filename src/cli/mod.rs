@@ -320,7 +320,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
     let mut notes = Vec::new();
     match format {
         OutputFormat::Glb => {
-            let report = voltrack::export::gltf::write_dynamic_glb(out, &conv.mesh, &args.gltf_options())?;
+            let report = voltrack::export::gltf::write_dynamic_glb(out, &conv.mesh, &args.gltf_options(), bars.progress())?;
             if let Some(k) = report.basis {
                 if args.basis.is_none() {
                     notes.push(format!(

@@ -11,6 +11,7 @@
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real, Vector3};
+use crate::progress::Progress;
 use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
 use std::ops::RangeInclusive;
@@ -151,7 +152,7 @@ impl MorphBasis {
 /// Picks the basis `choice` asks for. `tolerance` (scene units) bounds the
 /// largest vertex error for [`BasisChoice::Auto`]. Returns the basis and its
 /// reconstruction error (zero for per-frame targets).
-pub fn choose(frames: &[Vec<Point3>], choice: BasisChoice, tolerance: Real) -> Result<(MorphBasis, BasisError)> {
+pub fn choose(frames: &[Vec<Point3>], choice: BasisChoice, tolerance: Real, _progress: Progress) -> Result<(MorphBasis, BasisError)> {
     let exact = || (MorphBasis::per_frame(frames.len()), BasisError::default());
     match choice {
         BasisChoice::PerFrame => Ok(exact()),

@@ -11,6 +11,7 @@ use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real, Vector3};
 use crate::mesh::{Aabb, TriangleMesh};
+use crate::progress::Progress;
 use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
 use std::collections::BTreeMap;
@@ -88,13 +89,15 @@ pub struct GltfExportReport {
 /// targets (Blender's shape keys, three.js' `morphTargetDictionary`). UVs and
 /// the first frame's texture are carried over; normals as `options.normals`
 /// says (the base mesh's loaded normals are not used: they would not match
-/// the recomputed ones of the other frames).
-pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOptions) -> Result<GltfExportReport> {
+/// the recomputed ones of the other frames). Progress is reported under
+/// [`Stage::Export`](crate::Stage::Export); a stop request returns
+/// [`Error::Interrupted`] and writes nothing.
+pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOptions, progress: Progress) -> Result<GltfExportReport> {
     options.validate()?;
     basis::check_frames(mesh)?;
     let frames = &mesh.frames;
     let diagonal = Aabb::from_points(frames.iter().flatten()).diagonal();
-    let (basis, error) = basis::choose(frames, options.basis, options.max_basis_error * diagonal)?;
+    let (basis, error) = basis::choose(frames, options.basis, options.max_basis_error * diagonal, progress)?;
     let relative = |e: Real| if diagonal > 0.0 { e / diagonal } else { 0.0 };
     let normals = options.normals.then(|| FrameNormals::new(&mesh.base.triangles, &frames[0]));
     let base = TriangleMesh {
