@@ -1,0 +1,50 @@
+//! Time of the compact morph basis (issue 22): `Auto` and `Components(16)` on
+//! a synthetic deforming torus of 5,000 vertices at 250 to 2,000 frames,
+//! seconds per frame count. The cost should grow about linearly in F.
+//!
+//! `cargo bench --bench basis`; `VOLTRACK_BENCH_FRAMES=250,500` picks the
+//! frame counts.
+
+use std::time::Instant;
+use voltrack::export::basis::{choose, BasisChoice};
+use voltrack::fixtures;
+use voltrack::math::{Point3, Real, Rotation3, Vector3};
+use voltrack::mesh::Aabb;
+
+/// A turn, two travelling waves, a bend and a slowly chirping ripple: smooth
+/// motion of moderate rank whose spectrum decays, like a tracked capture's.
+fn motion(f: usize, p: &Point3) -> Point3 {
+    let t = f as Real;
+    let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.6 * (0.013 * t).sin());
+    let wave = 0.05 * (3.0 * p.x - 0.11 * t).sin() + 0.03 * (5.0 * p.y + 0.07 * t).cos();
+    let bend = 0.1 * (0.021 * t).sin() * p.x * p.x;
+    let ripple = 0.004 * (p.y * (1.0 + 0.002 * t) * 4.0 + 0.05 * t).sin();
+    turn * p + Vector3::new(ripple, 0.0, wave + bend)
+}
+
+fn main() {
+    let counts: Vec<usize> = std::env::var("VOLTRACK_BENCH_FRAMES")
+        .ok()
+        .map(|s| s.split(',').filter_map(|x| x.trim().parse().ok()).collect())
+        .unwrap_or_else(|| vec![250, 500, 1000, 2000]);
+    let base = fixtures::torus(Point3::origin(), 1.0, 0.3, 100, 50);
+    println!("{} vertices, threads {}", base.positions.len(), rayon::current_num_threads());
+    println!("| frames | Auto s | Auto components | Components(16) s | s per 1000 frames (Auto, 16) |");
+    println!("|---|---|---|---|---|");
+    for &f in &counts {
+        let frames: Vec<Vec<Point3>> = (0..f).map(|g| base.positions.iter().map(|p| motion(g, p)).collect()).collect();
+        let tolerance = 0.001 * Aabb::from_points(frames.iter().flatten()).diagonal();
+        let clock = Instant::now();
+        let (auto, _) = choose(&frames, BasisChoice::Auto, tolerance, Default::default()).expect("Auto basis");
+        let auto_s = clock.elapsed().as_secs_f64();
+        let clock = Instant::now();
+        choose(&frames, BasisChoice::Components(16), tolerance, Default::default()).expect("16 components");
+        let k16_s = clock.elapsed().as_secs_f64();
+        println!(
+            "| {f} | {auto_s:.2} | {} | {k16_s:.2} | {:.2}, {:.2} |",
+            auto.components.map_or("per frame".into(), |k| k.to_string()),
+            1000.0 * auto_s / f as f64,
+            1000.0 * k16_s / f as f64
+        );
+    }
+}
