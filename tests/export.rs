@@ -415,6 +415,79 @@ fn glb_bytes_do_not_depend_on_threads() {
     }
 }
 
+#[test]
+fn compact_basis_bytes_do_not_depend_on_threads() {
+    let dir = Scratch::new("export", "basis-threads");
+    // Long enough for Auto to sketch, and not of low rank.
+    let mesh = torus(300, |f, p| turning(f, p) + (wobble(f, p) - p) * 0.05);
+    for basis in [BasisChoice::Auto, BasisChoice::Components(16)] {
+        let write = |name: &str, threads: usize| {
+            let path = dir.join(name);
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let report = pool.install(|| write_dynamic_glb(&path, &mesh, &options(basis), Progress::none())).unwrap();
+            assert!(report.basis.is_some(), "{basis:?}: {report:?}");
+            std::fs::read(path).unwrap()
+        };
+        let one = write("a.glb", 1);
+        assert_eq!(one, write("b.glb", 2), "{basis:?}: 1 and 2 threads differ");
+    }
+}
+
+/// Counts its polls and asks to stop from the `after`-th on.
+struct StopAfter {
+    polls: std::sync::atomic::AtomicUsize,
+    after: usize,
+}
+
+impl StopAfter {
+    fn new(after: usize) -> Self {
+        StopAfter { polls: 0.into(), after }
+    }
+    fn polls(&self) -> usize {
+        self.polls.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+impl voltrack::progress::ProgressSink for StopAfter {
+    fn report(&self, _: voltrack::Stage, _: usize, _: usize) {}
+    fn cancelled(&self) -> bool {
+        self.polls.fetch_add(1, std::sync::atomic::Ordering::Relaxed) >= self.after
+    }
+}
+
+#[test]
+fn an_interrupt_stops_the_compact_basis() {
+    let dir = Scratch::new("export", "interrupt");
+    let mesh = torus(300, |f, p| turning(f, p) + (wobble(f, p) - p) * 0.05);
+    let tolerance = GltfExportOptions::default().max_basis_error * diagonal(&mesh);
+    let path = dir.join("stopped.glb");
+    for basis in [BasisChoice::Auto, BasisChoice::Components(16)] {
+        // Unstopped, the basis alone and the whole export poll this often.
+        let polls = |work: &dyn Fn(Progress) -> bool| {
+            let sink = StopAfter::new(usize::MAX);
+            assert!(work(Progress(Some(&sink))), "{basis:?}: failed unstopped");
+            sink.polls()
+        };
+        let choose = |progress: Progress| voltrack::export::basis::choose(&mesh.frames, basis, tolerance, progress).is_ok();
+        let write = |progress: Progress| write_dynamic_glb(&path, &mesh, &options(basis), progress).is_ok();
+        let (in_basis, in_export) = (polls(&choose), polls(&write));
+        assert!(in_basis >= 3 && in_export > in_basis, "{basis:?}: {in_basis} polls in the basis, {in_export} in the export");
+        std::fs::remove_file(&path).unwrap();
+        // A stop at any of those points is honoured, and writes nothing.
+        for after in [0, 2, in_basis / 2, in_basis - 1, in_export - 1] {
+            let sink = StopAfter::new(after);
+            let err = voltrack::export::basis::choose(&mesh.frames, basis, tolerance, Progress(Some(&sink)));
+            if after < in_basis {
+                assert!(matches!(err, Err(voltrack::Error::Interrupted { saved: None })), "{basis:?}, stop at poll {after}: {:?}", err.map(|b| b.0.components));
+            }
+            let sink = StopAfter::new(after);
+            let err = write_dynamic_glb(&path, &mesh, &options(basis), Progress(Some(&sink))).unwrap_err();
+            assert!(matches!(err, voltrack::Error::Interrupted { saved: None }), "{basis:?}, stop at poll {after}: {err}");
+            assert!(!path.exists(), "{basis:?}: a file after an interrupt");
+        }
+    }
+}
+
 fn i32_at(bytes: &[u8], at: usize) -> i32 {
     i32::from_le_bytes(bytes[at..at + 4].try_into().unwrap())
 }

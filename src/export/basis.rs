@@ -3,6 +3,12 @@
 //! the principal components of the displacements (lossy, far smaller for long
 //! sequences).
 //!
+//! The components come from a randomised range finder (Halko, Martinsson and
+//! Tropp, 2011) over the displacement matrix, which is only ever read frame by
+//! frame: the work grows linearly with the frame count, and the memory with
+//! (vertices + frames) × the components sketched; no frames × frames nor
+//! vertices × frames matrix is formed.
+//!
 //! Every target is a linear combination of the frames' displacements from
 //! frame 0, `target_j = Σ_g mix_j(g) · (frame_g − frame_0)`, so anything known
 //! per frame (positions, normals) goes through the same
@@ -11,8 +17,9 @@
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real, Vector3};
-use crate::progress::Progress;
-use nalgebra::{DMatrix, SymmetricEigen};
+use crate::progress::{Progress, Stage};
+use crate::track::rng::SplitMix64;
+use nalgebra::DMatrix;
 use rayon::prelude::*;
 use std::ops::RangeInclusive;
 
@@ -35,10 +42,26 @@ pub enum BasisChoice {
 /// (viewers handle a few hundred targets; past that the compact basis pays).
 pub const AUTO_PER_FRAME_LIMIT: usize = 256;
 
-/// Components whose eigenvalue is below this fraction of the largest are
-/// numerical noise of the Gram matrix (singular value under 1e-6 of the
-/// largest, beneath f32 resolution of the exported data) and are never used.
-const NEGLIGIBLE_EIGENVALUE: Real = 1e-12;
+/// Components whose squared singular value is below this fraction of the
+/// largest's are numerical noise (singular value under 1e-6 of the largest,
+/// beneath f32 resolution of the exported data) and are never used.
+const NEGLIGIBLE_SQUARED: Real = 1e-12;
+
+/// Columns of the random sketch beyond the components wanted: they catch
+/// what of the wanted subspace the first columns miss (the p of Halko et al.).
+const OVERSAMPLING: usize = 10;
+
+/// Power iterations of the range finder: each raises the singular values to a
+/// higher power in the sketch, so components close in size to the first one
+/// left out are still told apart.
+const POWER_ITERATIONS: usize = 2;
+
+/// Components [`BasisChoice::Auto`] sketches first; every further round
+/// doubles it.
+const AUTO_FIRST_COMPONENTS: usize = 8;
+
+/// Seed of the Gaussian test matrix: the same frames give the same basis.
+const SKETCH_SEED: u64 = 0x5eed_0022_ba51_5000;
 
 /// Vertices processed together, so that one block of every frame stays in cache.
 const VERTEX_CHUNK: usize = 256;
@@ -116,8 +139,9 @@ impl MorphBasis {
     /// Σ_(g, a) ∈ `mix[j]` a · `vectors(g)[v]`, summed in f64 in frame order
     /// (deterministic) and rounded to f32, as the exported files store them.
     /// `vectors(g)` (g ≥ 1) must return `vertices` entries; it is called once
-    /// per frame, a few frames at a time in parallel.
-    pub fn combine<V>(&self, frames: usize, vertices: usize, vectors: V) -> Vec<Vec<[f32; 3]>>
+    /// per frame, a few frames at a time in parallel. Reports the frames done
+    /// under [`Stage::Export`] and stops between blocks when asked to.
+    pub fn combine<V>(&self, frames: usize, vertices: usize, vectors: V, progress: Progress) -> Result<Vec<Vec<[f32; 3]>>>
     where
         V: Fn(usize) -> Vec<Vector3> + Sync,
     {
@@ -126,6 +150,8 @@ impl MorphBasis {
         let mut sums: Vec<Vec<Vector3>> = vec![Vec::new(); self.targets()];
         let mut out: Vec<Vec<[f32; 3]>> = vec![Vec::new(); self.targets()];
         for start in (1..frames).step_by(FRAME_BLOCK) {
+            stop_requested(progress)?;
+            progress.report(Stage::Export, start - 1, frames - 1);
             let block = start..(start + FRAME_BLOCK).min(frames);
             let vecs: Vec<Vec<Vector3>> = block.clone().into_par_iter().map(&vectors).collect();
             sums.par_iter_mut().zip(out.par_iter_mut()).zip(&self.mix).for_each(|((sum, out), mix)| {
@@ -145,96 +171,159 @@ impl MorphBasis {
                 }
             });
         }
-        out
+        Ok(out)
     }
 }
 
 /// Picks the basis `choice` asks for. `tolerance` (scene units) bounds the
 /// largest vertex error for [`BasisChoice::Auto`]. Returns the basis and its
-/// reconstruction error (zero for per-frame targets).
-pub fn choose(frames: &[Vec<Point3>], choice: BasisChoice, tolerance: Real, _progress: Progress) -> Result<(MorphBasis, BasisError)> {
+/// reconstruction error (zero for per-frame targets). Reports its passes over
+/// the frames under [`Stage::Export`] and returns [`Error::Interrupted`] when
+/// `progress` asks it to stop.
+pub fn choose(frames: &[Vec<Point3>], choice: BasisChoice, tolerance: Real, progress: Progress) -> Result<(MorphBasis, BasisError)> {
     let exact = || (MorphBasis::per_frame(frames.len()), BasisError::default());
+    let mut passes = Passes { progress, done: 0 };
     match choice {
         BasisChoice::PerFrame => Ok(exact()),
         BasisChoice::Components(0) => Err(Error::InvalidParameter("a compact basis needs at least one component".into())),
         BasisChoice::Components(k) => {
-            let pca = Pca::new(frames);
+            let pca = Pca::new(frames, k.saturating_add(OVERSAMPLING), &mut passes)?;
             let k = k.min(pca.usable());
-            Ok((pca.basis(k), pca.errors(frames, k..=k)[0]))
+            let error = pca.errors(frames, k..=k, &mut passes)?[0];
+            passes.finish();
+            Ok((pca.basis(k), error))
         }
         BasisChoice::Auto if frames.len() <= AUTO_PER_FRAME_LIMIT => Ok(exact()),
         BasisChoice::Auto => {
-            let pca = Pca::new(frames);
-            // Past `sufficient` the error is within tolerance for certain; past
-            // F − 2 components per-frame targets are no more.
-            let limit = pca.sufficient(tolerance).min(pca.usable()).min(frames.len() - 2);
-            // The largest error need not fall monotonically with k, so scan
-            // upwards, in stages of doubling length to keep the cost near the
-            // answer's.
-            let mut ks = 0..=limit.min(8);
-            loop {
-                let errors = pca.errors(frames, ks.clone());
-                if let Some(i) = errors.iter().position(|e| e.max <= tolerance) {
-                    let basis = pca.basis(ks.start() + i);
-                    return Ok(if basis.targets() < frames.len() - 1 { (basis, errors[i]) } else { exact() });
+            let moving = frames.len() - 1;
+            let mut wanted = AUTO_FIRST_COMPONENTS;
+            let choice = loop {
+                let pca = Pca::new(frames, wanted + OVERSAMPLING, &mut passes)?;
+                // Past F − 2 components per-frame targets are no more, past
+                // `sufficient` the error is within tolerance for certain, past
+                // the rank nothing is left to add.
+                let mut limit = moving - 1;
+                if let Some(k) = pca.sufficient(tolerance) {
+                    limit = limit.min(k);
                 }
-                if *ks.end() == limit {
-                    return Ok(exact());
+                if let Some(rank) = pca.rank() {
+                    limit = limit.min(rank);
                 }
-                ks = ks.end() + 1..=(2 * ks.end()).min(limit);
-            }
+                let end = limit.min(pca.components.len());
+                // The largest error need not fall monotonically with k, so
+                // every k is measured (one pass, whatever the range).
+                let errors = pca.errors(frames, 0..=end, &mut passes)?;
+                if let Some(k) = errors.iter().position(|e| e.max <= tolerance) {
+                    let basis = pca.basis(k);
+                    break if basis.targets() < moving { (basis, errors[k]) } else { exact() };
+                }
+                // Nothing within tolerance up to the limit, or more components
+                // would need as many targets as the frames: per-frame targets.
+                if end == limit || pca.basis(end).targets() >= moving {
+                    break exact();
+                }
+                wanted *= 2;
+            };
+            passes.finish();
+            Ok(choice)
         }
     }
 }
 
-/// Principal components of the displacements from frame 0, from the Gram
-/// matrix of frames 1..F (F − 1 square, cheap next to the vertices × 3
-/// columns): with D the displacement rows and D Dᵀ = U Λ Uᵀ, component k's
-/// target is Dᵀu_k and frame f's coefficient u_k(f), and the first k
-/// components reconstruct D by the optimal rank-k approximation U_k U_kᵀ D.
-pub struct Pca {
+/// Returns [`Error::Interrupted`] when the caller asked the work to stop.
+fn stop_requested(progress: Progress) -> Result<()> {
+    if progress.cancelled() {
+        return Err(Error::Interrupted { saved: None });
+    }
+    Ok(())
+}
+
+/// Counts the passes over the frames for progress reports, and checks for a
+/// stop request before each.
+struct Passes<'a> {
+    progress: Progress<'a>,
+    done: usize,
+}
+
+impl Passes<'_> {
+    /// Before a pass, with `left` passes (this one included) planned so far.
+    fn start(&mut self, left: usize) -> Result<()> {
+        stop_requested(self.progress)?;
+        self.progress.report(Stage::Export, self.done, self.done + left);
+        self.done += 1;
+        Ok(())
+    }
+
+    fn finish(&self) {
+        self.progress.report(Stage::Export, self.done, self.done);
+    }
+}
+
+/// The leading principal components of the displacements from frame 0. With A
+/// the 3V × (F − 1) matrix of displacements (one column per frame after the
+/// first) and A ≈ Σ_k σ_k v_k u_kᵀ its truncated SVD, component k's target is
+/// A u_k and frame f's coefficient u_k(f); the first k components reconstruct
+/// A as A U_k U_kᵀ, its projection onto their span.
+///
+/// The SVD comes from a sketch: Y = A Ω for a Gaussian Ω of `width` columns,
+/// sharpened by power iterations (Y = A Aᵀ Y, re-orthonormalised each time);
+/// with Q an orthonormal basis of Y, the small SVD of Qᵀ A gives the u_k.
+/// Every product with A is a pass over the frames in vertex blocks, summed in
+/// a fixed order, and the small factorisations are sequential, so the result
+/// does not depend on the thread count.
+struct Pca {
     /// Column u_k per component (entry g − 1 for frame g), unit length, by
-    /// decreasing eigenvalue; the largest-magnitude entry (the first of equals)
-    /// is positive, as scikit-learn's `svd_flip` does, so the result does not
-    /// depend on the eigensolver's signs.
+    /// decreasing singular value; the largest-magnitude entry (the first of
+    /// equals) is positive, as scikit-learn's `svd_flip` does, so the result
+    /// does not depend on the solver's signs.
     components: Vec<Vec<Real>>,
-    /// Eigenvalues (squared singular values), decreasing, rounding below 0
-    /// clamped to 0.
-    eigenvalues: Vec<Real>,
+    /// σ_k² of the sketch, decreasing.
+    squared: Vec<Real>,
+    /// ‖A‖², the squared Frobenius norm of all displacements.
+    total: Real,
+    /// Whether the sketch has as many columns as A can have rank
+    /// (min(3V, F − 1)), so that the components span everything.
+    complete: bool,
     frames: usize,
 }
 
 impl Pca {
-    /// Builds the Gram matrix (parallel over its rows, each entry summed in a
-    /// fixed order, so the result does not depend on the thread count) and
-    /// diagonalises it.
-    pub fn new(frames: &[Vec<Point3>]) -> Self {
+    /// Sketches `width` components (fewer when A is smaller); `passes` counts
+    /// its passes over the frames and one error pass after them.
+    fn new(frames: &[Vec<Point3>], width: usize, passes: &mut Passes) -> Result<Self> {
         let moving = frames.len().saturating_sub(1);
-        if moving == 0 {
-            return Pca { components: Vec::new(), eigenvalues: Vec::new(), frames: frames.len() };
+        let rows = 3 * frames.first().map_or(0, Vec::len);
+        let width = width.min(moving).min(rows);
+        let mut pca = Pca { components: Vec::new(), squared: Vec::new(), total: 0.0, complete: width == moving.min(rows), frames: frames.len() };
+        if width == 0 {
+            return Ok(pca);
         }
-        let vertices = frames[0].len();
-        let mut gram = vec![0.0; moving * moving];
-        let mut block = vec![0.0; moving * 3 * VERTEX_CHUNK];
-        for start in (0..vertices).step_by(VERTEX_CHUNK) {
-            let width = 3 * VERTEX_CHUNK.min(vertices - start);
-            let block = &mut block[..moving * width];
-            gather(frames, start, width / 3, block);
-            let block = &*block;
-            gram.par_chunks_mut(moving).enumerate().for_each(|(r, row)| {
-                let a = &block[r * width..(r + 1) * width];
-                for (c, g) in row[..=r].iter_mut().enumerate() {
-                    *g += dot(a, &block[c * width..(c + 1) * width]);
-                }
-            });
+        // One more than the passes planned: the sketch's and the error pass after.
+        let mut left = 2 * POWER_ITERATIONS + 4;
+        let mut pass = |passes: &mut Passes| {
+            left -= 1;
+            passes.start(left)
+        };
+        pass(passes)?;
+        pca.total = squared_norm(frames);
+        let mut q = orthonormal(apply(frames, &gaussian(moving, width), width, passes.progress)?, rows, width);
+        for _ in 0..POWER_ITERATIONS {
+            pass(passes)?;
+            let z = orthonormal(apply_transposed(frames, &q, width, passes.progress)?, moving, width);
+            pass(passes)?;
+            q = orthonormal(apply(frames, &z, width, passes.progress)?, rows, width);
         }
-        let eig = SymmetricEigen::new(DMatrix::from_fn(moving, moving, |r, c| gram[r.max(c) * moving + r.min(c)]));
-        let mut order: Vec<usize> = (0..moving).collect();
-        order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
-        let components = order
+        pass(passes)?;
+        // (Qᵀ A)ᵀ, F − 1 rows: its left singular vectors are the u_k.
+        let projected = apply_transposed(frames, &q, width, passes.progress)?;
+        let svd = DMatrix::from_row_slice(moving, width, &projected).svd(true, false);
+        let u = svd.u.as_ref().expect("left singular vectors were asked for");
+        let mut order: Vec<usize> = (0..width).collect();
+        order.sort_by(|&a, &b| svd.singular_values[b].total_cmp(&svd.singular_values[a]));
+        pca.components = order
             .iter()
             .map(|&i| {
-                let mut u: Vec<Real> = eig.eigenvectors.column(i).iter().copied().collect();
+                let mut u: Vec<Real> = u.column(i).iter().copied().collect();
                 let pivot = (0..u.len()).fold(0, |best, r| if u[r].abs() > u[best].abs() { r } else { best });
                 if u[pivot] < 0.0 {
                     u.iter_mut().for_each(|x| *x = -*x);
@@ -242,39 +331,48 @@ impl Pca {
                 u
             })
             .collect();
-        let eigenvalues = order.iter().map(|&i| eig.eigenvalues[i].max(0.0)).collect();
-        Pca { components, eigenvalues, frames: frames.len() }
+        pca.squared = order.iter().map(|&i| svd.singular_values[i].powi(2)).collect();
+        Ok(pca)
     }
 
-    /// Number of components that carry motion (see [`NEGLIGIBLE_EIGENVALUE`]).
-    pub fn usable(&self) -> usize {
-        let largest = self.eigenvalues.first().copied().unwrap_or(0.0);
-        self.eigenvalues.iter().take_while(|&&l| l > 0.0 && l > NEGLIGIBLE_EIGENVALUE * largest).count()
+    /// Number of components that carry motion (see [`NEGLIGIBLE_SQUARED`]).
+    fn usable(&self) -> usize {
+        let largest = self.squared.first().copied().unwrap_or(0.0);
+        self.squared.iter().take_while(|&&s| s > 0.0 && s > NEGLIGIBLE_SQUARED * largest).count()
     }
 
-    /// Fewest components whose residual's Frobenius norm, √(Σ_(j ≥ k) λ_j),
-    /// is within `tolerance`; it bounds every single vertex's error, so this
-    /// many components certainly suffice.
-    pub fn sufficient(&self, tolerance: Real) -> usize {
-        let mut tail = 0.0;
-        let mut k = self.eigenvalues.len();
-        for (j, l) in self.eigenvalues.iter().enumerate().rev() {
-            tail += l;
-            if tail.sqrt() > tolerance {
-                break;
+    /// The numerical rank of A when the sketch reveals it: it is complete, or
+    /// its last components are noise.
+    fn rank(&self) -> Option<usize> {
+        let usable = self.usable();
+        (self.complete || usable < self.components.len()).then_some(usable)
+    }
+
+    /// Fewest components whose residual's Frobenius norm is within
+    /// `tolerance`, if the sketched ones include such a count. The residual
+    /// is bounded by √(‖A‖² − Σ_(j < k) σ_j²), as the sketch's σ_j are at most
+    /// what its components capture of A; it bounds every single vertex's error,
+    /// so this many components certainly suffice.
+    fn sufficient(&self, tolerance: Real) -> Option<usize> {
+        let mut tail = self.total;
+        for k in 0..=self.squared.len() {
+            if tail.max(0.0).sqrt() <= tolerance {
+                return Some(k);
             }
-            k = j;
+            tail -= self.squared.get(k).copied().unwrap_or(0.0);
         }
-        k
+        None
     }
 
     /// The reconstruction error with the first k components, for every k in
     /// `ks` (k ≤ number of components). Each vertex's trajectory over the
     /// frames is projected onto the components (x − U_k U_kᵀ x), so this costs
     /// one pass over the frames and never stores the residual.
-    pub fn errors(&self, frames: &[Vec<Point3>], ks: RangeInclusive<usize>) -> Vec<BasisError> {
+    fn errors(&self, frames: &[Vec<Point3>], ks: RangeInclusive<usize>, passes: &mut Passes) -> Result<Vec<BasisError>> {
         let (k0, k1) = (*ks.start(), *ks.end());
         assert!(k0 <= k1 && k1 <= self.components.len(), "component range {k0}..={k1} beyond {}", self.components.len());
+        passes.start(1)?;
+        let progress = passes.progress;
         let moving = self.frames - 1;
         let vertices = frames[0].len();
         let u = &self.components;
@@ -283,19 +381,22 @@ impl Pca {
         let chunks: Vec<Vec<(Real, Real)>> = starts
             .par_iter()
             .map(|&start| {
-                let n = VERTEX_CHUNK.min(vertices - start);
-                let mut block = vec![0.0; moving * 3 * n];
-                gather(frames, start, n, &mut block);
+                stop_requested(progress)?;
                 let mut stats = vec![(0.0, 0.0); k1 - k0 + 1];
                 let mut y = vec![Vector3::zeros(); k1];
                 let mut e = vec![Vector3::zeros(); moving];
-                for i in 0..n {
-                    let x = |r: usize| Vector3::from_column_slice(&block[r * 3 * n + 3 * i..][..3]);
+                // One vertex's displacements over the frames, contiguous, as
+                // every component goes over them.
+                let mut x = vec![Vector3::zeros(); moving];
+                for v in start..(start + VERTEX_CHUNK).min(vertices) {
+                    for (x, frame) in x.iter_mut().zip(&frames[1..]) {
+                        *x = frame[v] - frames[0][v];
+                    }
                     for (yk, uk) in y.iter_mut().zip(u) {
-                        *yk = uk.iter().enumerate().map(|(r, &w)| w * x(r)).sum();
+                        *yk = uk.iter().zip(&x).map(|(&w, x)| w * x).sum();
                     }
                     for (r, er) in e.iter_mut().enumerate() {
-                        *er = x(r) - (0..k0).map(|k| u[k][r] * y[k]).sum::<Vector3>();
+                        *er = x[r] - (0..k0).map(|k| u[k][r] * y[k]).sum::<Vector3>();
                     }
                     for (k, s) in (k0..=k1).zip(&mut stats) {
                         if k > k0 {
@@ -307,16 +408,16 @@ impl Pca {
                         }
                     }
                 }
-                stats
+                Ok(stats)
             })
-            .collect();
+            .collect::<Result<_>>()?;
         let count = (self.frames * vertices) as Real;
-        (0..=k1 - k0)
+        Ok((0..=k1 - k0)
             .map(|j| BasisError {
                 max: chunks.iter().map(|c| c[j].0).fold(0.0, Real::max),
                 mean: if count > 0.0 { chunks.iter().map(|c| c[j].1).sum::<Real>() / count } else { 0.0 },
             })
-            .collect()
+            .collect())
     }
 
     /// The basis of the first `k` components. Each component's coefficient
@@ -324,7 +425,7 @@ impl Pca {
     /// (the second only when some coefficient is negative), scaled so the
     /// weights span [0, 1]; their sum interpolates exactly like the signed
     /// coefficient would, LINEAR or not.
-    pub fn basis(&self, k: usize) -> MorphBasis {
+    fn basis(&self, k: usize) -> MorphBasis {
         let mut mix = Vec::new();
         let mut names = Vec::new();
         // Weights per target over frames 0..F.
@@ -350,26 +451,198 @@ impl Pca {
     }
 }
 
-/// Displacements from frame 0 of vertices `start..start + n` in frames 1..F,
-/// frame-major: `out[(g − 1)·3n + 3i + axis]`.
-fn gather(frames: &[Vec<Point3>], start: usize, n: usize, out: &mut [Real]) {
-    let base = &frames[0][start..start + n];
-    for (row, frame) in out.chunks_exact_mut(3 * n).zip(&frames[1..]) {
-        for ((d, p), p0) in row.chunks_exact_mut(3).zip(&frame[start..start + n]).zip(base) {
-            d.copy_from_slice((p - p0).as_slice());
+/// ‖A‖², summed per vertex block and then over the blocks in order.
+fn squared_norm(frames: &[Vec<Point3>]) -> Real {
+    let vertices = frames[0].len();
+    let starts: Vec<usize> = (0..vertices).step_by(VERTEX_CHUNK).collect();
+    let parts: Vec<Real> = starts
+        .par_iter()
+        .map(|&start| {
+            let base = &frames[0][start..(start + VERTEX_CHUNK).min(vertices)];
+            frames[1..].iter().map(|frame| frame[start..].iter().zip(base).map(|(p, p0)| (p - p0).norm_squared()).sum::<Real>()).sum()
+        })
+        .collect();
+    parts.iter().sum()
+}
+
+/// A (F − 1) × `width` matrix of independent standard normal entries,
+/// row-major, from the fixed seed (Box–Muller).
+fn gaussian(rows: usize, width: usize) -> Vec<Real> {
+    let mut rng = SplitMix64::new(SKETCH_SEED);
+    let mut out = Vec::with_capacity(rows * width + 1);
+    while out.len() < rows * width {
+        let radius = (-2.0 * (1.0 - rng.unit()).ln()).sqrt();
+        let angle = std::f64::consts::TAU * rng.unit();
+        out.extend([radius * angle.cos(), radius * angle.sin()]);
+    }
+    out.truncate(rows * width);
+    out
+}
+
+/// A X, 3V × `width`, for X with one row per frame after the first (both
+/// row-major, A's rows vertex-major: 3v + axis). Parallel over vertex blocks,
+/// each writing its own rows, summed over the frames in order.
+fn apply(frames: &[Vec<Point3>], x: &[Real], width: usize, progress: Progress) -> Result<Vec<Real>> {
+    let vertices = frames[0].len();
+    let mut y = vec![0.0; 3 * vertices * width];
+    y.par_chunks_mut(3 * VERTEX_CHUNK * width).enumerate().try_for_each(|(c, out)| {
+        stop_requested(progress)?;
+        let start = c * VERTEX_CHUNK;
+        let base = &frames[0][start..start + out.len() / (3 * width)];
+        for (frame, xg) in frames[1..].iter().zip(x.chunks_exact(width)) {
+            for ((p, p0), rows) in frame[start..].iter().zip(base).zip(out.chunks_exact_mut(3 * width)) {
+                let d = p - p0;
+                for (a, row) in rows.chunks_exact_mut(width).enumerate() {
+                    axpy(d[a], xg, row);
+                }
+            }
         }
+        Ok(())
+    })?;
+    Ok(y)
+}
+
+/// Aᵀ Q, (F − 1) × `width`, for Q with 3V rows (layouts as in [`apply`]).
+/// Vertex blocks in order, each added to every frame's row in parallel over
+/// the frames: every entry is summed in the same order whatever the threads.
+fn apply_transposed(frames: &[Vec<Point3>], q: &[Real], width: usize, progress: Progress) -> Result<Vec<Real>> {
+    let vertices = frames[0].len();
+    let mut z = vec![0.0; (frames.len() - 1) * width];
+    for start in (0..vertices).step_by(VERTEX_CHUNK) {
+        stop_requested(progress)?;
+        let end = (start + VERTEX_CHUNK).min(vertices);
+        let base = &frames[0][start..end];
+        let block = &q[3 * start * width..3 * end * width];
+        z.par_chunks_mut(width).zip(&frames[1..]).for_each(|(zg, frame)| {
+            for ((p, p0), rows) in frame[start..end].iter().zip(base).zip(block.chunks_exact(3 * width)) {
+                let d = p - p0;
+                for (a, row) in rows.chunks_exact(width).enumerate() {
+                    axpy(d[a], row, zg);
+                }
+            }
+        });
+    }
+    Ok(z)
+}
+
+/// An orthonormal basis of the columns of a row-major `rows` × `width`
+/// matrix (rows ≥ width), row-major: Householder QR, whose Q stays orthonormal
+/// when the columns are dependent.
+fn orthonormal(m: Vec<Real>, rows: usize, width: usize) -> Vec<Real> {
+    let q = DMatrix::from_row_slice(rows, width, &m).qr().q();
+    // Column-major storage of Qᵀ is Q row-major.
+    q.transpose().as_slice().to_vec()
+}
+
+/// y += a x.
+fn axpy(a: Real, x: &[Real], y: &mut [Real]) {
+    for (y, x) in y.iter_mut().zip(x) {
+        *y += a * x;
     }
 }
 
-/// Dot product in a fixed summation order (four interleaved partial sums).
-fn dot(a: &[Real], b: &[Real]) -> Real {
-    let mut s = [0.0; 4];
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: Real = ca.remainder().iter().zip(cb.remainder()).map(|(x, y)| x * y).sum();
-    for (x, y) in ca.zip(cb) {
-        for k in 0..4 {
-            s[k] += x[k] * y[k];
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Rotation3;
+
+    /// A torus turned, bent and crossed by travelling waves and a chirp: a
+    /// spectrum that decays without a sharp cut, like a capture's.
+    fn sequence(frames: usize) -> Vec<Vec<Point3>> {
+        let base = crate::fixtures::torus(Point3::origin(), 1.0, 0.3, 24, 12);
+        let motion = |f: usize, p: &Point3| {
+            let t = f as Real;
+            let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.6 * (0.013 * t).sin());
+            let wave = 0.05 * (3.0 * p.x - 0.11 * t).sin() + 0.03 * (5.0 * p.y + 0.07 * t).cos();
+            let bend = 0.1 * (0.021 * t).sin() * p.x * p.x;
+            let chirp = 0.004 * (p.y * (1.0 + 0.002 * t) * 4.0 + 0.05 * t).sin();
+            turn * p + Vector3::new(chirp, 0.0, wave + bend)
+        };
+        (0..frames).map(|f| base.positions.iter().map(|p| motion(f, p)).collect()).collect()
+    }
+
+    /// The exact decomposition, as the Gram matrix's eigenvectors gave it
+    /// before the sketch: the thin SVD of the whole displacement matrix.
+    fn exact(frames: &[Vec<Point3>]) -> Pca {
+        let moving = frames.len() - 1;
+        let rows = 3 * frames[0].len();
+        let mut a = vec![0.0; moving * rows];
+        gather(frames, 0, frames[0].len(), &mut a);
+        let svd = DMatrix::from_row_slice(moving, rows, &a).svd(true, false);
+        let u = svd.u.unwrap();
+        let mut order: Vec<usize> = (0..svd.singular_values.len()).collect();
+        order.sort_by(|&x, &y| svd.singular_values[y].total_cmp(&svd.singular_values[x]));
+        Pca {
+            components: order.iter().map(|&i| u.column(i).iter().copied().collect()).collect(),
+            squared: order.iter().map(|&i| svd.singular_values[i].powi(2)).collect(),
+            total: a.iter().map(|x| x * x).sum(),
+            complete: true,
+            frames: frames.len(),
         }
     }
-    (s[0] + s[1]) + (s[2] + s[3]) + tail
+
+    /// Displacements from frame 0 of vertices `start..start + n` in frames 1..F,
+    /// frame-major: `out[(g − 1)·3n + 3i + axis]`.
+    fn gather(frames: &[Vec<Point3>], start: usize, n: usize, out: &mut [Real]) {
+        let base = &frames[0][start..start + n];
+        for (row, frame) in out.chunks_exact_mut(3 * n).zip(&frames[1..]) {
+            for ((d, p), p0) in row.chunks_exact_mut(3).zip(&frame[start..start + n]).zip(base) {
+                d.copy_from_slice((p - p0).as_slice());
+            }
+        }
+    }
+
+    fn no_passes() -> Passes<'static> {
+        Passes { progress: Progress::none(), done: 0 }
+    }
+
+    /// Within 1 % of the exact error, or 1e-6 of the bounding-box diagonal
+    /// where the error itself is that small.
+    fn close(sketched: Real, exact: Real, diagonal: Real) -> bool {
+        (sketched - exact).abs() <= (0.01 * exact).max(1e-6 * diagonal)
+    }
+
+    #[test]
+    fn sketched_components_reconstruct_as_well_as_the_exact_decomposition() {
+        for count in [150, 400] {
+            let frames = sequence(count);
+            let diagonal = crate::mesh::Aabb::from_points(frames.iter().flatten()).diagonal();
+            let reference = exact(&frames);
+            let all = reference.errors(&frames, 0..=24, &mut no_passes()).unwrap();
+            for k in [1, 2, 3, 5, 8, 12, 16, 24] {
+                let pca = Pca::new(&frames, k + OVERSAMPLING, &mut no_passes()).unwrap();
+                let got = pca.errors(&frames, k..=k, &mut no_passes()).unwrap()[0];
+                let want = all[k];
+                assert!(close(got.max, want.max, diagonal), "{count} frames, {k} components: max {} vs exact {}", got.max, want.max);
+                assert!(close(got.mean, want.mean, diagonal), "{count} frames, {k} components: mean {} vs exact {}", got.mean, want.mean);
+            }
+            // Auto: the exact rule (fewest components within tolerance) gives
+            // the same count, within tolerance.
+            let tolerance = 1e-3 * diagonal;
+            let (basis, error) = choose(&frames, BasisChoice::Auto, tolerance, Progress::none()).unwrap();
+            if count > AUTO_PER_FRAME_LIMIT {
+                let want = all.iter().position(|e| e.max <= tolerance).expect("within 24 components");
+                assert_eq!(basis.components, Some(want), "{count} frames");
+                assert!(error.max <= tolerance && close(error.max, all[want].max, diagonal), "{error:?} vs {:?}", all[want]);
+            }
+        }
+    }
+
+    #[test]
+    fn the_sketch_finds_the_rank_of_low_rank_motion() {
+        // A translation back and forth (rank 1) plus a turn about z (rank 2
+        // more): three components, the rest noise.
+        let base = crate::fixtures::torus(Point3::origin(), 1.0, 0.3, 24, 12);
+        let frames: Vec<Vec<Point3>> = (0..300)
+            .map(|f| {
+                let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.01 * f as Real);
+                base.positions.iter().map(|p| turn * p + Vector3::new(1.0, 2.0, -0.5) * (0.7 * f as Real).sin()).collect()
+            })
+            .collect();
+        let pca = Pca::new(&frames, 8 + OVERSAMPLING, &mut no_passes()).unwrap();
+        assert_eq!(pca.rank(), Some(3));
+        let error = pca.errors(&frames, 3..=3, &mut no_passes()).unwrap()[0];
+        assert!(error.max < 1e-9, "{error:?}");
+        assert_eq!(pca.sufficient(1e-6), Some(3));
+    }
 }

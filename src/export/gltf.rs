@@ -107,7 +107,7 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
         normals: normals.as_ref().map(|n| n.base.iter().map(to_f32).collect()),
         texture: mesh.base.texture.clone(),
     };
-    let animation = (basis.targets() > 0).then(|| morph_animation(frames, &basis, normals.as_ref(), options.fps));
+    let animation = (basis.targets() > 0).then(|| morph_animation(frames, &basis, normals.as_ref(), options.fps, progress)).transpose()?;
     let bytes = glb_bytes(&base, animation.as_ref())?;
     super::write_atomic(path, |w| std::io::Write::write_all(w, &bytes))?;
     Ok(GltfExportReport {
@@ -123,20 +123,21 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
 /// normal targets from the normals' change since frame 0, weights keyed at
 /// f / fps (STEP for per-frame targets, each frame shown as captured; LINEAR
 /// for a compact basis, whose weights vary smoothly).
-fn morph_animation(frames: &[Vec<Point3>], basis: &MorphBasis, normals: Option<&FrameNormals>, fps: f32) -> MorphAnimation {
+fn morph_animation(frames: &[Vec<Point3>], basis: &MorphBasis, normals: Option<&FrameNormals>, fps: f32, progress: Progress) -> Result<MorphAnimation> {
     let vertices = frames[0].len();
     let position_deltas =
-        basis.combine(frames.len(), vertices, |g| frames[g].iter().zip(&frames[0]).map(|(p, p0)| p - p0).collect());
-    let normal_deltas =
-        normals.map(|n| basis.combine(frames.len(), vertices, |g| n.of(&frames[g]).iter().zip(&n.base).map(|(a, b)| a - b).collect()));
-    MorphAnimation {
+        basis.combine(frames.len(), vertices, |g| frames[g].iter().zip(&frames[0]).map(|(p, p0)| p - p0).collect(), progress)?;
+    let normal_deltas = normals
+        .map(|n| basis.combine(frames.len(), vertices, |g| n.of(&frames[g]).iter().zip(&n.base).map(|(a, b)| a - b).collect(), progress))
+        .transpose()?;
+    Ok(MorphAnimation {
         position_deltas,
         normal_deltas,
         weights: basis.weights.iter().map(|w| w.iter().map(|&x| x as f32).collect()).collect(),
         times: (0..frames.len()).map(|f| (f as f64 / fps as f64) as f32).collect(),
         interpolation: if basis.components.is_some() { Interpolation::Linear } else { Interpolation::Step },
         target_names: basis.names.clone(),
-    }
+    })
 }
 
 /// Area-weighted vertex normals with vertices welded by identical frame-0

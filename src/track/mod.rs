@@ -9,7 +9,7 @@ pub mod checkpoint;
 mod forward;
 pub mod lloyd;
 pub mod rigid;
-mod rng;
+pub(crate) mod rng;
 mod trajectories;
 
 pub use checkpoint::Checkpointing;

@@ -19,7 +19,6 @@ impl SplitMix64 {
         ((self.next_u64() as u128 * n as u128) >> 64) as usize
     }
     /// Uniform in [0, 1), from the top 53 bits.
-    #[cfg(test)]
     pub fn unit(&mut self) -> crate::math::Real {
         (self.next_u64() >> 11) as crate::math::Real / (1u64 << 53) as crate::math::Real
     }
