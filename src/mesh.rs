@@ -133,3 +133,21 @@ impl TriangleMesh {
             .sum()
     }
 }
+
+/// The MIME type of an image glTF can embed (PNG or JPEG), from its first bytes.
+pub fn image_mime(bytes: &[u8]) -> Option<&'static str> {
+    if bytes.starts_with(b"\x89PNG") {
+        Some("image/png")
+    } else if bytes.starts_with(&[0xFF, 0xD8]) {
+        Some("image/jpeg")
+    } else {
+        None
+    }
+}
+
+/// [`image_mime`] of the file at `path` (None when unreadable).
+pub fn embeddable_image(path: &Path) -> Option<&'static str> {
+    let mut head = [0u8; 4];
+    let n = std::io::Read::read(&mut std::fs::File::open(path).ok()?, &mut head).ok()?;
+    image_mime(&head[..n])
+}

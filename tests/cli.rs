@@ -99,7 +99,7 @@ fn convert_with_a_report() {
     assert!(html.starts_with("<!DOCTYPE html>") && html.matches("<svg").count() >= 5, "a report with its plots");
     assert_eq!(dir.files(), ["x.glb", "x.html"]);
     // A report that cannot be written fails before any work.
-    let stderr = fails(&dir, &convert_args("y.glb", &["--report", "no/such/dir/y.html"]), 1);
+    let stderr = fails(&dir, &convert_args("y.glb", &["--report", "no/such/dir/y.html"]), 2);
     assert!(stderr.contains("no/such/dir/y.html"), "{stderr}");
     assert_eq!(dir.files(), ["x.glb", "x.html"]);
 }
@@ -293,13 +293,13 @@ fn unwritable_outputs_fail_and_leave_nothing() {
     // A parent directory that does not exist, a parent that is a file, and an
     // output that is an existing directory.
     for out in ["no/such/dir/x.glb", "plain/x.glb", "taken.glb"] {
-        let stderr = fails(&dir, &convert_args(out, &["--no-refine"]), 1);
+        let stderr = fails(&dir, &convert_args(out, &["--no-refine"]), 2);
         assert!(stderr.contains(out.split('/').next().unwrap()), "{out}: {stderr}");
     }
     let input = fixture().to_string_lossy().into_owned();
-    let stderr = fails(&dir, &["track", &input, "-r", "32", "-n", "20", "-o", "missing/c.exr"], 1);
+    let stderr = fails(&dir, &["track", &input, "-r", "32", "-n", "20", "-o", "missing/c.exr"], 2);
     assert!(stderr.contains("missing"), "{stderr}");
-    let stderr = fails(&dir, &convert_args("no/such/v.exr", &["--vat", "--no-refine"]), 1);
+    let stderr = fails(&dir, &convert_args("no/such/v.exr", &["--vat", "--no-refine"]), 2);
     assert!(stderr.contains("v.exr") || stderr.contains("no/such"), "{stderr}");
     assert_eq!(dir.files(), ["plain"], "something was left behind");
     assert!(dir.join("taken.glb").is_dir());
@@ -317,7 +317,7 @@ fn invalid_parameters_exit_with_2() {
         (vec!["convert", &input, "-r", "32", "-n", "20", "--no-refine", "--basis", "0", "-o", "x.glb"], "component"),
         (vec!["convert", &input, "-r", "32", "-n", "20", "--no-refine", "--fps", "0", "-o", "x.pc2"], "frame rate"),
         (vec!["convert", &input, "-r", "32", "-n", "20", "--conform-stiffness", "0", "-o", "x.glb"], "stiffness"),
-        (vec!["track", &input, "-r", "32", "-n", "10", "--damped-guess", "1", "-o", "c.exr"], "damped-guess"),
+        (vec!["track", &input, "-r", "32", "-n", "10", "--damped-guess", "1", "-o", "c.exr"], "damped guess"),
     ];
     for (args, what) in cases {
         let stderr = fails(&dir, &args, 2);

@@ -202,10 +202,19 @@ fn args<'a>(command: &'a str, input: &'a str, out: &'a str, extra: &[&'a str]) -
 /// naming every one of `needles`, and leave the directory as it found it (no
 /// output, no temporary file).
 fn must_fail(dir: &Scratch, args: &[&str], needles: &[&str]) -> String {
+    must_exit(dir, args, needles, 1)
+}
+
+/// [`must_fail`] for what is refused before any work, as a bad parameter is (exit 2).
+fn must_refuse(dir: &Scratch, args: &[&str], needles: &[&str]) -> String {
+    must_exit(dir, args, needles, 2)
+}
+
+fn must_exit(dir: &Scratch, args: &[&str], needles: &[&str], code: i32) -> String {
     let before = dir.files();
     let o = run(dir, args);
     let stderr = text(&o.stderr);
-    assert_eq!(o.status.code(), Some(1), "voltrack {args:?}: stdout\n{}\nstderr\n{stderr}", text(&o.stdout));
+    assert_eq!(o.status.code(), Some(code), "voltrack {args:?}: stdout\n{}\nstderr\n{stderr}", text(&o.stdout));
     assert!(!stderr.contains("panicked"), "voltrack {args:?} panicked:\n{stderr}");
     assert!(stderr.contains("voltrack: error: "), "{stderr}");
     for n in needles {
@@ -797,7 +806,7 @@ fn too_few_voxels_for_the_centers() {
     let before = dir.files();
     let o = run(&dir, &["convert", "seq", "-r", "8", "-n", "2000", "-o", "out.glb"]);
     let stderr = text(&o.stderr);
-    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("seq/frame_0.obj") && stderr.contains("2000 centers") && stderr.contains("occupied voxels"), "{stderr}");
     assert_eq!(dir.files(), before);
 }
@@ -839,21 +848,21 @@ fn unwritable_outputs_leave_nothing_behind() {
     std::fs::write(dir.join("somefile.txt"), b"a regular file").unwrap();
     std::fs::create_dir(dir.join("taken.glb")).unwrap();
     for out in ["somefile.txt/out.glb", "no_such_dir/out.glb", "no/such/dir/out.glb", "taken.glb"] {
-        must_fail(&dir, &args("convert", "seq", out, &["--no-refine"]), &[out]);
+        must_refuse(&dir, &args("convert", "seq", out, &["--no-refine"]), &[out]);
     }
-    must_fail(&dir, &args("convert", "seq", "somefile.txt/out.glb", &["--no-refine"]), &["somefile.txt", "not a directory"]);
+    must_refuse(&dir, &args("convert", "seq", "somefile.txt/out.glb", &["--no-refine"]), &["somefile.txt", "not a directory"]);
     for out in ["somefile.txt/c.exr", "no_such_dir/c.exr"] {
-        must_fail(&dir, &args("track", "seq", out, &[]), &[out]);
+        must_refuse(&dir, &args("track", "seq", out, &[]), &[out]);
     }
     // The voxel frames of `voxelize` go into a directory it creates: not under a file.
-    must_fail(&dir, &["voxelize", "seq", "-r", "16", "-o", "somefile.txt/voxels"], &["somefile.txt"]);
+    must_refuse(&dir, &["voxelize", "seq", "-r", "16", "-o", "somefile.txt/voxels"], &["somefile.txt"]);
     // Files written together: a companion's name taken fails the whole
     // output, and leaves neither file.
     std::fs::create_dir(dir.join("anim.json")).unwrap();
-    must_fail(&dir, &args("convert", "seq", "anim.exr", &["--no-refine", "--vat"]), &["anim.json"]);
+    must_refuse(&dir, &args("convert", "seq", "anim.exr", &["--no-refine", "--vat"]), &["anim.json"]);
     std::fs::create_dir(dir.join("cache.obj")).unwrap();
-    must_fail(&dir, &args("convert", "seq", "cache.pc2", &["--no-refine"]), &["cache.obj"]);
-    must_fail(&dir, &args("convert", "seq", "somefile.txt/frames", &["--no-refine"]), &["somefile.txt", "not a directory"]);
+    must_refuse(&dir, &args("convert", "seq", "cache.pc2", &["--no-refine"]), &["cache.obj"]);
+    must_refuse(&dir, &args("convert", "seq", "somefile.txt/frames", &["--no-refine"]), &["somefile.txt", "not a directory"]);
     assert!(dir.join("taken.glb").is_dir());
     assert_eq!(std::fs::read(dir.join("somefile.txt")).unwrap(), b"a regular file");
 
@@ -862,7 +871,7 @@ fn unwritable_outputs_leave_nothing_behind() {
     std::fs::write(dir.join("seq/frame_1.obj"), b"v 0 0 0\nf 1 2 3\n").unwrap();
     let voxelize = vec!["voxelize", "seq", "-r", "16", "-o", "somefile.txt/voxels"];
     for run in [args("convert", "seq", "no_such_dir/out.glb", &[]), args("track", "seq", "no_such_dir/c.exr", &[]), voxelize] {
-        let e = must_fail(&dir, &run, &[run.last().unwrap()]);
+        let e = must_refuse(&dir, &run, &[run.last().unwrap()]);
         assert!(!e.contains("frame_1.obj"), "{e}");
     }
     std::fs::write(dir.join("seq/frame_1.obj"), obj(&bar(1))).unwrap();
@@ -874,7 +883,7 @@ fn unwritable_outputs_leave_nothing_behind() {
     std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o555)).unwrap();
     let binding = std::fs::write(ro.join("probe"), b"").is_err();
     if binding {
-        must_fail(&dir, &args("convert", "seq", "readonly/out.glb", &["--no-refine"]), &["readonly/out.glb"]);
+        must_refuse(&dir, &args("convert", "seq", "readonly/out.glb", &["--no-refine"]), &["readonly/out.glb"]);
         assert_eq!(std::fs::read_dir(&ro).unwrap().count(), 0);
     } else {
         std::fs::remove_file(ro.join("probe")).unwrap();

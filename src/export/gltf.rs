@@ -467,11 +467,7 @@ fn add_weight_animation(b: &mut Builder, anim: &MorphAnimation, node: json::Inde
 /// Embeds the first frame's texture image as-is (PNG or JPEG) in the GLB.
 fn texture_material(b: &mut Builder, path: &std::path::Path) -> Result<json::Index<json::Material>> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let mime = if bytes.starts_with(b"\x89PNG") {
-        "image/png"
-    } else if bytes.starts_with(&[0xFF, 0xD8]) {
-        "image/jpeg"
-    } else {
+    let Some(mime) = crate::mesh::image_mime(&bytes) else {
         return Err(Error::parse(path, None, "texture is neither PNG nor JPEG"));
     };
     let view = b.view(&bytes, None);

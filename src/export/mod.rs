@@ -49,6 +49,7 @@ impl Target {
         let target = if is_link { std::fs::canonicalize(path).map_err(|e| Error::write(path, format!("a symbolic link to nothing ({e})")))? } else { path.to_path_buf() };
         match std::fs::metadata(&target) {
             Ok(meta) if writes_through(&meta) => Ok(Target::Through(target)),
+            Ok(meta) if meta.is_dir() => Err(Error::write(path, "a directory of this name exists")),
             Ok(meta) if !meta.is_file() => Err(Error::write(path, "not a regular file; voltrack will not replace it")),
             _ => Ok(Target::Replace(target)),
         }

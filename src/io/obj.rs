@@ -62,10 +62,14 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         let first_used = models.iter().find_map(|m| m.mesh.material_id).unwrap_or(0);
         if let Some(tex) = materials.get(first_used).and_then(|m| m.diffuse_texture.as_ref()) {
             let tex = path.parent().unwrap_or(Path::new("")).join(tex.trim());
-            if tex.is_file() {
-                mesh.texture = Some(tex);
-            } else {
+            if !tex.is_file() {
                 log::warn!("{}: texture {} not found; exporting without it", path.display(), tex.display());
+            } else if crate::mesh::embeddable_image(&tex).is_none() {
+                // glTF carries PNG and JPEG; finding out at export would come
+                // after the whole conversion.
+                log::warn!("{}: texture {} is neither PNG nor JPEG, which glTF carries; exporting without it", path.display(), tex.display());
+            } else {
+                mesh.texture = Some(tex);
             }
         }
     }
