@@ -19,7 +19,8 @@ pub enum AffinityKind {
 /// Forward tracking (method.md §2-§5).
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct TrackParams {
-    /// Number of centers N. Default 1000; 1 ..= occupied voxels of frame 0.
+    /// Number of centers N. Default 1000; 1 ..= [`MAX_CENTERS`] and at most
+    /// the occupied voxels of frame 0.
     pub centers: usize,
     /// Seed of the initial center placement. Default 0.
     pub seed: u64,
@@ -41,27 +42,28 @@ pub struct TrackParams {
     /// (or absolute, see `absolute_units`), e.g. 0.07 for the paper's value.
     pub rho_p: Option<Real>,
     /// ρ_m: motion dissimilarity at which the motion affinity is 0.5.
-    /// Default 0.07 (relative; the paper's 0.125 m); > 0.
+    /// Default 0.07 (relative; the paper's 0.125 m); in [`LENGTH`].
     pub rho_m: Real,
     /// α: IIR filter weight of the newest motion affinity (`iir` only).
     /// Default 0.05; in (0, 1].
     pub alpha: Real,
     /// β: weight of the centroid (data) term against the rigid prediction.
-    /// Default 1; > 0.
+    /// Default 1; in [`WEIGHT`].
     pub beta: Real,
     /// μ: affinities below this are dropped from the neighbour lists.
     /// Default 0.001; in (0, 1).
     pub mu: Real,
-    /// Steps of pure rigid prediction before the data term enters. Default 10.
+    /// Steps of pure rigid prediction before the data term enters. Default 10;
+    /// 0 ..= [`MAX_ROUNDS`].
     pub presmooth_steps: usize,
     /// Convergence: stop when no center moves farther than this in one
-    /// iteration. Default 5.6e-5 (relative; the reference's 1e-4 m); > 0.
+    /// iteration. Default 5.6e-5 (relative; the reference's 1e-4 m); in [`LENGTH`].
     /// The iterations stop short of where they lead, on the side of the
     /// guess: on pent_tvm (a prism spinning 7.35° a frame) the centers lag
     /// the spin by 0.3–1.3° at the default and by at most 0.55° at 1e-5,
     /// which takes 1.5–1.7 times the tracking time.
     pub threshold: Real,
-    /// Iteration limit per frame. Default 1000; >= 1.
+    /// Iteration limit per frame. Default 1000; 1 ..= [`MAX_ITERATIONS`].
     pub max_iterations: usize,
     /// k of a second start for every frame after the first: besides the
     /// paper's constant-velocity guess c^{f-1} + (c^{f-1} − c^{f-2}), the
@@ -82,7 +84,7 @@ pub struct TrackParams {
     /// Most Lloyd iterations placing the centers in frame 0; they stop earlier
     /// once no center moves farther than `threshold`. Default 1000 (the
     /// reference runs 100, which leaves frame 0 unconverged: see
-    /// [`crate::track::lloyd::seed_centers`]); >= 1.
+    /// [`crate::track::lloyd::seed_centers`]); 1 ..= [`MAX_ITERATIONS`].
     pub lloyd_iterations: usize,
     /// Over-relaxation of those Lloyd iterations (c += ω (x̄ - c)).
     /// Default 1.8; in (0, 2).
@@ -179,22 +181,22 @@ pub struct RefineParams {
     /// 0 ..= N - 2.
     pub remove: Option<usize>,
     /// n_go: batches the removal is split into, each followed by one global
-    /// optimisation. Default 5; >= 1 (n_rem = remove / batches).
+    /// optimisation. Default 5; 1 ..= [`MAX_BATCHES`] (n_rem = remove / batches).
     pub batches: usize,
     /// Run the global optimisation after each batch; false = removal only.
     /// Default true.
     pub optimise: bool,
-    /// β̂: weight of the centroid term in the global energy. Default 0.5; > 0.
+    /// β̂: weight of the centroid term in the global energy. Default 0.5; in [`WEIGHT`].
     pub beta_hat: Real,
     /// ρ_gp: distance (maximum over frames) at which ω_max is 0.5. Default
     /// 0.07 (relative; the paper's 0.125 m); > 0.
     pub rho_gp: Real,
     /// ρ_gm: motion dissimilarity (maximum over frames) at which ω is 0.5.
-    /// Default 0.0167 (relative; the paper's 0.03 m); > 0.
+    /// Default 0.0167 (relative; the paper's 0.03 m); in [`LENGTH`].
     pub rho_gm: Real,
-    /// Global iterations per batch. Default 20 (the reference: 30); >= 0.
+    /// Global iterations per batch. Default 20 (the reference: 30); 0 ..= [`MAX_ITERATIONS`].
     pub max_iterations: usize,
-    /// Initial step λ of each iteration. Default 0.1; > 0.
+    /// Initial step λ of each iteration. Default 0.1; in [`WEIGHT`].
     pub lambda: Real,
     /// Halvings of λ tried before an iteration gives up. Default 20.
     pub max_halvings: usize,
@@ -270,7 +272,7 @@ pub enum Blending {
 /// Deforming the first-frame mesh by the trajectories (method.md §10).
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct DeformParams {
-    /// Centers each vertex is bound to. Default 4; >= 1.
+    /// Centers each vertex is bound to. Default 4; 1 ..= [`MAX_NEIGHBORS`].
     pub neighbors: usize,
     /// Least ω between a vertex's nearest center and another center for the
     /// vertex to bind to it too. Default 0.5; in (0, 1].
@@ -280,7 +282,7 @@ pub struct DeformParams {
     /// `2 × neighbors` largest. Without it the center set switches between
     /// adjacent vertices where the ω filter cuts, and triangles across the
     /// cut fold: on crane_tvm 10 rounds take the worst frame's inverted
-    /// area from 3.95 to 3.13 %. Default 10; 0 = off.
+    /// area from 3.95 to 3.13 %. Default 10; 0 = off; at most [`MAX_ROUNDS`].
     pub smoothing: usize,
     /// Blending. Default dual quaternions.
     pub blending: Blending,
@@ -332,11 +334,12 @@ fn length_scale(absolute_units: bool, bounds: &crate::mesh::Aabb) -> Real {
 pub struct ConformParams {
     /// Rounds of (rotations, matching the input's vertices, solve) per
     /// frame: the mesh slides along the surface slowly, so more rounds keep
-    /// helping a little. Default 60; 0 = off (the mesh stays as blended).
+    /// helping a little. Default 60; 0 = off (the mesh stays as blended); at
+    /// most [`MAX_ROUNDS`].
     pub iterations: usize,
     /// Weight of keeping every edge as in frame 0 (up to a rotation per
     /// vertex) against passing through the input's vertices. Larger:
-    /// stiffer, fits the surface less closely. Default 1; > 0.
+    /// stiffer, fits the surface less closely. Default 1; in [`WEIGHT`].
     pub stiffness: Real,
     /// Share of the full distance to an input vertex next to the distance
     /// along the mesh's normal: small lets the mesh slide along the
