@@ -32,6 +32,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
+mod common;
+
 const BIN: &str = env!("CARGO_BIN_EXE_voltrack");
 const SMALL: [&str; 4] = ["-r", "32", "-n", "20"];
 const FRAMES: usize = 8;
@@ -288,23 +290,7 @@ fn run(dir: &Path, argv: &[String]) -> (Result<i32, String>, String, String) {
         .stderr(std::fs::File::create(&err_path).unwrap())
         .spawn()
         .unwrap();
-    let clock = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            use std::os::unix::process::ExitStatusExt;
-            break match (s.code(), s.signal()) {
-                (Some(c), _) => Ok(c),
-                (None, Some(sig)) => Err(format!("signal {sig}")),
-                _ => Err(format!("{s}")),
-            };
-        }
-        if clock.elapsed() > KILL_AFTER {
-            let _ = child.kill();
-            let _ = child.wait();
-            break Err(format!("killed after {} s", KILL_AFTER.as_secs()));
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    };
+    let status = common::wait_or_kill(&mut child, Instant::now(), KILL_AFTER);
     let read = |p: &Path| std::fs::read_to_string(p).unwrap_or_default();
     (status, read(&out_path), read(&err_path))
 }

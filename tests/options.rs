@@ -26,6 +26,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
+mod common;
+
 const BIN: &str = env!("CARGO_BIN_EXE_voltrack");
 /// The promise: every run ends within this.
 const TIME_LIMIT: f64 = 1.0;
@@ -366,22 +368,7 @@ fn run(root: &Path, fixture: &Path, k: usize, argv: &[String]) -> Outcome {
         .stderr(stderr)
         .spawn()
         .unwrap();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            use std::os::unix::process::ExitStatusExt;
-            break match (s.code(), s.signal()) {
-                (Some(c), _) => Ok(c),
-                (None, Some(sig)) => Err(format!("signal {sig}")),
-                _ => Err(format!("{s}")),
-            };
-        }
-        if clock.elapsed() > KILL_AFTER {
-            let _ = child.kill();
-            let _ = child.wait();
-            break Err(format!("killed after {} s", KILL_AFTER.as_secs()));
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    };
+    let status = common::wait_or_kill(&mut child, clock, KILL_AFTER);
     let seconds = clock.elapsed().as_secs_f64();
     let stderr = std::fs::read_to_string(&stderr_path).unwrap_or_default();
     let _ = std::fs::remove_dir_all(&dir);

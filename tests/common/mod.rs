@@ -94,3 +94,24 @@ pub fn assert_well_formed(html: &str) -> usize {
     assert!(stack.is_empty(), "unclosed elements: {stack:?}");
     elements
 }
+
+/// Waits for `child` until `limit` after `started`, then kills it: its exit
+/// code, or what ended it otherwise (a signal, the limit).
+pub fn wait_or_kill(child: &mut std::process::Child, started: std::time::Instant, limit: std::time::Duration) -> Result<i32, String> {
+    loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            use std::os::unix::process::ExitStatusExt;
+            return match (s.code(), s.signal()) {
+                (Some(c), _) => Ok(c),
+                (None, Some(sig)) => Err(format!("signal {sig}")),
+                _ => Err(format!("{s}")),
+            };
+        }
+        if started.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            return Err(format!("killed after {} s", limit.as_secs()));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+}
