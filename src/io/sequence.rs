@@ -13,19 +13,21 @@ pub fn is_supported(path: &Path) -> bool {
 }
 
 /// Expands the command line's inputs into the ordered frame files: a directory
-/// gives every supported file in it, a pattern with `*` or `?` in its file name
-/// gives the matching files, any other path is taken as one frame. Directories
-/// and patterns are sorted naturally (`mesh_2` before `mesh_10`); explicit
-/// files keep the order given.
+/// gives every supported file in it, a pattern with `*` or `?` in any of its
+/// components gives the matching files (wildcards in directory components
+/// match directories), any other path is taken as one frame. Hidden files and
+/// directories (names starting with '.') are skipped unless the pattern's
+/// component itself starts with '.', as in a shell. Directories and patterns
+/// are sorted naturally (`mesh_2` before `mesh_10`), component by component;
+/// explicit files keep the order given.
 pub fn discover_frames(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     if inputs.is_empty() {
         return Err(Error::InvalidInput("no input given".into()));
     }
     let mut frames = Vec::new();
     for input in inputs {
-        let name = input.file_name().and_then(|n| n.to_str()).unwrap_or("");
         if input.is_dir() {
-            let mut found = list_dir(input, |p| is_supported(p))?;
+            let mut found = list_dir(input, true, |name| !is_hidden(name) && is_supported(Path::new(name)))?;
             if found.is_empty() {
                 return Err(Error::InvalidInput(format!(
                     "{}: no mesh or voxel files (.obj, .ply, .gltf, .glb, .binvox) in this directory",
@@ -34,14 +36,8 @@ pub fn discover_frames(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
             }
             sort_natural(&mut found);
             frames.extend(found);
-        } else if name.contains('*') || name.contains('?') {
-            let dir = match input.parent() {
-                Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-                _ => PathBuf::from("."),
-            };
-            let mut found = list_dir(&dir, |p| {
-                p.file_name().and_then(|n| n.to_str()).is_some_and(|n| glob_match(name, n))
-            })?;
+        } else if is_pattern(input) {
+            let mut found = expand_pattern(input)?;
             if found.is_empty() {
                 return Err(Error::InvalidInput(format!("{}: no file matches this pattern", input.display())));
             }
@@ -56,12 +52,64 @@ pub fn discover_frames(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     Ok(frames)
 }
 
-fn list_dir(dir: &Path, keep: impl Fn(&Path) -> bool) -> Result<Vec<PathBuf>> {
+fn has_wildcard(s: &str) -> bool {
+    s.contains('*') || s.contains('?')
+}
+
+fn is_pattern(input: &Path) -> bool {
+    input.components().any(|c| has_wildcard(&c.as_os_str().to_string_lossy()))
+}
+
+/// voltrack's own temporary files (`.<name>.<pid>.partial`) are hidden too.
+fn is_hidden(name: &str) -> bool {
+    name.starts_with('.')
+}
+
+/// Every file matching `pattern`: the components before the first wildcard
+/// are taken as they are, then each component is matched against the
+/// entries of the directories matched so far (directories for all but the
+/// last component, files for the last).
+fn expand_pattern(pattern: &Path) -> Result<Vec<PathBuf>> {
+    let components: Vec<std::path::Component> = pattern.components().collect();
+    let first_wild = components
+        .iter()
+        .position(|c| has_wildcard(&c.as_os_str().to_string_lossy()))
+        .expect("a pattern has a wildcard");
+    let base: PathBuf = components[..first_wild].iter().collect();
+    // A relative pattern starts in the current directory.
+    let mut candidates = vec![if base.as_os_str().is_empty() { PathBuf::from(".") } else { base }];
+    let last = components.len() - 1;
+    for (k, component) in components.iter().enumerate().skip(first_wild) {
+        let part = component.as_os_str().to_string_lossy();
+        let want_file = k == last;
+        let mut next = Vec::new();
+        for dir in &candidates {
+            if has_wildcard(&part) {
+                // Every candidate but the literal base is a directory found
+                // here; a base that is missing fails naming it.
+                next.extend(list_dir(dir, want_file, |name| (!is_hidden(name) || part.starts_with('.')) && glob_match(&part, name))?);
+            } else {
+                // `take_*/mesh.obj` skips a take without the file.
+                let p = dir.join(component);
+                if if want_file { p.is_file() } else { p.is_dir() } {
+                    next.push(p);
+                }
+            }
+        }
+        candidates = next;
+    }
+    Ok(candidates)
+}
+
+/// The entries of `dir` whose name passes `keep`: regular files if `files`,
+/// else directories.
+fn list_dir(dir: &Path, files: bool, keep: impl Fn(&str) -> bool) -> Result<Vec<PathBuf>> {
     let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
     let mut out = Vec::new();
     for entry in entries {
         let p = entry.map_err(|e| Error::io(dir, e))?.path();
-        if p.is_file() && keep(&p) {
+        let kind_ok = if files { p.is_file() } else { p.is_dir() };
+        if kind_ok && p.file_name().and_then(|n| n.to_str()).is_some_and(&keep) {
             out.push(p);
         }
     }
@@ -91,14 +139,25 @@ pub fn glob_match(pattern: &str, name: &str) -> bool {
     p[pi..].iter().all(|&c| c == '*')
 }
 
-/// Sorts by file name with digit runs compared as numbers.
+/// Sorts by path, component by component, with digit runs compared as
+/// numbers (of any length).
 pub fn sort_natural(paths: &mut [PathBuf]) {
-    paths.sort_by_cached_key(|p| natural_key(&p.file_name().unwrap_or_default().to_string_lossy()));
+    paths.sort_by_cached_key(|p| p.components().map(|c| natural_key(&c.as_os_str().to_string_lossy())).collect::<Vec<_>>());
+}
+
+/// A run of digits, ordered by value without parsing it (so any length
+/// works): fewer significant digits first, then digit by digit, then fewer
+/// leading zeros ("1" before "01", so the two stay distinct).
+#[derive(PartialEq, Eq, PartialOrd, Ord)]
+struct Digits {
+    significant: usize,
+    value: String,
+    leading_zeros: usize,
 }
 
 #[derive(PartialEq, Eq, PartialOrd, Ord)]
 enum Chunk {
-    Number(u128, usize),
+    Number(Digits),
     Text(String),
 }
 
@@ -116,11 +175,50 @@ fn natural_key(s: &str) -> Vec<Chunk> {
             chars.next();
         }
         out.push(if digit {
-            // Leading zeros break ties so "01" and "1" stay distinct.
-            Chunk::Number(run.parse().unwrap_or(u128::MAX), run.len())
+            let value = run.trim_start_matches('0');
+            Chunk::Number(Digits { significant: value.len(), value: value.to_string(), leading_zeros: run.len() - value.len() })
         } else {
             Chunk::Text(run)
         });
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sorted(names: &[&str]) -> Vec<String> {
+        let mut paths: Vec<PathBuf> = names.iter().map(PathBuf::from).collect();
+        sort_natural(&mut paths);
+        paths.iter().map(|p| p.to_string_lossy().into_owned()).collect()
+    }
+
+    #[test]
+    fn digit_runs_of_any_length_keep_their_order() {
+        let big = "1".repeat(40);
+        let bigger = format!("{}2", "1".repeat(39));
+        let longer = format!("2{}", "0".repeat(40));
+        let names = [format!("f_{longer}.obj"), format!("f_{bigger}.obj"), format!("f_{big}.obj"), "f_9.obj".into()];
+        let names: Vec<&str> = names.iter().map(String::as_str).collect();
+        assert_eq!(sorted(&names), [format!("f_9.obj"), format!("f_{big}.obj"), format!("f_{bigger}.obj"), format!("f_{longer}.obj")]);
+        // Leading zeros: by value first, then fewer zeros first.
+        assert_eq!(sorted(&["f_010.obj", "f_2.obj", "f_01.obj", "f_1.obj", "f_0010.obj"]), ["f_1.obj", "f_01.obj", "f_2.obj", "f_010.obj", "f_0010.obj"]);
+    }
+
+    #[test]
+    fn paths_sort_component_by_component() {
+        assert_eq!(
+            sorted(&["take_10/frame_1.obj", "take_2/frame_10.obj", "take_2/frame_9.obj", "take_1/frame_3.obj"]),
+            ["take_1/frame_3.obj", "take_2/frame_9.obj", "take_2/frame_10.obj", "take_10/frame_1.obj"]
+        );
+    }
+
+    #[test]
+    fn glob() {
+        assert!(glob_match("frame_*.obj", "frame_12.obj"));
+        assert!(glob_match("take_?", "take_3"));
+        assert!(!glob_match("take_?", "take_10"));
+        assert!(glob_match("*", ".hidden"));
+    }
 }
