@@ -6,7 +6,10 @@
 //! only that it does not fail.
 
 use std::process::{Command, Output};
-use voltrack::io::discover_frames;
+use std::path::Path;
+use voltrack::export::ply::{write_ply, PlyEncoding};
+use voltrack::io::{discover_frames, read_gltf, read_obj, read_ply};
+use voltrack::math::Point3;
 use voltrack::{fixtures, TriangleMesh};
 
 mod common;
@@ -21,6 +24,104 @@ fn obj(m: &TriangleMesh) -> Vec<u8> {
     voltrack::export::obj::write_obj(&mut out, m, &m.positions).unwrap();
     out
 }
+
+fn ply(m: &TriangleMesh, encoding: PlyEncoding) -> Vec<u8> {
+    let mut out = Vec::new();
+    write_ply(&mut out, m, encoding).unwrap();
+    out
+}
+
+/// The reader for `name`'s extension, called directly.
+fn read(name: &str, bytes: &[u8]) -> Result<TriangleMesh, String> {
+    let path = Path::new(name);
+    let r = match path.extension().and_then(|e| e.to_str()) {
+        Some("obj") => read_obj(path, bytes),
+        Some("ply") => read_ply(path, bytes),
+        Some("glb") | Some("gltf") => read_gltf(path, bytes),
+        _ => panic!("no reader for {name}"),
+    };
+    r.map_err(|e| e.to_string())
+}
+
+fn read_ok(name: &str, bytes: &[u8]) -> TriangleMesh {
+    read(name, bytes).unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
+/// Reads `bytes` as `name`, expecting an error that contains every one of
+/// `needles` (give the file name and line as "name:line").
+fn read_err(name: &str, bytes: &[u8], needles: &[&str]) -> String {
+    let e = match read(name, bytes) {
+        Ok(_) => panic!("{name}: expected an error, the reader accepted it"),
+        Err(e) => e,
+    };
+    for n in needles {
+        assert!(e.contains(n), "{name}: the error lacks '{n}': {e}");
+    }
+    e
+}
+
+/// Same vertices (in order) and same triangles over them.
+fn assert_same_mesh(name: &str, got: &TriangleMesh, want: &TriangleMesh) {
+    assert_eq!(got.positions, want.positions, "{name}: positions differ");
+    assert_eq!(got.triangles, want.triangles, "{name}: triangles differ");
+}
+
+/// Every LF of `bytes` replaced by `with`.
+fn line_ends(bytes: &[u8], with: &[u8]) -> Vec<u8> {
+    bytes.iter().flat_map(|&b| if b == b'\n' { with.to_vec() } else { vec![b] }).collect()
+}
+
+fn base64(bytes: &[u8]) -> String {
+    const ABC: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for chunk in bytes.chunks(3) {
+        let b = [chunk[0], *chunk.get(1).unwrap_or(&0), *chunk.get(2).unwrap_or(&0)];
+        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
+        for k in 0..4 {
+            out.push(if k <= chunk.len() { ABC[(n >> (18 - 6 * k)) as usize & 63] as char } else { '=' });
+        }
+    }
+    out
+}
+
+/// A .gltf with one node whose mesh has one primitive per `(mode, indices)`,
+/// all over `positions`, with the buffer embedded as a data URI.
+fn gltf_doc(positions: &[Point3], primitives: &[(u32, &[u32])]) -> String {
+    let mut buffer: Vec<u8> = positions.iter().flat_map(|p| [p.x, p.y, p.z].map(|c| c as f32)).flat_map(f32::to_le_bytes).collect();
+    let (lo, hi) = (0..3).fold(([f32::MAX; 3], [f32::MIN; 3]), |(mut lo, mut hi), k| {
+        for p in positions {
+            lo[k] = lo[k].min(p[k] as f32);
+            hi[k] = hi[k].max(p[k] as f32);
+        }
+        (lo, hi)
+    });
+    let mut views = vec![format!(r#"{{"buffer":0,"byteLength":{}}}"#, buffer.len())];
+    let mut accessors = vec![format!(
+        r#"{{"bufferView":0,"componentType":5126,"type":"VEC3","count":{},"min":{lo:?},"max":{hi:?}}}"#,
+        positions.len()
+    )];
+    let mut prims = Vec::new();
+    for (mode, indices) in primitives {
+        let offset = buffer.len();
+        buffer.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+        views.push(format!(r#"{{"buffer":0,"byteOffset":{offset},"byteLength":{}}}"#, 4 * indices.len()));
+        accessors.push(format!(r#"{{"bufferView":{},"componentType":5125,"type":"SCALAR","count":{}}}"#, views.len() - 1, indices.len()));
+        prims.push(format!(r#"{{"attributes":{{"POSITION":0}},"indices":{},"mode":{mode}}}"#, accessors.len() - 1));
+    }
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+        "meshes":[{{"primitives":[{}]}}],
+        "buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{}"}}],
+        "bufferViews":[{}],"accessors":[{}]}}"#,
+        prims.join(","),
+        buffer.len(),
+        base64(&buffer),
+        views.join(","),
+        accessors.join(",")
+    )
+}
+
+const BOM: &[u8] = b"\xef\xbb\xbf";
 
 fn text(bytes: &[u8]) -> String {
     String::from_utf8_lossy(bytes).into_owned()
@@ -131,4 +232,53 @@ fn wildcards_in_directories() {
     let o = run(&dir, &args);
     assert!(o.status.success(), "{}", text(&o.stderr));
     assert!(dir.join("c.exr").is_file());
+}
+
+// ---------------------------------------------------------------------------
+// Text encodings: byte-order marks and line ends
+
+#[test]
+fn a_byte_order_mark_is_skipped() {
+    let m = fixtures::bending_bar(2);
+    let (o, a) = (obj(&m), ply(&m, PlyEncoding::Ascii));
+    let want_obj = read_ok("plain.obj", &o);
+    // The mark glued to the first `v` made tobj skip that vertex, shifting every face.
+    assert!(text(&o).starts_with("# "), "the OBJ writer's comment line moved");
+    let first_v = text(&o).find("\nv ").unwrap() + 1;
+    let bom_at_v = [BOM, &o[first_v..]].concat();
+    let without_comment = read_ok("no_comment.obj", &o[first_v..]);
+    assert_same_mesh("bom_v.obj", &read_ok("bom_v.obj", &bom_at_v), &without_comment);
+    assert_same_mesh("bom.obj", &read_ok("bom.obj", &[BOM, &o].concat()), &want_obj);
+    // An unused last vertex: the shift went unnoticed, every face one vertex off.
+    let tetra = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv 5 5 5\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    let shifted = read_ok("bom_tetra.obj", &[BOM, tetra].concat());
+    assert_same_mesh("bom_tetra.obj", &shifted, &read_ok("tetra.obj", tetra));
+    assert!((shifted.signed_volume() - 1.0 / 6.0).abs() < 1e-12);
+    assert_same_mesh("bom.ply", &read_ok("bom.ply", &[BOM, &a].concat()), &read_ok("plain.ply", &a));
+    // A .gltf's JSON.
+    let cube = fixtures::cube(Point3::origin(), 1.0);
+    let indices: Vec<u32> = cube.triangles.iter().flatten().copied().collect();
+    let gltf = gltf_doc(&cube.positions, &[(4, &indices)]);
+    assert_same_mesh("bom.gltf", &read_ok("bom.gltf", &[BOM, gltf.as_bytes()].concat()), &read_ok("plain.gltf", gltf.as_bytes()));
+    // Errors still count lines from the first.
+    let bad = [BOM, b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n"].concat();
+    read_err("bom_bad.obj", &bad, &["bom_bad.obj:4"]);
+}
+
+#[test]
+fn classic_mac_line_ends_read_like_unix_ones() {
+    let m = fixtures::bending_bar(3);
+    let o = obj(&m);
+    let want = read_ok("lf.obj", &o);
+    assert_same_mesh("cr.obj", &read_ok("cr.obj", &line_ends(&o, b"\r")), &want);
+    assert_same_mesh("crlf.obj", &read_ok("crlf.obj", &line_ends(&o, b"\r\n")), &want);
+    let a = ply(&m, PlyEncoding::Ascii);
+    let want = read_ok("lf.ply", &a);
+    assert_same_mesh("cr.ply", &read_ok("cr.ply", &line_ends(&a, b"\r")), &want);
+    assert_same_mesh("crlf.ply", &read_ok("crlf.ply", &line_ends(&a, b"\r\n")), &want);
+    // Line numbers in errors count CR-ended lines.
+    read_err("cr_bad.obj", b"v 0 0 0\rv 1 0 0\rv 0 1 0\rf 1 2 7\r", &["cr_bad.obj:4"]);
+    let header_lines = text(&a).lines().position(|l| l == "end_header").unwrap() + 1;
+    let bad_vertex = text(&a).replacen("\nend_header\n", "\nend_header\n0 nan 0\n", 1).replacen(&format!("element vertex {}", m.positions.len()), &format!("element vertex {}", m.positions.len() + 1), 1);
+    read_err("cr_bad.ply", &line_ends(bad_vertex.as_bytes(), b"\r"), &[&format!("cr_bad.ply:{}", header_lines + 1), "non-finite"]);
 }

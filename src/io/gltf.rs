@@ -26,7 +26,8 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
             return Err(invalid(&format!("the GLB header declares a length of {declared} bytes, less than the header itself")));
         }
     }
-    let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| invalid(&e))?;
+    // serde_json refuses a byte-order mark before the JSON.
+    let gltf = gltf::Gltf::from_slice_without_validation(super::strip_bom(bytes)).map_err(|e| invalid(&e))?;
     let blob = gltf.blob;
     let json = gltf.document.into_json();
     // gltf-json's validation indexes the accessors by POSITION unchecked.

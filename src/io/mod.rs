@@ -18,6 +18,23 @@ use crate::mesh::TriangleMesh;
 use crate::voxel::{GridSpec, Occupancy};
 use std::path::Path;
 
+/// `bytes` without a leading UTF-8 byte-order mark, which some editors write
+/// and which would otherwise glue itself to the first word.
+pub(crate) fn strip_bom(bytes: &[u8]) -> &[u8] {
+    bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes)
+}
+
+/// `bytes` with every classic-Mac line end (a CR not followed by LF) turned
+/// into LF, so line-based readers see, and count, the lines an editor shows.
+/// The length is kept, so byte offsets stay valid.
+pub(crate) fn lone_cr_to_lf(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
+    let lone = |i: usize| bytes[i] == b'\r' && bytes.get(i + 1) != Some(&b'\n');
+    if !(0..bytes.len()).any(lone) {
+        return std::borrow::Cow::Borrowed(bytes);
+    }
+    std::borrow::Cow::Owned((0..bytes.len()).map(|i| if lone(i) { b'\n' } else { bytes[i] }).collect())
+}
+
 /// What one frame file holds.
 #[derive(Clone, Debug)]
 pub enum FrameData {

@@ -12,6 +12,9 @@ use std::path::Path;
 const MAX_MTL_BYTES: u64 = 64 << 20;
 
 pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
+    // tobj splits lines at LF only, and takes a byte-order mark for part of
+    // the first word (a first `v` line missed shifts every face by one).
+    let bytes = &*super::lone_cr_to_lf(super::strip_bom(bytes));
     check_faces(path, bytes)?;
     let options = tobj::LoadOptions {
         // One index per vertex, as glTF needs; polygons fanned into triangles.

@@ -190,7 +190,12 @@ impl<'a> Body<'a> {
 }
 
 pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
-    let (encoding, elements, body_start, header_lines) = read_header(path, bytes)?;
+    let raw = super::strip_bom(bytes);
+    // Lines may end in a lone CR; a binary body is read from the bytes as
+    // they are (the conversion keeps offsets).
+    let text = super::lone_cr_to_lf(raw);
+    let (encoding, elements, body_start, header_lines) = read_header(path, &text)?;
+    let bytes = if encoding == Encoding::Ascii { &*text } else { raw };
     let mut body = Body {
         path,
         bytes,
