@@ -282,3 +282,33 @@ fn classic_mac_line_ends_read_like_unix_ones() {
     let bad_vertex = text(&a).replacen("\nend_header\n", "\nend_header\n0 nan 0\n", 1).replacen(&format!("element vertex {}", m.positions.len()), &format!("element vertex {}", m.positions.len() + 1), 1);
     read_err("cr_bad.ply", &line_ends(bad_vertex.as_bytes(), b"\r"), &[&format!("cr_bad.ply:{}", header_lines + 1), "non-finite"]);
 }
+
+// ---------------------------------------------------------------------------
+// OBJ vertex lines
+
+#[test]
+fn obj_vertex_lines_tobj_misreads_are_named() {
+    let faces = "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    let with_third = |v: &str| format!("v 0 0 0\nv 1 0 0\n{v}\nv 0 0 1\n{faces}");
+    for (name, v, says) in [
+        ("w_zero.obj", "v 0 1 0 0", "w = 0"),
+        ("w_nan.obj", "v 0 1 0 NaN", "w = NaN"),
+        ("w_inf.obj", "v 0 1 0 inf", "w = inf"),
+        ("w_overflow.obj", "v 0 1e30 0 1e-30", "non-finite"),
+        ("five.obj", "v 0 1 0 1 1", "5 numbers"),
+        ("seven.obj", "v 0 1 0 1 0 0 1", "7 numbers"),
+        ("nine.obj", "v 0 1 0 1 0 0 1 2 3", "9 numbers"),
+        ("word.obj", "v 0 1 0 one", "'one' is not a number"),
+        ("color_word.obj", "v 0 1 0 1 red 0", "'red' is not a number"),
+        ("two.obj", "v 0 1", "three numbers"),
+    ] {
+        read_err(name, with_third(v).as_bytes(), &[&format!("{name}:3"), "vertex", says]);
+    }
+    // The valid forms: a weight divides the coordinates, colours are read past.
+    let tetra = |v: &str| read_ok("ok.obj", with_third(v).as_bytes());
+    let plain = tetra("v 0 1 0");
+    assert_same_mesh("w.obj", &tetra("v 0 2 0 2"), &plain);
+    assert_same_mesh("w_one.obj", &tetra("v 0 1 0 1"), &plain);
+    let colored = "v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nv 0 0 1 1 1 1\n";
+    assert_same_mesh("rgb.obj", &read_ok("rgb.obj", format!("{colored}{faces}").as_bytes()), &plain);
+}

@@ -1,7 +1,7 @@
 //! Wavefront OBJ, through tobj. tobj reports what went wrong but not where, and
-//! takes faces of one or two corners for points and lines, so every face line
-//! is checked first (naming its line), and on any other failure the text is
-//! scanned once more for the offending line.
+//! takes faces of one or two corners for points and lines, so every vertex and
+//! face line is checked first (naming its line), and on any other failure the
+//! text is scanned once more for the offending line.
 
 use crate::error::{Error, Result};
 use crate::math::Point3;
@@ -15,7 +15,7 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     // tobj splits lines at LF only, and takes a byte-order mark for part of
     // the first word (a first `v` line missed shifts every face by one).
     let bytes = &*super::lone_cr_to_lf(super::strip_bom(bytes));
-    check_faces(path, bytes)?;
+    check_lines(path, bytes)?;
     let options = tobj::LoadOptions {
         // One index per vertex, as glTF needs; polygons fanned into triangles.
         single_index: true,
@@ -77,34 +77,25 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         }
     }
     if let Err(Error::InvalidMesh { message, .. }) = mesh.validate(path) {
-        // tobj renumbers vertices in the order faces use them, so the mesh's
-        // vertex number is not the file's: find the file's own `v` line.
-        if let Some((line, k)) = first_non_finite_vertex(bytes) {
-            return Err(Error::parse(path, Some(line), format!("vertex {k} has a non-finite coordinate")));
-        }
         return Err(Error::parse(path, None, message));
     }
     Ok(mesh)
 }
 
-/// Line number and 1-based index among the `v` lines of the first vertex
-/// with a coordinate that is not a finite number (as tobj reads it, in f32:
-/// 1e39 is infinite).
-fn first_non_finite_vertex(bytes: &[u8]) -> Option<(usize, usize)> {
-    lines(bytes)
-        .filter(|(_, l)| first_word(l) == "v")
-        .enumerate()
-        .find(|(_, (_, l))| l.split_whitespace().skip(1).take(3).any(|c| !c.parse::<f32>().is_ok_and(f32::is_finite)))
-        .map(|(k, (line, _))| (line, k + 1))
-}
-
-/// Checks every face line: at least three corners, each `v`, `v/vt`, `v//vn`
-/// or `v/vt/vn` with indices that refer to an element defined above the line
-/// (1-based, or negative counting back from the last one). tobj would take a
-/// face of one or two corners (a file cut short in a face line) for a point or
-/// a line and drop it, and checks some indices only with arithmetic that can
-/// overflow.
-fn check_faces(path: &Path, bytes: &[u8]) -> Result<()> {
+/// Checks every vertex and face line, naming the line, where tobj names none
+/// or reads on:
+/// - a vertex is `x y z`, `x y z w` or `x y z r g b`, with `w` finite and not
+///   0, and finite coordinates once divided by `w` (as tobj does, in f32);
+///   tobj reports `w = 0` and a wrong count without a line, and divides by a
+///   NaN `w` (and by mesh vertex numbers, which are not the file's, the
+///   coordinate cannot be traced back afterwards);
+/// - a face has at least three corners, each `v`, `v/vt`, `v//vn` or
+///   `v/vt/vn` with indices that refer to an element defined above the line
+///   (1-based, or negative counting back from the last one). tobj would take a
+///   face of one or two corners (a file cut short in a face line) for a point
+///   or a line and drop it, and checks some indices only with arithmetic that
+///   can overflow.
+fn check_lines(path: &Path, bytes: &[u8]) -> Result<()> {
     const KINDS: [(&str, &str); 3] = [("vertex", "vertices"), ("texture coordinate", "texture coordinates"), ("normal", "normals")];
     let mut counts = [0u64; 3]; // v, vt, vn so far
     for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
@@ -112,7 +103,29 @@ fn check_faces(path: &Path, bytes: &[u8]) -> Result<()> {
         let line = std::str::from_utf8(raw).map_err(|_| err("not UTF-8 text".into()))?;
         let mut words = line.split_whitespace();
         match words.next() {
-            Some("v") => counts[0] += 1,
+            Some("v") => {
+                counts[0] += 1;
+                let values: Vec<&str> = words.collect();
+                let number = |t: &str| t.parse::<f32>().map_err(|_| err(format!("vertex {}: '{t}' is not a number", counts[0])));
+                match values.len() {
+                    0..=2 => return Err(err("a vertex ('v') needs three numbers".into())),
+                    3 | 4 | 6 => {}
+                    n => {
+                        return Err(err(format!(
+                            "vertex {} has {n} numbers: a vertex is x y z, x y z w or x y z r g b",
+                            counts[0]
+                        )))
+                    }
+                }
+                let numbers = values.iter().map(|t| number(t)).collect::<Result<Vec<f32>>>()?;
+                let w = if values.len() == 4 { numbers[3] } else { 1.0 };
+                if !w.is_finite() || w == 0.0 {
+                    return Err(err(format!("vertex {}: its weight w = {w} is not a finite number other than 0", counts[0])));
+                }
+                if numbers[..3].iter().any(|&c| !(c / w).is_finite()) {
+                    return Err(err(format!("vertex {} has a non-finite coordinate", counts[0])));
+                }
+            }
             Some("vt") => counts[1] += 1,
             Some("vn") => counts[2] += 1,
             Some("f") => {
