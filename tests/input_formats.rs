@@ -9,7 +9,7 @@ use std::process::{Command, Output};
 use std::path::Path;
 use voltrack::export::ply::{write_ply, PlyEncoding};
 use voltrack::io::{discover_frames, read_gltf, read_obj, read_ply};
-use voltrack::math::Point3;
+use voltrack::math::{Point3, Real, Rotation3, Vector3};
 use voltrack::{fixtures, TriangleMesh};
 
 mod common;
@@ -311,4 +311,98 @@ fn obj_vertex_lines_tobj_misreads_are_named() {
     assert_same_mesh("w_one.obj", &tetra("v 0 1 0 1"), &plain);
     let colored = "v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nv 0 0 1 1 1 1\n";
     assert_same_mesh("rgb.obj", &read_ok("rgb.obj", format!("{colored}{faces}").as_bytes()), &plain);
+}
+
+// ---------------------------------------------------------------------------
+// Concave polygons
+
+/// The 10 corners of a five-pointed star (radii 1 and 0.4), counter-clockwise.
+fn star() -> Vec<[Real; 2]> {
+    (0..10)
+        .map(|k| {
+            let (r, t) = (if k % 2 == 0 { 1.0 } else { 0.4 }, k as Real * std::f64::consts::PI / 5.0);
+            [r * t.cos(), r * t.sin()]
+        })
+        .collect()
+}
+
+fn shoelace(p: &[[Real; 2]]) -> Real {
+    (0..p.len()).map(|i| p[i][0] * p[(i + 1) % p.len()][1] - p[(i + 1) % p.len()][0] * p[i][1]).sum::<Real>() / 2.0
+}
+
+/// Crossing number: strictly inside the polygon.
+fn inside(p: [Real; 2], poly: &[[Real; 2]]) -> bool {
+    let mut odd = false;
+    for i in 0..poly.len() {
+        let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+        if (a[1] > p[1]) != (b[1] > p[1]) && p[0] < a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]) {
+            odd = !odd;
+        }
+    }
+    odd
+}
+
+/// A star prism of height 0.5 turned by `rot`: vertices 0..10 the bottom
+/// star (z = 0), 10..20 the top one; the two star caps as single faces of 10
+/// corners, the sides as quads, all facing out.
+fn star_prism(rot: &Rotation3) -> (Vec<Point3>, Vec<Vec<u32>>) {
+    let s = star();
+    let positions: Vec<Point3> = [0.0, 0.5].iter().flat_map(|&z| s.iter().map(move |p| Point3::new(p[0], p[1], z))).map(|p| rot * p).collect();
+    let mut faces = vec![(0..10).rev().collect::<Vec<u32>>(), (10..20).collect()];
+    faces.extend((0..10).map(|i| vec![i, (i + 1) % 10, 10 + (i + 1) % 10, 10 + i]));
+    (positions, faces)
+}
+
+/// The triangles of `m` in the plane z = `z` (after undoing `rot`) must tile
+/// the star: as many as a triangulation has, centroids inside the star,
+/// facing `up` (+1 or -1 along z), areas summing to the star's.
+fn check_cap(name: &str, m: &TriangleMesh, rot: &Rotation3, z: Real, up: Real) {
+    let local: Vec<Point3> = m.positions.iter().map(|p| rot.inverse() * p).collect();
+    let cap: Vec<[Point3; 3]> =
+        m.triangles.iter().map(|t| t.map(|i| local[i as usize])).filter(|t| t.iter().all(|p| (p.z - z).abs() < 1e-5)).collect();
+    assert_eq!(cap.len(), 8, "{name}: a 10-corner face is 8 triangles");
+    let star = star();
+    let mut area = 0.0;
+    for [a, b, c] in &cap {
+        let facing = (b - a).cross(&(c - a)).z * up;
+        assert!(facing > 0.0, "{name}: cap triangle {a} {b} {c} inverted or flat");
+        area += facing / 2.0;
+        let centroid = (a.coords + b.coords + c.coords) / 3.0;
+        assert!(inside([centroid.x, centroid.y], &star), "{name}: cap triangle {a} {b} {c} lies outside the star");
+    }
+    let want = shoelace(&star);
+    assert!((area - want).abs() < 1e-5 * want, "{name}: cap area {area}, the star's {want}");
+}
+
+#[test]
+fn concave_polygons_are_triangulated_inside_the_face() {
+    // Tilted, so the cap is triangulated in its own plane.
+    for rot in [Rotation3::identity(), Rotation3::new(Vector3::new(0.4, -0.9, 0.3))] {
+        let (positions, faces) = star_prism(&rot);
+        let mut o = String::new();
+        for p in &positions {
+            o += &format!("v {} {} {}\n", p.x, p.y, p.z);
+        }
+        for f in &faces {
+            o += &format!("f {}\n", f.iter().map(|i| (i + 1).to_string()).collect::<Vec<_>>().join(" "));
+        }
+        let mut a = format!(
+            "ply\nformat ascii 1.0\nelement vertex 20\nproperty double x\nproperty double y\nproperty double z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+            faces.len()
+        );
+        for p in &positions {
+            a += &format!("{} {} {}\n", p.x, p.y, p.z);
+        }
+        for f in &faces {
+            a += &format!("{} {}\n", f.len(), f.iter().map(u32::to_string).collect::<Vec<_>>().join(" "));
+        }
+        for (name, bytes) in [("star.obj", o.into_bytes()), ("star.ply", a.into_bytes())] {
+            let m = read_ok(name, &bytes);
+            check_cap(name, &m, &rot, 0.0, -1.0);
+            check_cap(name, &m, &rot, 0.5, 1.0);
+            // Closed and facing out: the prism's volume.
+            let volume = 0.5 * shoelace(&star());
+            assert!((m.signed_volume() - volume).abs() < 1e-5 * volume, "{name}: volume {} vs {volume}", m.signed_volume());
+        }
+    }
 }

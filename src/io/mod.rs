@@ -5,12 +5,14 @@ pub mod exr;
 mod gltf;
 mod obj;
 mod ply;
+mod polygon;
 mod sequence;
 
 pub use binvox::{read_binvox, write_binvox};
 pub use gltf::read_gltf;
 pub use obj::read_obj;
 pub use ply::read_ply;
+pub use polygon::triangulate_polygon;
 pub use sequence::{discover_frames, glob_match, is_supported, sort_natural, EXTENSIONS};
 
 use crate::error::{Error, Result};

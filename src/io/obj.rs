@@ -6,6 +6,7 @@
 use crate::error::{Error, Result};
 use crate::math::Point3;
 use crate::mesh::TriangleMesh;
+use super::triangulate_polygon;
 use std::path::Path;
 
 /// Material libraries larger than this are skipped (they are optional).
@@ -17,9 +18,10 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     let bytes = &*super::lone_cr_to_lf(super::strip_bom(bytes));
     check_lines(path, bytes)?;
     let options = tobj::LoadOptions {
-        // One index per vertex, as glTF needs; polygons fanned into triangles.
+        // One index per vertex, as glTF needs; polygons are triangulated
+        // here (tobj fans them, which covers only convex ones).
         single_index: true,
-        triangulate: true,
+        triangulate: false,
         ignore_points: true,
         ignore_lines: true,
     };
@@ -46,7 +48,18 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         mesh.positions.extend(
             m.positions.chunks_exact(3).map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)),
         );
-        mesh.triangles.extend(m.indices.chunks_exact(3).map(|t| [t[0] + base, t[1] + base, t[2] + base]));
+        let indices: Vec<u32> = m.indices.iter().map(|&i| i + base).collect();
+        if m.face_arities.is_empty() {
+            // All triangles.
+            mesh.triangles.extend(indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]));
+        } else {
+            let mut at = 0;
+            for &arity in &m.face_arities {
+                let face = &indices[at..at + arity as usize];
+                triangulate_polygon(&mesh.positions, face, &mut mesh.triangles);
+                at += arity as usize;
+            }
+        }
         if with_uvs {
             // OBJ's v points up, glTF's down.
             uvs.extend(m.texcoords.chunks_exact(2).map(|t| [t[0], 1.0 - t[1]]));

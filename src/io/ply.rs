@@ -5,6 +5,7 @@
 use crate::error::{Error, Result};
 use crate::math::Point3;
 use crate::mesh::TriangleMesh;
+use super::triangulate_polygon;
 use std::path::Path;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -209,6 +210,8 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     let mut normals = Vec::new();
     let mut uvs = Vec::new();
     let mut saw_vertices = false;
+    // Faces before the vertex element.
+    let mut polygons: Vec<Vec<u32>> = Vec::new();
     // Vertices read once the vertex element is complete: face indices are checked against it.
     let mut vertices: Option<usize> = None;
     for el in &elements {
@@ -277,10 +280,11 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
                     if keep && corners.len() < 3 {
                         return Err(body.err(format!("a face needs at least 3 corners, this one has {}", corners.len())));
                     }
-                    if keep {
-                        for i in 1..corners.len() - 1 {
-                            mesh.triangles.push([corners[0], corners[i], corners[i + 1]]);
-                        }
+                    if keep && vertices.is_some() {
+                        triangulate_polygon(&mesh.positions, &corners, &mut mesh.triangles);
+                    } else if keep {
+                        // Triangulated once the vertex element, which comes later, is read.
+                        polygons.push(corners.clone());
                     }
                 } else {
                     values[k] = body.value(p.scalar)?;
@@ -309,6 +313,13 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     body.check_end()?;
     if !saw_vertices {
         return Err(Error::parse(path, None, "no vertex element in the header"));
+    }
+    let n = mesh.positions.len();
+    for corners in &polygons {
+        if let Some(&bad) = corners.iter().find(|&&c| c as usize >= n) {
+            return Err(Error::parse(path, None, format!("a face's vertex index {bad} is beyond the {n} vertices")));
+        }
+        triangulate_polygon(&mesh.positions, corners, &mut mesh.triangles);
     }
     if !normals.is_empty() {
         mesh.normals = Some(normals);
