@@ -406,3 +406,58 @@ fn concave_polygons_are_triangulated_inside_the_face() {
         }
     }
 }
+
+// ---------------------------------------------------------------------------
+// glTF strips and fans
+
+/// The unit cube's corners, corner k at (k & 1, k >> 1 & 1, k >> 2 & 1).
+fn cube_corners() -> Vec<Point3> {
+    (0..8).map(|k| Point3::new((k & 1) as Real, (k >> 1 & 1) as Real, (k >> 2 & 1) as Real)).collect()
+}
+
+/// The cube's faces, counter-clockwise seen from outside.
+const CUBE_FACES: [[u32; 4]; 6] = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+
+/// The mesh is the closed unit cube, every triangle facing out.
+fn assert_unit_cube(name: &str, m: &TriangleMesh) {
+    assert_eq!(m.triangles.len(), 12, "{name}");
+    let center = Point3::new(0.5, 0.5, 0.5);
+    for t in &m.triangles {
+        let [a, b, c] = t.map(|i| m.positions[i as usize]);
+        let out = (b - a).cross(&(c - a)).dot(&(Point3::from((a.coords + b.coords + c.coords) / 3.0) - center));
+        assert!(out > 0.0, "{name}: triangle {a} {b} {c} faces in");
+    }
+    assert!((m.signed_volume() - 1.0).abs() < 1e-9, "{name}: volume {}", m.signed_volume());
+}
+
+#[test]
+fn gltf_triangle_strips_and_fans() {
+    const STRIP: u32 = 5;
+    const FAN: u32 = 6;
+    let corners = cube_corners();
+    // One strip through all six faces (each p0 p1 p3 p2), joined by
+    // repeating the last index of a face and the first of the next: the
+    // triangles between faces are degenerate and must be left out.
+    let mut strip = Vec::new();
+    for (k, [p0, p1, p2, p3]) in CUBE_FACES.iter().enumerate() {
+        if k > 0 {
+            strip.extend([*strip.last().unwrap(), *p0]);
+        }
+        strip.extend([p0, p1, p3, p2]);
+    }
+    assert_unit_cube("strip.gltf", &read_ok("strip.gltf", gltf_doc(&corners, &[(STRIP, &strip)]).as_bytes()));
+    // A strip per face: its second triangle is the one wound the other way.
+    let per_face: Vec<Vec<u32>> = CUBE_FACES.iter().map(|[p0, p1, p2, p3]| vec![*p0, *p1, *p3, *p2]).collect();
+    let prims: Vec<(u32, &[u32])> = per_face.iter().map(|s| (STRIP, s.as_slice())).collect();
+    assert_unit_cube("strips.gltf", &read_ok("strips.gltf", gltf_doc(&corners, &prims).as_bytes()));
+    // A fan per face, from its first corner.
+    let prims: Vec<(u32, &[u32])> = CUBE_FACES.iter().map(|f| (FAN, f.as_slice())).collect();
+    assert_unit_cube("fans.gltf", &read_ok("fans.gltf", gltf_doc(&corners, &prims).as_bytes()));
+    // Points and lines next to triangles are skipped; alone, they are an error.
+    let all: Vec<u32> = (0..8).collect();
+    let with_points = gltf_doc(&corners, &[(0, &all), (STRIP, &strip), (1, &all)]);
+    assert_unit_cube("mixed.gltf", &read_ok("mixed.gltf", with_points.as_bytes()));
+    for mode in [0, 1, 2, 3] {
+        read_err("lines.gltf", gltf_doc(&corners, &[(mode, &all)]).as_bytes(), &["lines.gltf", "points or lines"]);
+    }
+}

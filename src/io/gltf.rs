@@ -1,5 +1,6 @@
 //! glTF 2.0 (.gltf with external or embedded buffers, and .glb): every triangle
-//! primitive of the default scene, with node transforms applied.
+//! primitive (list, strip or fan) of the default scene, with node transforms
+//! applied.
 //!
 //! The gltf crate's validation and readers take parts of the document on
 //! trust (they index, subtract and multiply unchecked, and assert on element
@@ -8,6 +9,7 @@
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
 use crate::mesh::TriangleMesh;
+use gltf::mesh::Mode;
 use nalgebra::Matrix4;
 use std::path::Path;
 
@@ -75,6 +77,8 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     // glTF node hierarchies are trees: a node reached twice has two parents
     // or is in a cycle, and would be drawn again (2^k times down k layers).
     let mut seen = vec![false; doc.nodes().len()];
+    // Modes of the primitives skipped, for the error if nothing else is left.
+    let mut skipped: Vec<Mode> = Vec::new();
     while let Some((node, parent)) = stack.pop() {
         if std::mem::replace(&mut seen[node.index()], true) {
             return Err(Error::parse(
@@ -87,8 +91,9 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         let world = parent * local;
         if let Some(m) = node.mesh() {
             for prim in m.primitives() {
-                if prim.mode() != gltf::mesh::Mode::Triangles {
+                if !matches!(prim.mode(), Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
                     log::warn!("{}: skipping a primitive of mode {:?}", path.display(), prim.mode());
+                    skipped.push(prim.mode());
                     continue;
                 }
                 append_primitive(path, &prim, &buffers, &world, &mut mesh)?;
@@ -102,6 +107,13 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
             }
         }
         stack.extend(node.children().map(|c| (c, world)));
+    }
+    if mesh.triangles.is_empty() && !skipped.is_empty() {
+        skipped.dedup();
+        return Err(Error::mesh(
+            path,
+            format!("the scene has only points or lines (primitive modes {skipped:?}), no triangles: voltrack reads surfaces"),
+        ));
     }
     mesh.validate(path)?;
     Ok(mesh)
@@ -147,15 +159,20 @@ fn append_primitive(
     if let Some(&bad) = indices.iter().find(|&&i| i >= n) {
         return Err(Error::mesh(path, format!("index {bad} is beyond the primitive's {n} vertices")));
     }
+    let triangles: Vec<[u32; 3]> = match prim.mode() {
+        // Every other triangle of a strip is wound the other way round, so
+        // its corners are swapped back; triangles that repeat a corner only
+        // join strips together and are left out.
+        Mode::TriangleStrip => (2..indices.len())
+            .map(|k| if k % 2 == 0 { [indices[k - 2], indices[k - 1], indices[k]] } else { [indices[k - 1], indices[k - 2], indices[k]] })
+            .filter(|[a, b, c]| a != b && b != c && a != c)
+            .collect(),
+        Mode::TriangleFan => (2..indices.len()).map(|k| [indices[0], indices[k - 1], indices[k]]).collect(),
+        _ => indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+    };
     // A mirroring node transform flips the winding.
     let flip = world.fixed_view::<3, 3>(0, 0).determinant() < 0.0;
-    mesh.triangles.extend(indices.chunks_exact(3).map(|t| {
-        if flip {
-            [t[0] + base, t[2] + base, t[1] + base]
-        } else {
-            [t[0] + base, t[1] + base, t[2] + base]
-        }
-    }));
+    mesh.triangles.extend(triangles.into_iter().map(|[a, b, c]| if flip { [a + base, c + base, b + base] } else { [a + base, b + base, c + base] }));
     Ok(())
 }
 
