@@ -461,3 +461,49 @@ fn gltf_triangle_strips_and_fans() {
         read_err("lines.gltf", gltf_doc(&corners, &[(mode, &all)]).as_bytes(), &["lines.gltf", "points or lines"]);
     }
 }
+
+// ---------------------------------------------------------------------------
+// A frame out of place
+
+/// `m` moved by `by`.
+fn moved(mut m: TriangleMesh, by: Vector3) -> TriangleMesh {
+    m.positions.iter_mut().for_each(|p| *p += by);
+    m
+}
+
+/// Bar frames `0..n` as `seq/frame_<f>.obj`, frame f moved by `offset(f)`.
+fn bar_sequence(dir: &Scratch, n: usize, offset: impl Fn(usize) -> Vector3) {
+    let _ = std::fs::remove_dir_all(dir.join("seq"));
+    for f in 0..n {
+        write_files(dir, &[(&format!("seq/frame_{f}.obj"), &obj(&moved(fixtures::bending_bar(f), offset(f))))]);
+    }
+}
+
+fn track(dir: &Scratch) -> Output {
+    let mut args = vec!["track", "seq"];
+    args.extend(SMALL);
+    args.extend(["-o", "c.exr"]);
+    run(dir, &args)
+}
+
+#[test]
+fn a_frame_out_of_place_is_named() {
+    let dir = Scratch::new("formats", "placement");
+    let far = Vector3::new(1000.0, 0.0, 0.0);
+    for (odd, offset) in [(vec![5], far), (vec![0], -far), (vec![5, 6], Vector3::new(0.0, 600.0, 800.0))] {
+        bar_sequence(&dir, 8, |f| if odd.contains(&f) { offset } else { Vector3::zeros() });
+        let o = track(&dir);
+        let stderr = text(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{stderr}");
+        let named = format!("seq/frame_{}.obj", odd[0]);
+        assert!(stderr.contains(&named) && stderr.contains("out of place"), "{odd:?}: {stderr}");
+        // Only the odd frame is named.
+        let others = (0..8).filter(|f| *f != odd[0]).map(|f| format!("frame_{f}.obj")).find(|f| stderr.contains(f.as_str()));
+        assert_eq!(others, None, "{stderr}");
+        assert!(!dir.join("c.exr").exists());
+    }
+    // A subject that travels far, a little each frame, is in place throughout.
+    bar_sequence(&dir, 8, |f| Vector3::new(0.0, 0.0, 2.0 * f as Real));
+    let o = track(&dir);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+}

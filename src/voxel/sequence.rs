@@ -65,6 +65,13 @@ pub struct VoxelSequence {
 /// an open sheet.
 const MAX_UNVOUCHED: f64 = 0.5;
 
+/// Largest gap, in median bounding-box diagonals, that joins a frame to the
+/// others (see [`check_placement`]). Consecutive frames of a capture touch or
+/// nearly so, however far the subject travels; a frame past this gap is
+/// out of place, and the common grid, stretched to reach it, would be so
+/// coarse for the other frames that they enclose nothing.
+const MAX_GAP_DIAGONALS: f64 = 10.0;
+
 /// Reads and voxelises every frame on one grid.
 pub fn voxelize_sequence(paths: &[PathBuf], params: &VoxelParams, progress: Progress) -> Result<VoxelSequence> {
     params.validate()?;
@@ -107,6 +114,7 @@ pub fn voxelize_sequence(paths: &[PathBuf], params: &VoxelParams, progress: Prog
         })
         .collect();
     check_extents(paths, &boxes, params.max_extent_ratio)?;
+    check_placement(paths, &boxes)?;
     let bounds = boxes.iter().fold(Aabb::empty(), |a, b| a.union(b));
     let grid = GridSpec::for_bounds(&bounds, params.resolution)?;
     if let Some(limit) = params.max_memory.or_else(super::available_memory) {
@@ -211,4 +219,57 @@ fn check_extents(paths: &[PathBuf], boxes: &[Aabb], max_ratio: f64) -> Result<()
         )));
     }
     Ok(())
+}
+
+/// A frame in another place (another origin) stretches the common grid until
+/// the other frames vanish in it, and they, not it, would be blamed. Frames
+/// whose bounding boxes lie within [`MAX_GAP_DIAGONALS`] median diagonals of
+/// each other are grouped, transitively, so a subject may travel any
+/// distance; with more than one group, the first frame outside the largest
+/// (on a tie, the one holding the earliest frame) is named.
+fn check_placement(paths: &[PathBuf], boxes: &[Aabb]) -> Result<()> {
+    let mut diag: Vec<f64> = boxes.iter().map(Aabb::diagonal).collect();
+    diag.sort_by(f64::total_cmp);
+    let reach = MAX_GAP_DIAGONALS * diag[(diag.len() - 1) / 2];
+    let gap = |a: &Aabb, b: &Aabb| (a.min - b.max).sup(&(b.min - a.max)).sup(&crate::math::Vector3::zeros()).norm();
+    // Union-find over the frames; the quadratic pass costs far less than
+    // voxelising the frames.
+    let mut group: Vec<usize> = (0..boxes.len()).collect();
+    fn root(group: &mut [usize], mut i: usize) -> usize {
+        while group[i] != i {
+            group[i] = group[group[i]];
+            i = group[i];
+        }
+        i
+    }
+    for i in 0..boxes.len() {
+        for j in i + 1..boxes.len() {
+            if gap(&boxes[i], &boxes[j]) <= reach {
+                let (a, b) = (root(&mut group, i), root(&mut group, j));
+                // The lower root stays, so a group's root is its earliest frame.
+                group[a.max(b)] = a.min(b);
+            }
+        }
+    }
+    let roots: Vec<usize> = (0..boxes.len()).map(|i| root(&mut group, i)).collect();
+    let mut sizes = vec![0usize; boxes.len()];
+    roots.iter().for_each(|&r| sizes[r] += 1);
+    // Largest group; on a tie the earliest root, as max_by_key keeps the last maximum.
+    let main = (0..boxes.len()).rev().max_by_key(|&r| sizes[r]).expect("at least one frame");
+    let Some(odd) = (0..boxes.len()).find(|&i| roots[i] != main) else {
+        return Ok(());
+    };
+    let others = (0..boxes.len()).filter(|&i| roots[i] == main).fold(Aabb::empty(), |a, i| a.union(&boxes[i]));
+    let fmt = |p: &crate::math::Point3| format!("({:.4}, {:.4}, {:.4})", p.x, p.y, p.z);
+    Err(Error::InvalidInput(format!(
+        "{}: out of place: its bounding box {} .. {} lies {:.0} times the median frame's diagonal away from those of {} other frames ({} .. {}); \
+         is this frame offset (another origin)?",
+        paths[odd].display(),
+        fmt(&boxes[odd].min),
+        fmt(&boxes[odd].max),
+        gap(&boxes[odd], &others) / (reach / MAX_GAP_DIAGONALS),
+        sizes[main],
+        fmt(&others.min),
+        fmt(&others.max)
+    )))
 }
