@@ -99,9 +99,9 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
 /// or reads on:
 /// - a vertex is `x y z`, `x y z w` or `x y z r g b`, with `w` finite and not
 ///   0, and finite coordinates once divided by `w` (as tobj does, in f32);
-///   tobj reports `w = 0` and a wrong count without a line, and divides by a
-///   NaN `w` (and by mesh vertex numbers, which are not the file's, the
-///   coordinate cannot be traced back afterwards);
+///   tobj reports `w = 0` and a wrong count without a line, divides by a NaN
+///   `w`, and renumbers vertices, so a non-finite coordinate could not be
+///   traced back to its line afterwards;
 /// - a face has at least three corners, each `v`, `v/vt`, `v//vn` or
 ///   `v/vt/vn` with indices that refer to an element defined above the line
 ///   (1-based, or negative counting back from the last one). tobj would take a
