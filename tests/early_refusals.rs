@@ -235,3 +235,24 @@ fn a_texture_glb_cannot_carry_is_left_out_at_once_not_failed_at_export() {
     assert!(err.contains("skin.tga") && err.contains("neither PNG nor JPEG"), "{err}");
     assert!(Path::new(&dir.0.join("x.glb")).exists());
 }
+
+#[test]
+fn an_output_a_rerun_would_read_as_a_frame_is_refused_for_patterns_too() {
+    let dir = Scratch::new("early", "pattern-pickup");
+    bar_sequence(&dir);
+    // Two takes of four frames each, read through a wildcard directory.
+    for take in 0..2 {
+        let t = dir.0.join(format!("takes/take_{take}"));
+        std::fs::create_dir_all(&t).unwrap();
+        for f in 0..4 {
+            std::fs::copy(dir.0.join(format!("seq/frame_{}.obj", 4 * take + f)), t.join(format!("frame_{f}.obj"))).unwrap();
+        }
+    }
+    let pattern = "takes/take_*/*.obj";
+    // The point cache's OBJ would land among the frames the pattern takes.
+    refused_up_front(&dir, &["convert", pattern, "-r", "32", "-n", "20", "-o", "takes/take_1/anim.pc2"], &["takes/take_1/anim.obj", "next run"]);
+    // Not matched by the pattern: written.
+    let out = run(&dir, &["convert", pattern, "-r", "32", "-n", "20", "--conform-iterations", "0", "-o", "takes/take_1/anim.glb"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(!dir.0.join("takes/take_1/anim.obj").exists());
+}

@@ -4,7 +4,7 @@
 //! must take a file now, not after an hour of tracking.
 
 use crate::error::{Error, Result};
-use crate::io::{glob_match, is_supported};
+use crate::io::would_discover;
 use std::path::{Path, PathBuf};
 
 /// One place a run writes.
@@ -114,34 +114,17 @@ impl OutputPlan {
 
     /// An output the next run on the same input would read as a frame.
     fn check_not_picked_up(&self, out: &Planned, id: &Path) -> Result<()> {
-        let (Some(parent), Some(name)) = (id.parent(), id.file_name().and_then(|n| n.to_str())) else {
-            return Ok(());
-        };
-        if name.starts_with('.') || !is_supported(id) {
-            return Ok(());
+        match self.sources.iter().find(|source| would_discover(source, id)) {
+            Some(source) => Err(Error::refuse(
+                &out.path,
+                format!(
+                    "{} would be written among the input frames of {}, and the next run on them would read it as a frame; write it elsewhere",
+                    out.what,
+                    source.display()
+                ),
+            )),
+            None => Ok(()),
         }
-        for source in &self.sources {
-            let source_name = source.file_name().and_then(|n| n.to_str()).unwrap_or("");
-            let taken = if source.is_dir() {
-                std::fs::canonicalize(source).is_ok_and(|d| d == parent)
-            } else if source_name.contains(['*', '?']) {
-                let dir = source.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-                std::fs::canonicalize(dir).is_ok_and(|d| d == parent) && glob_match(source_name, name)
-            } else {
-                false
-            };
-            if taken {
-                return Err(Error::refuse(
-                    &out.path,
-                    format!(
-                        "{} would be written among the input frames of {}, and the next run on them would read it as a frame; write it elsewhere",
-                        out.what,
-                        source.display()
-                    ),
-                ));
-            }
-        }
-        Ok(())
     }
 
     /// A directory of outputs that holds input files (or is an input

@@ -52,6 +52,40 @@ pub fn discover_frames(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     Ok(frames)
 }
 
+/// Whether [`discover_frames`] on `input` (a directory or a pattern) would
+/// take `file` (a resolved path, existing or not) as a frame: so that an
+/// output is never written where the next run on the same input reads it.
+pub fn would_discover(input: &Path, file: &Path) -> bool {
+    let (Some(parent), Some(name)) = (file.parent(), file.file_name().and_then(|n| n.to_str())) else {
+        return false;
+    };
+    if !is_supported(file) {
+        return false;
+    }
+    if input.is_dir() {
+        return !is_hidden(name) && std::fs::canonicalize(input).is_ok_and(|d| d == parent);
+    }
+    if !is_pattern(input) {
+        return false;
+    }
+    let components: Vec<std::path::Component> = input.components().collect();
+    let first_wild = components.iter().position(|c| has_wildcard(&c.as_os_str().to_string_lossy())).expect("a pattern has a wildcard");
+    let base: PathBuf = components[..first_wild].iter().collect();
+    let base = if base.as_os_str().is_empty() { PathBuf::from(".") } else { base };
+    let Ok(base) = std::fs::canonicalize(base) else { return false };
+    let Ok(rest) = file.strip_prefix(&base) else { return false };
+    let rest: Vec<_> = rest.components().collect();
+    rest.len() == components.len() - first_wild
+        && components[first_wild..].iter().zip(&rest).all(|(p, c)| {
+            let (part, name) = (p.as_os_str().to_string_lossy(), c.as_os_str().to_string_lossy());
+            if has_wildcard(&part) {
+                (!is_hidden(&name) || part.starts_with('.')) && glob_match(&part, &name)
+            } else {
+                part == name
+            }
+        })
+}
+
 fn has_wildcard(s: &str) -> bool {
     s.contains('*') || s.contains('?')
 }
