@@ -47,7 +47,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let report = voltrack::export::gltf::write_dynamic_glb(args[2].as_ref(), &mesh, &Default::default(), Default::default())?;
         println!("wrote {} ({} targets)", args[2], report.targets);
     } else {
-        let files = voltrack::export::obj::write_obj_sequence(args[2].as_ref(), &mesh)?;
+        let files = voltrack::export::obj::write_obj_sequence(args[2].as_ref(), &mesh, voltrack::export::DEFAULT_NAME)?;
         println!("wrote {} OBJ files into {}", files.len(), args[2]);
     }
     Ok(())

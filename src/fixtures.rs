@@ -219,7 +219,7 @@ pub fn files() -> crate::Result<Vec<(String, Vec<u8>)>> {
             write_ply(&mut ply, &m, enc).expect("writing to memory");
             out.push((format!("shapes/{name}{suffix}.ply"), ply));
         }
-        out.push((format!("shapes/{name}.glb"), crate::export::gltf::glb_bytes(&m, None)?));
+        out.push((format!("shapes/{name}.glb"), crate::export::gltf::glb_bytes(&m, None, &Default::default())?));
     }
     for f in 0..BENDING_BAR_FRAMES {
         let m = bending_bar(f);

@@ -55,7 +55,7 @@ fn convert_args<'a>(out: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
     args
 }
 
-/// `(frames, targets, interpolation)` of a GLB read with the gltf crate.
+/// `(keyframes, targets, interpolation)` of a GLB read with the gltf crate.
 fn glb_summary(path: &Path) -> (usize, usize, gltf::animation::Interpolation) {
     let doc = gltf::Gltf::from_slice(&std::fs::read(path).unwrap()).expect("a valid GLB");
     let primitive = doc.meshes().next().unwrap().primitives().next().unwrap();
@@ -73,7 +73,7 @@ fn help_lists_the_commands() {
     }
     assert!(ok(&dir, &["--version"]).contains(env!("CARGO_PKG_VERSION")));
     let convert = ok(&dir, &["convert", "--help"]);
-    for flag in ["--resolution", "--centers", "--output", "--format", "--vat", "--basis", "--fps", "--no-refine", "--report", "--checkpoint", "--resume"] {
+    for flag in ["--resolution", "--centers", "--output", "--format", "--vat", "--basis", "--fps", "--no-refine", "--report", "--checkpoint", "--resume", "--name", "--json"] {
         assert!(convert.contains(flag), "convert --help lacks {flag}");
     }
 }
@@ -86,7 +86,8 @@ fn convert_to_glb() {
     assert!(stdout.contains("wrote tmp/x.glb"), "{stdout}");
     assert!(stdout.contains(&format!("{FRAMES} frames")), "{stdout}");
     let (frames, targets, interpolation) = glb_summary(&dir.join("tmp/x.glb"));
-    assert_eq!((frames, targets, interpolation), (FRAMES, FRAMES - 1, gltf::animation::Interpolation::Step));
+    // One key per frame and the closing one that holds the last.
+    assert_eq!((frames, targets, interpolation), (FRAMES + 1, FRAMES - 1, gltf::animation::Interpolation::Step));
     assert_eq!(dir.files(), ["tmp/x.glb"]);
 }
 
@@ -133,10 +134,93 @@ fn convert_to_glb_with_a_compact_basis() {
     let stdout = ok(&dir, &convert_args("b.glb", &["--basis", "3", "--fps", "24"]));
     assert!(stdout.contains("compact basis of 3 components"), "{stdout}");
     let (frames, targets, interpolation) = glb_summary(&dir.join("b.glb"));
-    assert_eq!(frames, FRAMES);
+    assert_eq!(frames, FRAMES + 1);
     assert!((3..=6).contains(&targets), "{targets}");
     assert_eq!(interpolation, gltf::animation::Interpolation::Linear);
     assert_eq!(dir.files(), ["b.glb"]);
+}
+
+/// Names of the node, the mesh and the animation of a GLB.
+fn glb_names(path: &Path) -> [Option<String>; 3] {
+    let doc = gltf::Gltf::from_slice(&std::fs::read(path).unwrap()).expect("a valid GLB");
+    let name = |n: Option<&str>| n.map(String::from);
+    [name(doc.nodes().next().unwrap().name()), name(doc.meshes().next().unwrap().name()), name(doc.animations().next().unwrap().name())]
+}
+
+/// Issue 23: `convert --json` says what it did, as `track --json` does, and
+/// prints nothing else on stdout.
+#[test]
+fn convert_prints_a_json_summary() {
+    let dir = Scratch::new("cli", "convert-json");
+    let summary = json(&ok(&dir, &convert_args("x.glb", &["--json", "--report", "x.html", "--fps", "24"])));
+    assert_eq!(summary["output"], "x.glb");
+    assert_eq!(summary["files"], serde_json::json!(["x.glb"]));
+    assert_eq!((summary["format"].as_str(), summary["name"].as_str()), (Some("glb"), Some("bending_bar")));
+    assert_eq!((summary["frames"].as_u64(), summary["fps"].as_f64(), summary["resolution"].as_u64()), (Some(FRAMES as u64), Some(24.0), Some(48)));
+    // The counts are the file's.
+    let doc = gltf::Gltf::from_slice(&std::fs::read(dir.join("x.glb")).unwrap()).unwrap();
+    let primitive = doc.meshes().next().unwrap().primitives().next().unwrap();
+    assert_eq!(summary["vertices"].as_u64(), Some(primitive.get(&gltf::Semantic::Positions).unwrap().count() as u64));
+    assert_eq!(summary["triangles"].as_u64(), Some(primitive.indices().unwrap().count() as u64 / 3));
+    assert_eq!(summary["bytes"].as_u64(), Some(std::fs::metadata(dir.join("x.glb")).unwrap().len()));
+    // 120 centers less the irregular ones refinement removed.
+    let removed = summary["removed"].as_array().expect("removed centers");
+    assert!(!removed.is_empty());
+    assert_eq!(summary["centers"].as_u64(), Some(120 - removed.len() as u64));
+    let basis = &summary["basis"];
+    assert_eq!((basis["targets"].as_u64(), basis["components"].is_null()), (Some(FRAMES as u64 - 1), true), "{basis}");
+    assert_eq!(basis["reconstruction_error_max"].as_f64(), Some(0.0));
+    let seconds = summary["seconds"].as_object().unwrap();
+    for stage in ["read", "voxelize", "track", "refine", "deform", "conform", "export", "total"] {
+        assert!(seconds.get(stage).and_then(|s| s.as_f64()).is_some_and(|s| s >= 0.0), "{stage}: {seconds:?}");
+    }
+    let stages: f64 = seconds.iter().filter(|(k, _)| *k != "total").map(|(_, v)| v.as_f64().unwrap()).sum();
+    assert!((stages - seconds["total"].as_f64().unwrap()).abs() < 1e-9);
+    // Measured for the report, so in the summary too (percent of the diagonal).
+    let fit = &summary["fit_percent"];
+    assert!(fit["mean"].as_f64().is_some_and(|m| m > 0.0 && m <= fit["max"].as_f64().unwrap()), "{fit}");
+    assert_eq!(summary["report"], "x.html");
+
+    // A point cache: both files, the frame rate; a compact basis: its size.
+    let summary = json(&ok(&dir, &convert_args("anim.pc2", &["--json", "--no-refine", "--name", "Bar"])));
+    assert_eq!(summary["files"], serde_json::json!(["anim.pc2", "anim.obj"]));
+    assert_eq!((summary["format"].as_str(), summary["name"].as_str(), summary["fps"].as_f64()), (Some("pc2"), Some("Bar"), Some(30.0)));
+    assert!(summary["removed"].is_null() && summary["basis"].is_null() && summary["fit_percent"].is_null(), "{summary}");
+    assert_eq!(summary["centers"].as_u64(), Some(120));
+    assert!(summary["seconds"].get("refine").is_none());
+    let summary = json(&ok(&dir, &convert_args("b.glb", &["--json", "--basis", "2"])));
+    assert_eq!(summary["basis"]["components"].as_u64(), Some(2));
+    // Trajectories carry neither a name nor a frame rate.
+    let summary = json(&ok(&dir, &convert_args("c.exr", &["--json", "--no-refine"])));
+    assert!(summary["name"].is_null() && summary["fps"].is_null() && summary["basis"].is_null(), "{summary}");
+    assert_eq!(dir.files(), ["anim.obj", "anim.pc2", "b.glb", "c.exr", "x.glb", "x.html"]);
+}
+
+/// Issue 23: the result is named after the input, or as `--name` says.
+#[test]
+fn convert_names_the_object_after_the_input() {
+    let dir = Scratch::new("cli", "names");
+    let bar = Some("bending_bar".to_string());
+    ok(&dir, &convert_args("a.glb", &["--no-refine"]));
+    assert_eq!(glb_names(&dir.join("a.glb")), [bar.clone(), bar.clone(), bar]);
+    let hero = Some("Hero 2".to_string());
+    let stdout = ok(&dir, &convert_args("b.glb", &["--no-refine", "--name", "Hero 2"]));
+    assert!(stdout.contains("\"Hero 2\""), "{stdout}");
+    assert_eq!(glb_names(&dir.join("b.glb")), [hero.clone(), hero.clone(), hero]);
+    // The point cache's OBJ and an OBJ sequence name their object.
+    ok(&dir, &convert_args("c.pc2", &["--no-refine", "--name", "Hero 2"]));
+    let obj = std::fs::read_to_string(dir.join("c.obj")).unwrap();
+    assert_eq!(obj.lines().filter(|l| l.starts_with("o ")).collect::<Vec<_>>(), ["o Hero 2"]);
+    let pattern = fixture().join("frame_*.obj").to_string_lossy().into_owned();
+    ok(&dir, &["convert", &pattern, "-r", "32", "-n", "40", "--no-refine", "-o", "seq"]);
+    let first = std::fs::read_to_string(dir.join("seq/frame_0000.obj")).unwrap();
+    assert_eq!(first.lines().filter(|l| l.starts_with("o ")).collect::<Vec<_>>(), ["o frame"]);
+    // A blank name or one with a line break is refused before any work.
+    for bad in ["", " ", "a\nb"] {
+        let stderr = fails(&dir, &convert_args("bad.glb", &["--name", bad]), 2);
+        assert!(stderr.contains("name"), "{bad:?}: {stderr}");
+    }
+    assert!(!dir.join("bad.glb").exists());
 }
 
 #[test]

@@ -65,6 +65,17 @@ struct Glb {
     weights: Vec<Vec<f32>>,
     interpolation: Option<Interpolation>,
     animations: usize,
+    /// Names of the node, the mesh and the animation.
+    node_name: Option<String>,
+    mesh_name: Option<String>,
+    animation_name: Option<String>,
+    /// `extras` of the scene and of the animation.
+    scene_extras: Option<serde_json::Value>,
+    animation_extras: Option<serde_json::Value>,
+}
+
+fn extras_of(e: &gltf::json::Extras) -> Option<serde_json::Value> {
+    e.as_ref().map(|raw| serde_json::from_str(raw.get()).unwrap())
 }
 
 impl Glb {
@@ -114,8 +125,15 @@ impl Glb {
             weights: Vec::new(),
             interpolation: None,
             animations: doc.animations().count(),
+            node_name: doc.nodes().next().and_then(|n| n.name().map(String::from)),
+            mesh_name: mesh.name().map(String::from),
+            animation_name: None,
+            scene_extras: doc.default_scene().and_then(|s| extras_of(s.extras())),
+            animation_extras: None,
         };
         if let Some(animation) = doc.animations().next() {
+            glb.animation_name = animation.name().map(String::from);
+            glb.animation_extras = extras_of(animation.extras());
             assert_eq!(animation.channels().count(), 1);
             let channel = animation.channels().next().unwrap();
             assert_eq!(channel.target().property(), gltf::animation::Property::MorphTargetWeights);
@@ -156,7 +174,8 @@ impl Glb {
 
     /// Largest and mean vertex distance between the rebuilt frames and `mesh`.
     fn errors(&self, mesh: &DynamicMesh) -> (Real, Real) {
-        assert_eq!(self.weights.len(), mesh.frames.len());
+        // One key per frame and the closing one.
+        assert_eq!(self.weights.len(), mesh.frames.len() + 1);
         let (mut max, mut sum, mut n): (Real, Real, usize) = (0.0, 0.0, 0);
         for (k, frame) in mesh.frames.iter().enumerate() {
             for (p, q) in self.frame(k).iter().zip(frame) {
@@ -209,10 +228,12 @@ fn check_common(glb: &Glb, mesh: &DynamicMesh, report: &GltfExportReport, path: 
     unique.dedup();
     assert_eq!(unique.len(), names.len(), "{names:?}");
     assert_eq!(glb.default_weights.as_deref(), Some(&vec![0.0; report.targets][..]));
-    // One keyframe per frame at f / fps, with the input accessor's bounds.
-    let times: Vec<f32> = (0..mesh.frames.len()).map(|f| (f as f64 / fps as f64) as f32).collect();
+    // One keyframe per frame at f / fps and a closing one at F / fps that
+    // holds the last frame, with the input accessor's bounds.
+    let times: Vec<f32> = (0..=mesh.frames.len()).map(|f| (f as f64 / fps as f64) as f32).collect();
     assert_eq!(glb.times, times);
     assert_eq!(glb.time_bounds, Some((vec![times[0]], vec![*times.last().unwrap()])));
+    assert_eq!(glb.weights.last(), glb.weights.get(mesh.frames.len() - 1));
     assert!(glb.weights[0].iter().all(|&w| w == 0.0));
     assert!(glb.weights.iter().flatten().all(|&w| (0.0..=1.0).contains(&w)), "weights outside [0, 1]");
 }
@@ -237,8 +258,10 @@ fn per_frame_glb_replays_every_frame() {
         let names = glb.target_names.as_ref().unwrap();
         assert_eq!(names[0], "frame_0001");
         assert_eq!(names.last().unwrap(), &format!("frame_{:04}", mesh.frames.len() - 1));
-        // One-hot weights: keyframe f shows target f − 1 only.
+        // One-hot weights: keyframe f shows target f − 1 only (the closing
+        // key shows the last frame's).
         for (f, w) in glb.weights.iter().enumerate() {
+            let f = f.min(mesh.frames.len() - 1);
             for (t, &x) in w.iter().enumerate() {
                 assert_eq!(x, if t + 1 == f { 1.0 } else { 0.0 });
             }
@@ -258,6 +281,92 @@ fn per_frame_glb_replays_every_frame() {
             }
         }
     }
+}
+
+/// Issue 23: a player that loops the clip (three.js' default) wraps at its
+/// last key, so the clip must end one frame after the last frame begins.
+#[test]
+fn the_clip_lasts_every_frame_and_ends_holding_the_last() {
+    let dir = Scratch::new("export", "closing-key");
+    let fps = 25.0;
+    for (name, mesh, basis) in [
+        ("per-frame", bending_bar(), BasisChoice::PerFrame),
+        ("basis", torus(40, turning), BasisChoice::Components(3)),
+        ("auto", torus(300, turning), BasisChoice::Auto),
+    ] {
+        let path = dir.join(&format!("{name}.glb"));
+        let report = write_dynamic_glb(&path, &mesh, &GltfExportOptions { fps, ..options(basis) }, Progress::none()).unwrap();
+        let glb = Glb::read(&path);
+        let frames = mesh.frames.len();
+        assert_eq!(glb.times.len(), frames + 1, "{name}: one key per frame and a closing one");
+        let end = (frames as f64 / fps as f64) as f32;
+        assert_eq!(*glb.times.last().unwrap(), end, "{name}: the clip lasts F / fps");
+        assert_eq!(glb.time_bounds.as_ref().unwrap().1, vec![end], "{name}");
+        // Frame F − 1 is shown from its key to the end, keyed as it is.
+        assert_eq!(glb.weights[frames], glb.weights[frames - 1], "{name}");
+        let last = glb.frame(frames);
+        for (p, q) in last.iter().zip(&mesh.frames[frames - 1]) {
+            assert!((p - q).norm() < 1e-5 * diagonal(&mesh) + report.reconstruction_error_max * diagonal(&mesh), "{name}");
+        }
+        // Every other key is still at f / fps.
+        for f in 0..frames {
+            assert_eq!(glb.times[f], (f as f64 / fps as f64) as f32, "{name}: key {f}");
+        }
+    }
+}
+
+/// Issue 23: glTF has no frame rate, so it goes where scripts and importers
+/// can read it: the scene's and the animation's `extras`.
+#[test]
+fn glb_records_the_frame_rate_and_count() {
+    let dir = Scratch::new("export", "extras");
+    for (fps, frames) in [(24.0_f32, 8), (29.97, 12)] {
+        let mesh = torus(frames, wobble);
+        let path = dir.join("x.glb");
+        write_dynamic_glb(&path, &mesh, &GltfExportOptions { fps, ..options(BasisChoice::PerFrame) }, Progress::none()).unwrap();
+        let glb = Glb::read(&path);
+        let want = serde_json::json!({"fps": fps, "frames": frames});
+        for (what, extras) in [("scene", &glb.scene_extras), ("animation", &glb.animation_extras)] {
+            let extras = extras.as_ref().unwrap_or_else(|| panic!("no {what} extras"));
+            assert_eq!(extras["frames"], want["frames"], "{what}: {extras}");
+            assert_eq!(extras["fps"].as_f64().map(|x| x as f32), Some(fps), "{what}: {extras}");
+        }
+        // The rate is written as given, not as its f32 widened (29.969999…).
+        let text = String::from_utf8_lossy(&std::fs::read(&path).unwrap()).into_owned();
+        assert!(text.contains(&format!("\"fps\":{fps}")), "{fps}");
+    }
+    // A single frame has no animation, but the scene still says its rate.
+    let mut one = bending_bar();
+    one.frames.truncate(1);
+    let path = dir.join("one.glb");
+    write_dynamic_glb(&path, &one, &GltfExportOptions::default(), Progress::none()).unwrap();
+    let glb = Glb::read(&path);
+    assert_eq!(glb.animations, 0);
+    assert_eq!(glb.scene_extras, Some(serde_json::json!({"fps": 30.0, "frames": 1})));
+}
+
+/// Issue 23: two imported results must not both be `voltrack`.
+#[test]
+fn glb_node_mesh_and_animation_carry_the_name() {
+    let dir = Scratch::new("export", "names");
+    let mesh = bending_bar();
+    let path = dir.join("named.glb");
+    let named = GltfExportOptions { name: "Dancer take 2".into(), ..Default::default() };
+    write_dynamic_glb(&path, &mesh, &named, Progress::none()).unwrap();
+    let glb = Glb::read(&path);
+    let name = Some("Dancer take 2".to_string());
+    assert_eq!((&glb.node_name, &glb.mesh_name, &glb.animation_name), (&name, &name, &name));
+    // Without a name, the library's default.
+    write_dynamic_glb(&path, &mesh, &GltfExportOptions::default(), Progress::none()).unwrap();
+    let glb = Glb::read(&path);
+    let default = Some(voltrack::export::DEFAULT_NAME.to_string());
+    assert_eq!((&glb.node_name, &glb.mesh_name, &glb.animation_name), (&default, &default, &default));
+    // A blank name, or one with a line break, is a bad parameter.
+    for bad in ["", "  ", "two\nlines"] {
+        let err = write_dynamic_glb(&dir.join("bad.glb"), &mesh, &GltfExportOptions { name: bad.into(), ..Default::default() }, Progress::none()).unwrap_err();
+        assert!(matches!(err, voltrack::Error::InvalidParameter(_)), "{bad:?}: {err}");
+    }
+    assert!(!dir.join("bad.glb").exists());
 }
 
 #[test]
@@ -509,10 +618,25 @@ fn obj_lines(text: &str) -> (Vec<[f32; 3]>, Vec<String>, Vec<String>) {
         } else if line.starts_with("f ") {
             f.push(line.to_string());
         } else {
-            assert!(line.starts_with('#') || line.trim().is_empty(), "unexpected OBJ line {line}");
+            let known = ["#", "o ", "vn "].iter().any(|p| line.starts_with(p));
+            assert!(known || line.trim().is_empty(), "unexpected OBJ line {line}");
         }
     }
     (v, vt, f)
+}
+
+/// The names of an OBJ's `o` lines and its `vn` normals.
+fn obj_objects_and_normals(text: &str) -> (Vec<String>, Vec<[f32; 3]>) {
+    let objects = text.lines().filter_map(|l| l.strip_prefix("o ")).map(String::from).collect();
+    let normals = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("vn "))
+        .map(|rest| {
+            let c: Vec<f32> = rest.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            [c[0], c[1], c[2]]
+        })
+        .collect();
+    (objects, normals)
 }
 
 /// Vertex indices of `f` lines (1-based in the file, 0-based here).
@@ -535,7 +659,7 @@ fn point_cache_header_counts_and_positions() {
     mesh.base.positions.push(Point3::new(9.0, 9.0, 9.0));
     mesh.frames.iter_mut().for_each(|f| f.push(Point3::new(9.0, 9.0, 9.0)));
     let path = dir.join("bar.pc2");
-    voltrack::export::pc2::write_pc2(&path, &mesh, 25.0).unwrap();
+    voltrack::export::pc2::write_pc2(&path, &mesh, 25.0, "bar").unwrap();
     let bytes = std::fs::read(&path).unwrap();
     let points = unused; // every other vertex is used
     let samples = mesh.frames.len();
@@ -562,16 +686,89 @@ fn point_cache_header_counts_and_positions() {
     let (v, vt, f) = obj_lines(&text);
     assert_eq!(v.len(), points);
     assert!(vt.is_empty());
+    assert_eq!(obj_objects_and_normals(&text), (vec!["bar".to_string()], obj_objects_and_normals(&text).1));
+    assert_eq!(obj_objects_and_normals(&text).1.len(), points, "a normal for every vertex kept, none for the unused one");
     for (a, p) in v.iter().zip(&mesh.frames[0]) {
         assert_eq!(*a, [p.x as f32, p.y as f32, p.z as f32]);
     }
     assert_eq!(face_indices(&f), mesh.base.triangles);
-    // Bad frame rates and a name that would overwrite the OBJ are refused.
+    // Bad frame rates and names, and a path that would overwrite the OBJ, are refused.
     for fps in [0.0, -2.0, f32::NAN] {
-        assert!(voltrack::export::pc2::write_pc2(&dir.join("x.pc2"), &mesh, fps).is_err());
+        assert!(voltrack::export::pc2::write_pc2(&dir.join("x.pc2"), &mesh, fps, "bar").is_err());
     }
-    assert!(voltrack::export::pc2::write_pc2(&dir.join("x.obj"), &mesh, 30.0).is_err());
+    for name in ["", "a\nb"] {
+        assert!(voltrack::export::pc2::write_pc2(&dir.join("x.pc2"), &mesh, 30.0, name).is_err(), "{name:?}");
+    }
+    assert!(voltrack::export::pc2::write_pc2(&dir.join("x.obj"), &mesh, 30.0, "bar").is_err());
     assert!(!dir.join("x.pc2").exists() && !dir.join("x.obj").exists());
+}
+
+/// A torus whose vertices at u = 0 are duplicated along a UV seam, as a
+/// loader makes them: the triangles on the far side of the seam use the
+/// copies. Returns the mesh (UVs set) and the (original, copy) pairs.
+fn seamed_torus() -> (voltrack::TriangleMesh, Vec<(usize, usize)>) {
+    let (n_major, n_minor) = (24u32, 12u32);
+    let mut m = fixtures::torus(Point3::origin(), 1.0, 0.3, n_major, n_minor);
+    let mut uvs: Vec<[f32; 2]> = (0..m.positions.len()).map(|v| [(v as u32 / n_minor) as f32 / n_major as f32, (v as u32 % n_minor) as f32 / n_minor as f32]).collect();
+    let mut pairs = Vec::new();
+    for j in 0..n_minor as usize {
+        pairs.push((j, m.positions.len()));
+        m.positions.push(m.positions[j]);
+        uvs.push([1.0, uvs[j][1]]);
+    }
+    let last_ring = |v: u32| v / n_minor == n_major - 1;
+    for t in m.triangles.iter_mut() {
+        if t.iter().any(|&v| last_ring(v)) {
+            for v in t.iter_mut() {
+                if *v < n_minor {
+                    *v = pairs[*v as usize].1 as u32;
+                }
+            }
+        }
+    }
+    m.uvs = Some(uvs);
+    (m, pairs)
+}
+
+/// Issue 23: the point cache's OBJ is named and carries frame 0's normals,
+/// welded at UV seams and equal to the GLB's, so Blender shades it smooth.
+#[test]
+fn point_cache_obj_is_named_and_smooth() {
+    let dir = Scratch::new("export", "pc2-normals");
+    let (base, pairs) = seamed_torus();
+    let frames = (0..4).map(|f| base.positions.iter().map(|p| turning(f, p)).collect()).collect();
+    let mesh = DynamicMesh { base, frames };
+    let path = dir.join("torus.pc2");
+    voltrack::export::pc2::write_pc2(&path, &mesh, 30.0, "Torus").unwrap();
+    let text = std::fs::read_to_string(dir.join("torus.obj")).unwrap();
+    let (objects, normals) = obj_objects_and_normals(&text);
+    assert_eq!(objects, ["Torus"]);
+    let (v, _, f) = obj_lines(&text);
+    assert_eq!(normals.len(), v.len(), "one normal per vertex");
+    // Each corner names its vertex's own UV and normal.
+    for line in &f {
+        for corner in line[2..].split_whitespace() {
+            let idx: Vec<&str> = corner.split('/').collect();
+            assert!(idx.len() == 3 && idx[1] == idx[0] && idx[2] == idx[0], "{line}");
+        }
+    }
+    // The same normals as the GLB's NORMAL attribute.
+    let glb_path = dir.join("torus.glb");
+    write_dynamic_glb(&glb_path, &mesh, &GltfExportOptions::default(), Progress::none()).unwrap();
+    assert_eq!(Glb::read(&glb_path).normals.as_ref(), Some(&normals));
+    // Smooth across the seam: a copy has its original's normal, which is
+    // the torus' own (area-weighted over the whole fan, not half of it).
+    let n = |v: usize| Vector3::new(normals[v][0] as Real, normals[v][1] as Real, normals[v][2] as Real);
+    for &(original, copy) in &pairs {
+        assert_eq!(normals[original], normals[copy], "vertex {original} and its copy {copy}");
+        let p = mesh.frames[0][original];
+        let ring = Vector3::new(p.x, p.y, 0.0).normalize();
+        let exact = (p.coords - ring).normalize();
+        assert!(n(original).dot(&exact) > 0.99, "vertex {original}: {:?} vs {exact:?}", n(original));
+    }
+    for v in 0..normals.len() {
+        assert!((n(v).norm() - 1.0).abs() < 1e-6, "vertex {v}");
+    }
 }
 
 #[test]
@@ -579,7 +776,7 @@ fn obj_sequence_shares_one_connectivity() {
     let dir = Scratch::new("export", "objseq");
     for (name, mesh) in [("bar", bending_bar()), ("torus", torus(11, wobble))] {
         let out = dir.join(name);
-        let paths = voltrack::export::obj::write_obj_sequence(&out, &mesh).unwrap();
+        let paths = voltrack::export::obj::write_obj_sequence(&out, &mesh, name).unwrap();
         let want: Vec<PathBuf> = (0..mesh.frames.len()).map(|f| out.join(format!("frame_{f:04}.obj"))).collect();
         assert_eq!(paths, want);
         let mut listed: Vec<PathBuf> = std::fs::read_dir(&out).unwrap().flatten().map(|e| e.path()).collect();
@@ -593,7 +790,9 @@ fn obj_sequence_shares_one_connectivity() {
             assert!(f0.iter().all(|l| l.matches('/').count() == 3), "{}", f0[0]);
         }
         for (path, frame) in paths.iter().zip(&mesh.frames) {
-            let (v, vt, f) = obj_lines(&std::fs::read_to_string(path).unwrap());
+            let text = std::fs::read_to_string(path).unwrap();
+            assert_eq!(obj_objects_and_normals(&text).0, [name], "{}: one object, named", path.display());
+            let (v, vt, f) = obj_lines(&text);
             assert_eq!(f, f0, "{}: face lines differ", path.display());
             assert_eq!(vt, vt0, "{}: texture coordinates differ", path.display());
             assert_eq!(v.len(), frame.len());
@@ -604,13 +803,13 @@ fn obj_sequence_shares_one_connectivity() {
     }
     // A file where the directory should go: an error naming it.
     std::fs::write(dir.join("taken"), b"x").unwrap();
-    let err = voltrack::export::obj::write_obj_sequence(&dir.join("taken"), &bending_bar()).unwrap_err().to_string();
+    let err = voltrack::export::obj::write_obj_sequence(&dir.join("taken"), &bending_bar(), "bar").unwrap_err().to_string();
     assert!(err.contains("taken"), "{err}");
     // A frame that cannot be written: none of the others stays.
     let out = dir.join("new/frames");
     std::fs::create_dir_all(&out).unwrap();
     std::fs::create_dir(out.join("frame_0003.obj")).unwrap();
-    let err = voltrack::export::obj::write_obj_sequence(&out, &bending_bar()).unwrap_err().to_string();
+    let err = voltrack::export::obj::write_obj_sequence(&out, &bending_bar(), "bar").unwrap_err().to_string();
     assert!(err.contains("frame_0003.obj"), "{err}");
     let left: Vec<PathBuf> = std::fs::read_dir(&out).unwrap().flatten().map(|e| e.path()).collect();
     assert_eq!(left, [out.join("frame_0003.obj")]);

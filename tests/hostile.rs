@@ -47,7 +47,7 @@ fn ply(m: &TriangleMesh, encoding: PlyEncoding) -> Vec<u8> {
 }
 
 fn glb(m: &TriangleMesh) -> Vec<u8> {
-    voltrack::export::gltf::glb_bytes(m, None).unwrap()
+    voltrack::export::gltf::glb_bytes(m, None, &Default::default()).unwrap()
 }
 
 /// The cube voxelised at resolution 6, as binvox.

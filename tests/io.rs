@@ -142,3 +142,41 @@ fn sequences_reject_one_frame_and_mixed_units() {
     let e = err_text(voxelize_sequence(&[a, sheet], &p, Default::default()));
     assert!(e.contains("sheet.obj") && e.contains("encloses no voxel"), "{e}");
 }
+
+/// Issue 23: the result is named after its input, so two imported results
+/// are not both `voltrack`.
+#[test]
+fn a_sequence_is_named_after_its_folder_or_its_frames() {
+    use voltrack::io::sequence_name;
+    let d = tmpdir("names");
+    let named = |inputs: &[PathBuf]| sequence_name(inputs, &discover_frames(inputs).unwrap());
+    // A directory: its name, also when given as "." or with a trailing '/'.
+    let seq = d.join("Dancer take 2");
+    std::fs::create_dir(&seq).unwrap();
+    for f in 1..=12 {
+        write(&seq, &format!("scan_2024_{f:04}.obj"), TRI);
+    }
+    assert_eq!(named(&[seq.clone()]), "Dancer take 2");
+    assert_eq!(named(&[PathBuf::from(format!("{}/", seq.display()))]), "Dancer take 2");
+    assert_eq!(named(&[seq.join(".")]), "Dancer take 2");
+    // A pattern or files: their common prefix, less the frame number's
+    // leading digits and the separators before it.
+    assert_eq!(named(&[seq.join("scan_*.obj")]), "scan_2024");
+    assert_eq!(named(&[seq.join("scan_2024_0001.obj"), seq.join("scan_2024_0002.obj")]), "scan_2024");
+    let names = |stems: &[&str]| sequence_name(&[], &stems.iter().map(|s| PathBuf::from(format!("x/{s}.obj"))).collect::<Vec<_>>());
+    assert_eq!(names(&["walk_0001", "walk_0002", "walk_0010"]), "walk");
+    assert_eq!(names(&["take2_01", "take2_02"]), "take2");
+    assert_eq!(names(&["frame-0", "frame-1"]), "frame");
+    assert_eq!(names(&["bar. 1", "bar. 2"]), "bar");
+    assert_eq!(names(&["left_hand", "left_foot"]), "left");
+    // One file: its stem as it is; nothing in common: the first frame's stem.
+    assert_eq!(names(&["mesh2"]), "mesh2");
+    assert_eq!(names(&["1", "2"]), "1");
+    assert_eq!(names(&["a_1", "b_1"]), "a_1");
+    // Never a name the writers refuse.
+    assert_eq!(names(&["tab\there_1", "tab\there_2"]), "tab_here");
+    for n in [names(&["tab\there_1"]), names(&["_1", "_2"]), names(&[" ", "  "])] {
+        assert!(voltrack::export::check_name(&n).is_ok(), "{n:?}");
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}

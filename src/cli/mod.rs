@@ -298,7 +298,10 @@ fn convert(args: ConvertArgs) -> Result<()> {
     }
     deform.validate()?;
     conform.validate()?;
-    args.gltf_options().validate()?;
+    if let Some(name) = &args.name {
+        voltrack::export::check_name(name)?;
+    }
+    args.gltf_options(voltrack::export::DEFAULT_NAME.into()).validate()?;
     if format == OutputFormat::Exr && args.report.is_none() {
         // Only the trajectories are written: the fitted mesh would go unused.
         conform.iterations = 0;
@@ -312,15 +315,20 @@ fn convert(args: ConvertArgs) -> Result<()> {
         plan = plan.dir(&c.dir, "the checkpoint folder");
     }
     plan.check()?;
+    let name = match &args.name {
+        Some(name) => name.clone(),
+        None => voltrack::io::sequence_name(&args.input.input, &voltrack::io::discover_frames(&args.input.input)?),
+    };
     let bars = bars::Bars::new();
     let conv = pipeline::convert(&args.input.input, &voxel, &track, refine.as_ref(), &deform, &conform, checkpoint.as_ref(), bars.progress())?;
     let clock = std::time::Instant::now();
     bars.progress().report(Stage::Export, 0, 1);
     let out = &args.output;
     let mut notes = Vec::new();
-    match format {
+    let mut glb_report = None;
+    let files = match format {
         OutputFormat::Glb => {
-            let report = voltrack::export::gltf::write_dynamic_glb(out, &conv.mesh, &args.gltf_options(), bars.progress())?;
+            let report = voltrack::export::gltf::write_dynamic_glb(out, &conv.mesh, &args.gltf_options(name.clone()), bars.progress())?;
             if let Some(k) = report.basis {
                 if args.basis.is_none() {
                     notes.push(format!(
@@ -337,19 +345,26 @@ fn convert(args: ConvertArgs) -> Result<()> {
                     100.0 * report.reconstruction_error_mean
                 ));
             }
+            glb_report = Some(report);
+            vec![out.clone()]
         }
         OutputFormat::Exr => {
             let traj = conv.refined.as_ref().map_or(&conv.tracked.trajectories, |r| &r.trajectories);
             let removed = conv.refined.as_ref().map(|r| r.removed.clone()).unwrap_or_default();
             let attrs = pipeline::trajectory_attributes(&conv.sequence, &voxel, &track, refine.as_ref().map(|r| (r, removed.as_slice())));
             voltrack::export::exr::write_trajectories_exr(out, traj, &attrs)?;
+            vec![out.clone()]
         }
-        OutputFormat::Vat => voltrack::export::exr::write_vat_exr(out, &conv.mesh.frames)?,
-        OutputFormat::Pc2 => voltrack::export::pc2::write_pc2(out, &conv.mesh, args.fps)?,
-        OutputFormat::ObjSequence => {
-            voltrack::export::obj::write_obj_sequence(out, &conv.mesh)?;
+        OutputFormat::Vat => {
+            voltrack::export::exr::write_vat_exr(out, &conv.mesh.frames)?;
+            vec![out.clone(), out.with_extension("json")]
         }
-    }
+        OutputFormat::Pc2 => {
+            voltrack::export::pc2::write_pc2(out, &conv.mesh, args.fps, &name)?;
+            vec![out.clone(), out.with_extension("obj")]
+        }
+        OutputFormat::ObjSequence => voltrack::export::obj::write_obj_sequence(out, &conv.mesh, &name)?,
+    };
     bars.progress().report(Stage::Export, 1, 1);
     let mut seconds = conv.seconds.clone();
     seconds.push((Stage::Export, clock.elapsed().as_secs_f64()));
@@ -372,6 +387,38 @@ fn convert(args: ConvertArgs) -> Result<()> {
     bars.finish();
     let size = output_size(out);
     let traj = conv.refined.as_ref().map_or(&conv.tracked.trajectories, |r| &r.trajectories);
+    let total: f64 = seconds.iter().map(|s| s.1).sum();
+    // What carries the name and the frame rate, and where they are written.
+    let named = matches!(format, OutputFormat::Glb | OutputFormat::Pc2 | OutputFormat::ObjSequence);
+    let timed = matches!(format, OutputFormat::Glb | OutputFormat::Pc2);
+    if args.json {
+        let mut stages: serde_json::Map<String, serde_json::Value> = seconds.iter().map(|(stage, s)| (stage.name().to_string(), (*s).into())).collect();
+        stages.insert("total".into(), total.into());
+        return print_json(&serde_json::json!({
+            "output": out,
+            "files": files,
+            "format": format.name(),
+            "name": named.then_some(&name),
+            "fps": timed.then_some(args.fps),
+            "frames": conv.mesh.frames.len(),
+            "vertices": conv.mesh.base.positions.len(),
+            "triangles": conv.mesh.base.triangles.len(),
+            "resolution": voxel.resolution,
+            "centers": traj.centers,
+            "removed": conv.refined.as_ref().map(|r| &r.removed),
+            "seconds": stages,
+            // In percent of the input's bounding-box diagonal, as printed.
+            "fit_percent": fit.map(|f| f.summary()),
+            "basis": glb_report.map(|r| serde_json::json!({
+                "targets": r.targets,
+                "components": r.basis,
+                "reconstruction_error_max": r.reconstruction_error_max,
+                "reconstruction_error_mean": r.reconstruction_error_mean,
+            })),
+            "report": args.report,
+            "bytes": size,
+        }));
+    }
     println!(
         "{} frames, {} vertices, {} triangles, {} centers{}",
         conv.mesh.frames.len(),
@@ -380,7 +427,6 @@ fn convert(args: ConvertArgs) -> Result<()> {
         traj.centers,
         conv.refined.as_ref().map_or(String::new(), |r| format!(" ({} irregular removed)", r.removed.len()))
     );
-    let total: f64 = seconds.iter().map(|s| s.1).sum();
     for (stage, s) in &seconds {
         println!("  {:>9} {:>8.2} s  {:>5.1} %", stage.name(), s, 100.0 * s / total.max(1e-9));
     }
@@ -392,7 +438,8 @@ fn convert(args: ConvertArgs) -> Result<()> {
     for n in notes {
         println!("{n}");
     }
-    println!("wrote {} ({})", out.display(), human_size(size));
+    let called = if named { format!(", object \"{name}\"") } else { String::new() };
+    println!("wrote {} ({}{called})", out.display(), human_size(size));
     Ok(())
 }
 

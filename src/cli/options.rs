@@ -254,6 +254,12 @@ pub struct ConvertArgs {
     /// Also write a self-contained HTML report: fit to the input per frame, PCAC/DFU, irregularity, time per stage
     #[arg(long, value_name = "HTML")]
     pub report: Option<PathBuf>,
+    /// Name of the animated object: the glTF node, mesh and animation, the OBJ's object [default: the input directory's name, or the frames' common file-name prefix]
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Print a machine-readable summary on stdout, and nothing else there
+    #[arg(long)]
+    pub json: bool,
 }
 
 impl ConvertArgs {
@@ -312,9 +318,11 @@ impl ConvertArgs {
         }
     }
 
-    pub fn gltf_options(&self) -> GltfExportOptions {
+    /// The glTF options, the object called `name`.
+    pub fn gltf_options(&self, name: String) -> GltfExportOptions {
         GltfExportOptions {
             fps: self.fps,
+            name,
             basis: self.basis.map_or(BasisChoice::Auto, BasisChoice::Components),
             ..Default::default()
         }

@@ -7,6 +7,7 @@
 
 use super::basis::{self, MorphBasis};
 pub use super::basis::BasisChoice;
+use super::normals::FrameNormals;
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real, Vector3};
@@ -18,11 +19,15 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// How [`write_dynamic_glb`] encodes the animation.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct GltfExportOptions {
-    /// Capture rate in frames per second: frame f is keyed at f / fps seconds.
-    /// Default 30; in [0.001, 100000].
+    /// Capture rate in frames per second: frame f is keyed at f / fps seconds
+    /// and shown until (f + 1) / fps. Default 30; in [0.001, 100000].
     pub fps: f32,
+    /// Name of the node, the mesh and the animation: what Blender calls the
+    /// object and its action, and three.js the object and its clip. Default
+    /// [`DEFAULT_NAME`](super::DEFAULT_NAME); not blank, no control characters.
+    pub name: String,
     /// Morph basis: one target per frame, a fixed number of principal
     /// components, or chosen by length and error. Default [`BasisChoice::Auto`].
     pub basis: BasisChoice,
@@ -40,7 +45,7 @@ pub struct GltfExportOptions {
 
 impl Default for GltfExportOptions {
     fn default() -> Self {
-        GltfExportOptions { fps: 30.0, basis: BasisChoice::Auto, max_basis_error: 0.001, normals: true }
+        GltfExportOptions { fps: 30.0, name: super::DEFAULT_NAME.into(), basis: BasisChoice::Auto, max_basis_error: 0.001, normals: true }
     }
 }
 
@@ -51,6 +56,7 @@ impl GltfExportOptions {
             return Err(Error::InvalidParameter("a compact basis needs at least one component".into()));
         }
         crate::params::check("the frame rate", self.fps as Real, crate::params::Span::closed(1e-3, 1e5))?;
+        super::check_name(&self.name)?;
         if let BasisChoice::Components(k) = self.basis {
             crate::params::check_count("the basis components", k, 1..=crate::params::MAX_ITERATIONS)?;
         }
@@ -82,11 +88,17 @@ pub struct GltfExportReport {
 }
 
 /// Writes `mesh` as a GLB holding one mesh: frame 0 as the base, morph targets
-/// from the basis `options` selects, and one animation ("capture") of the
-/// node's morph weights with one keyframe per frame at f / fps. Per-frame
-/// targets are keyed STEP with a one-hot weight vector (all zero at frame 0);
-/// a compact basis is keyed LINEAR. `mesh.extras.targetNames` names the
-/// targets (Blender's shape keys, three.js' `morphTargetDictionary`). UVs and
+/// from the basis `options` selects, and one animation of the node's morph
+/// weights with one keyframe per frame at f / fps and a closing key at
+/// F / fps that holds the last frame, so the clip lasts F / fps and a player
+/// that loops it (three.js' default) shows every frame for 1 / fps instead
+/// of wrapping at the last one. Per-frame targets are keyed STEP with a
+/// one-hot weight vector (all zero at frame 0); a compact basis is keyed
+/// LINEAR. Node, mesh and animation are called `options.name`; the scene's
+/// and the animation's `extras` hold the frame rate and the frame count
+/// ([`Timing`]), which glTF has no field for. `mesh.extras.targetNames`
+/// names the targets (Blender's shape keys, three.js'
+/// `morphTargetDictionary`). UVs and
 /// the first frame's texture are carried over; normals as `options.normals`
 /// says (the base mesh's loaded normals are not used: they would not match
 /// the recomputed ones of the other frames). Progress is reported under
@@ -108,7 +120,8 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
         texture: mesh.base.texture.clone(),
     };
     let animation = (basis.targets() > 0).then(|| morph_animation(frames, &basis, normals.as_ref(), options.fps, progress)).transpose()?;
-    let bytes = glb_bytes(&base, animation.as_ref())?;
+    let scene = SceneInfo { name: options.name.clone(), timing: Some(Timing { fps: options.fps, frames: frames.len() }) };
+    let bytes = glb_bytes(&base, animation.as_ref(), &scene)?;
     super::write_atomic(path, |w| std::io::Write::write_all(w, &bytes))?;
     Ok(GltfExportReport {
         targets: basis.targets(),
@@ -122,7 +135,9 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
 /// The morph animation of `basis`: position targets from the displacements,
 /// normal targets from the normals' change since frame 0, weights keyed at
 /// f / fps (STEP for per-frame targets, each frame shown as captured; LINEAR
-/// for a compact basis, whose weights vary smoothly).
+/// for a compact basis, whose weights vary smoothly), and the last frame's
+/// weights again at F / fps: without that key the clip ends where the last
+/// frame begins, and a looping player never shows it.
 fn morph_animation(frames: &[Vec<Point3>], basis: &MorphBasis, normals: Option<&FrameNormals>, fps: f32, progress: Progress) -> Result<MorphAnimation> {
     let vertices = frames[0].len();
     let position_deltas =
@@ -133,50 +148,11 @@ fn morph_animation(frames: &[Vec<Point3>], basis: &MorphBasis, normals: Option<&
     Ok(MorphAnimation {
         position_deltas,
         normal_deltas,
-        weights: basis.weights.iter().map(|w| w.iter().map(|&x| x as f32).collect()).collect(),
-        times: (0..frames.len()).map(|f| (f as f64 / fps as f64) as f32).collect(),
+        weights: basis.weights.iter().chain(basis.weights.last()).map(|w| w.iter().map(|&x| x as f32).collect()).collect(),
+        times: (0..=frames.len()).map(|f| (f as f64 / fps as f64) as f32).collect(),
         interpolation: if basis.components.is_some() { Interpolation::Linear } else { Interpolation::Step },
         target_names: basis.names.clone(),
     })
-}
-
-/// Area-weighted vertex normals with vertices welded by identical frame-0
-/// position, so a UV seam (duplicated vertices) shares one normal instead of
-/// showing as a crease.
-struct FrameNormals<'a> {
-    triangles: &'a [[u32; 3]],
-    /// Per vertex, the first vertex at the same frame-0 position.
-    weld: Vec<u32>,
-    /// Frame 0's normals; +Z where no triangle with area touches a vertex, as
-    /// glTF requires unit normals.
-    base: Vec<Vector3>,
-}
-
-impl<'a> FrameNormals<'a> {
-    fn new(triangles: &'a [[u32; 3]], frame0: &[Point3]) -> Self {
-        let weld = crate::mesh::weld_by_position(frame0);
-        let mut n = FrameNormals { triangles, weld, base: Vec::new() };
-        n.base = n.raw(frame0).into_iter().map(|v| if v == Vector3::zeros() { Vector3::z() } else { v }).collect();
-        n
-    }
-
-    /// Unit normals of a frame; zero where undefined.
-    fn raw(&self, positions: &[Point3]) -> Vec<Vector3> {
-        let mut sum = vec![Vector3::zeros(); positions.len()];
-        for t in self.triangles {
-            let [a, b, c] = t.map(|i| positions[i as usize]);
-            let face = (b - a).cross(&(c - a));
-            for &i in t {
-                sum[self.weld[i as usize] as usize] += face;
-            }
-        }
-        self.weld.iter().map(|&w| sum[w as usize].try_normalize(0.0).unwrap_or_else(Vector3::zeros)).collect()
-    }
-
-    /// Normals of a frame, frame 0's where undefined (no change there).
-    fn of(&self, positions: &[Point3]) -> Vec<Vector3> {
-        self.raw(positions).into_iter().zip(&self.base).map(|(n, b)| if n == Vector3::zeros() { *b } else { n }).collect()
-    }
 }
 
 fn to_f32(v: &Vector3) -> [f32; 3] {
@@ -326,14 +302,48 @@ fn bounds_of(data: &[[f32; 3]]) -> (Vec<f32>, Vec<f32>) {
     (lo, hi)
 }
 
+/// The capture's time base, which glTF has no field for: written to the
+/// scene's and the animation's `extras` as `{"fps": …, "frames": …}`, where
+/// importers and scripts can read the frame rate and range to set.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Timing {
+    /// Captured frames per second.
+    pub fps: f32,
+    /// Captured frames (the animation has one key more, closing the last).
+    pub frames: usize,
+}
+
+/// What names and describes the scene [`glb_bytes`] writes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneInfo {
+    /// Name of the node, the mesh and the animation. Default
+    /// [`DEFAULT_NAME`](super::DEFAULT_NAME); not blank, no control characters.
+    pub name: String,
+    /// Frame rate and count for the `extras`; default None (no `extras`).
+    pub timing: Option<Timing>,
+}
+
+impl Default for SceneInfo {
+    fn default() -> Self {
+        SceneInfo { name: super::DEFAULT_NAME.into(), timing: None }
+    }
+}
+
+fn raw_json(value: &impl serde::Serialize) -> Result<Box<serde_json::value::RawValue>> {
+    serde_json::value::to_raw_value(value).map_err(|e| Error::InvalidInput(e.to_string()))
+}
+
 /// Encodes `mesh` (and its animation) as a GLB file: positions, and the
-/// mesh's normals, UVs and texture when present. Without an animation the
-/// output is a plain static mesh (the committed fixtures are built this way,
-/// byte for byte).
-pub fn glb_bytes(mesh: &TriangleMesh, animation: Option<&MorphAnimation>) -> Result<Vec<u8>> {
+/// mesh's normals, UVs and texture when present, named and described as
+/// `scene` says. Without an animation the output is a plain static mesh (the
+/// committed fixtures are built this way, with the default `scene`, byte for
+/// byte).
+pub fn glb_bytes(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo) -> Result<Vec<u8>> {
+    super::check_name(&scene.name)?;
     if let Some(anim) = animation {
         anim.check(mesh)?;
     }
+    let timing = scene.timing.as_ref().map(raw_json).transpose()?;
     let mut b = Builder { root: json::Root::default(), bin: Vec::new() };
     b.root.asset.generator = Some(format!("voltrack {}", env!("CARGO_PKG_VERSION")));
     let array = Some(json::buffer::Target::ArrayBuffer);
@@ -379,7 +389,7 @@ pub fn glb_bytes(mesh: &TriangleMesh, animation: Option<&MorphAnimation>) -> Res
         targets = Some(t);
         weights = Some(anim.weights[0].clone());
         let names = serde_json::json!({ "targetNames": anim.target_names });
-        extras = Some(serde_json::value::to_raw_value(&names).map_err(|e| Error::InvalidInput(e.to_string()))?);
+        extras = Some(raw_json(&names)?);
     }
     let primitive = json::mesh::Primitive {
         attributes,
@@ -393,15 +403,15 @@ pub fn glb_bytes(mesh: &TriangleMesh, animation: Option<&MorphAnimation>) -> Res
     let mesh_index = b.root.push(json::Mesh {
         extensions: None,
         extras,
-        name: Some("voltrack".into()),
+        name: Some(scene.name.clone()),
         primitives: vec![primitive],
         weights,
     });
-    let node = b.root.push(json::Node { mesh: Some(mesh_index), name: Some("voltrack".into()), ..Default::default() });
-    let scene = b.root.push(json::Scene { extensions: None, extras: Default::default(), name: None, nodes: vec![node] });
-    b.root.scene = Some(scene);
+    let node = b.root.push(json::Node { mesh: Some(mesh_index), name: Some(scene.name.clone()), ..Default::default() });
+    let scene_index = b.root.push(json::Scene { extensions: None, extras: timing.clone(), name: None, nodes: vec![node] });
+    b.root.scene = Some(scene_index);
     if let Some(anim) = animation {
-        add_weight_animation(&mut b, anim, node);
+        add_weight_animation(&mut b, anim, node, &scene.name, timing);
     }
     while b.bin.len() % 4 != 0 {
         b.bin.push(0);
@@ -419,7 +429,7 @@ pub fn glb_bytes(mesh: &TriangleMesh, animation: Option<&MorphAnimation>) -> Res
     glb.to_vec().map_err(|e| Error::InvalidInput(e.to_string()))
 }
 
-fn add_weight_animation(b: &mut Builder, anim: &MorphAnimation, node: json::Index<json::Node>) {
+fn add_weight_animation(b: &mut Builder, anim: &MorphAnimation, node: json::Index<json::Node>, name: &str, extras: Option<Box<serde_json::value::RawValue>>) {
     let tmin = anim.times.iter().copied().fold(f32::INFINITY, f32::min);
     let tmax = anim.times.iter().copied().fold(f32::NEG_INFINITY, f32::max);
     let input = b.accessor(
@@ -457,9 +467,9 @@ fn add_weight_animation(b: &mut Builder, anim: &MorphAnimation, node: json::Inde
     };
     b.root.push(json::Animation {
         extensions: None,
-        extras: Default::default(),
+        extras,
         channels: vec![channel],
-        name: Some("capture".into()),
+        name: Some(name.into()),
         samplers: vec![sampler],
     });
 }

@@ -6,6 +6,7 @@ pub mod basis;
 pub mod exr;
 pub mod gltf;
 pub mod guard;
+mod normals;
 pub mod obj;
 pub mod pc2;
 pub mod ply;
@@ -14,6 +15,23 @@ use crate::error::{Error, Result};
 use std::io::{BufWriter, Write};
 pub use guard::OutputPlan;
 use std::path::{Path, PathBuf};
+
+/// What the writers call the animated object (glTF node, mesh and animation,
+/// OBJ object) when no name is given.
+pub const DEFAULT_NAME: &str = "voltrack";
+
+/// Checks a name for the animated object: something besides white space,
+/// and no control characters (a line break would end an OBJ's `o` line and
+/// start another).
+pub fn check_name(name: &str) -> Result<()> {
+    if name.trim().is_empty() {
+        return Err(Error::InvalidParameter("the name must not be empty".into()));
+    }
+    if name.chars().any(char::is_control) {
+        return Err(Error::InvalidParameter(format!("the name {name:?} holds a control character")));
+    }
+    Ok(())
+}
 
 /// Writes `path` through a temporary file in the same directory, renamed into
 /// place only when `fill` succeeded. A symbolic link is followed (the file it

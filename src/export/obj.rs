@@ -2,14 +2,30 @@
 
 use crate::deform::DynamicMesh;
 use crate::error::Result;
-use crate::math::Point3;
+use crate::math::{Point3, Vector3};
 use crate::mesh::TriangleMesh;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-/// Writes `positions` with the connectivity (and UVs) of `mesh`.
+/// Writes `positions` with the connectivity (and UVs) of `mesh`: no object
+/// name, no normals (`mesh.normals` is not written).
 pub fn write_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3]) -> std::io::Result<()> {
+    write_object(out, mesh, positions, None, None)
+}
+
+/// [`write_obj`] as one object called `name` (`o name`: what Blender's
+/// importer names the object), with one normal per vertex (`vn`, referenced
+/// by the vertex's own index) when `normals` is given, so importers shade it
+/// smooth. The name should pass [`check_name`](super::check_name).
+pub fn write_named_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3], name: &str, normals: Option<&[Vector3]>) -> std::io::Result<()> {
+    write_object(out, mesh, positions, Some(name), normals)
+}
+
+fn write_object(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3], name: Option<&str>, normals: Option<&[Vector3]>) -> std::io::Result<()> {
     writeln!(out, "# voltrack {}", env!("CARGO_PKG_VERSION"))?;
+    if let Some(name) = name {
+        writeln!(out, "o {name}")?;
+    }
     for p in positions {
         writeln!(out, "v {} {} {}", p.x as f32, p.y as f32, p.z as f32)?;
     }
@@ -18,13 +34,17 @@ pub fn write_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3]
             writeln!(out, "vt {} {}", t[0], 1.0 - t[1])?;
         }
     }
+    for n in normals.unwrap_or_default() {
+        writeln!(out, "vn {} {} {}", n.x as f32, n.y as f32, n.z as f32)?;
+    }
     let uv = mesh.uvs.is_some();
     for t in &mesh.triangles {
         let [a, b, c] = t.map(|i| i + 1);
-        if uv {
-            writeln!(out, "f {a}/{a} {b}/{b} {c}/{c}")?;
-        } else {
-            writeln!(out, "f {a} {b} {c}")?;
+        match (uv, normals.is_some()) {
+            (true, true) => writeln!(out, "f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}")?,
+            (false, true) => writeln!(out, "f {a}//{a} {b}//{b} {c}//{c}")?,
+            (true, false) => writeln!(out, "f {a}/{a} {b}/{b} {c}/{c}")?,
+            (false, false) => writeln!(out, "f {a} {b} {c}")?,
         }
     }
     Ok(())
@@ -32,17 +52,18 @@ pub fn write_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3]
 
 /// Writes every frame of `mesh` into `dir` (created if needed) as
 /// `frame_0000.obj`, `frame_0001.obj`, … (more digits past 10 000 frames, so
-/// names sort in frame order): the same vertex order, faces and UVs in every
-/// file, only the positions change. Returns the paths in frame order. On
-/// failure no frame is left.
-pub fn write_obj_sequence(dir: &Path, mesh: &DynamicMesh) -> Result<Vec<PathBuf>> {
+/// names sort in frame order): the same object `name`, vertex order, faces
+/// and UVs in every file, only the positions change. Returns the paths in
+/// frame order. On failure no frame is left.
+pub fn write_obj_sequence(dir: &Path, mesh: &DynamicMesh, name: &str) -> Result<Vec<PathBuf>> {
+    super::check_name(name)?;
     super::basis::check_frames(mesh)?;
     let width = (mesh.frames.len() - 1).to_string().len().max(4);
     let paths: Vec<PathBuf> = (0..mesh.frames.len()).map(|f| dir.join(format!("frame_{f:0width$}.obj"))).collect();
     let files = paths
         .iter()
         .zip(&mesh.frames)
-        .map(|(path, positions)| (path.as_path(), Box::new(move |w: &mut _| write_obj(w, &mesh.base, positions)) as super::Fill))
+        .map(|(path, positions)| (path.as_path(), Box::new(move |w: &mut _| write_named_obj(w, &mesh.base, positions, name, None)) as super::Fill))
         .collect();
     super::write_atomic_into(dir, files)?;
     Ok(paths)

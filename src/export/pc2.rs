@@ -2,7 +2,8 @@
 //! a PC2 file, and the mesh to put the modifier on as an OBJ beside it.
 
 use super::basis::check_frames;
-use super::obj::write_obj;
+use super::normals::FrameNormals;
+use super::obj::write_named_obj;
 use super::write_atomic_all;
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
@@ -18,7 +19,9 @@ pub const MESH_MARK: &str = "# Mesh Cache";
 /// Writes the frames of `mesh` as a PC2 point cache at `path` and frame 0 as
 /// an OBJ at `path.with_extension("obj")`, both listing the same vertices in
 /// the same order, so the Mesh Cache modifier on the imported OBJ replays the
-/// sequence.
+/// sequence. The OBJ holds one object called `name` (not blank, no control
+/// characters) and frame 0's vertex normals, computed and welded at UV seams
+/// as the GLB's are, so Blender shades it smooth.
 ///
 /// PC2 (3ds Max's format, read by Blender): the header `POINTCACHE2\0`, i32
 /// version 1, i32 point count, f32 start frame (0), f32 sampling (1: one
@@ -30,10 +33,11 @@ pub const MESH_MARK: &str = "# Mesh Cache";
 /// Vertices that no triangle uses are left out of both files: Blender's OBJ
 /// importer does not create them, and the modifier needs equal counts. All
 /// others keep the mesh's order.
-pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32) -> Result<()> {
+pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32, name: &str) -> Result<()> {
     if !(fps.is_finite() && fps > 0.0) {
         return Err(Error::InvalidParameter(format!("the frame rate must be positive, not {fps}")));
     }
+    super::check_name(name)?;
     check_frames(mesh)?;
     let obj_path = path.with_extension("obj");
     if obj_path == path {
@@ -54,6 +58,8 @@ pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32) -> Result<()> {
         uvs: base.uvs.as_ref().map(|uv| kept.iter().map(|&v| uv[v]).collect()),
         ..Default::default()
     };
+    let all_normals = FrameNormals::new(&base.triangles, &mesh.frames[0]).base;
+    let normals: Vec<_> = kept.iter().map(|&v| all_normals[v]).collect();
     let cache = path.file_name().unwrap_or_default().to_string_lossy();
     let write_cache = |w: &mut BufWriter<File>| {
         w.write_all(b"POINTCACHE2\0")?;
@@ -73,7 +79,7 @@ pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32) -> Result<()> {
     };
     let write_mesh = |w: &mut BufWriter<File>| {
         writeln!(w, "{MESH_MARK} {cache}: {samples} frames at {fps} fps, start frame 0, one sample per frame")?;
-        write_obj(w, &obj, &obj.positions)
+        write_named_obj(w, &obj, &obj.positions, name, Some(&normals))
     };
     // Both or neither: a cache without its mesh is of no use.
     write_atomic_all(vec![(path, Box::new(write_cache)), (&obj_path, Box::new(write_mesh))])

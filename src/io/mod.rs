@@ -13,7 +13,7 @@ pub use gltf::read_gltf;
 pub use obj::read_obj;
 pub use ply::read_ply;
 pub use polygon::triangulate_polygon;
-pub use sequence::{discover_frames, glob_match, is_supported, sort_natural, would_discover, EXTENSIONS};
+pub use sequence::{discover_frames, glob_match, is_supported, sequence_name, sort_natural, would_discover, EXTENSIONS};
 
 use crate::error::{Error, Result};
 use crate::mesh::TriangleMesh;

@@ -135,6 +135,43 @@ fn expand_pattern(pattern: &Path) -> Result<Vec<PathBuf>> {
     Ok(candidates)
 }
 
+/// A name for what `inputs` (which gave `frames`, in order) hold, to call the
+/// result by: the input directory's name when one directory was given; else
+/// the frames' common file-name prefix (without extensions), less the digits
+/// where the frame numbers start to differ and trailing separators (`_-. `),
+/// so `walk_0001.obj`, `walk_0002.obj`, … give `walk`; else the first
+/// frame's stem; else [`DEFAULT_NAME`](crate::export::DEFAULT_NAME). Control
+/// characters become `_`, so the name always passes
+/// [`check_name`](crate::export::check_name).
+pub fn sequence_name(inputs: &[PathBuf], frames: &[PathBuf]) -> String {
+    let clean = |s: &str| s.trim().chars().map(|c| if c.is_control() { '_' } else { c }).collect::<String>();
+    let dir_name = match inputs {
+        // "." or "..": the name of the directory it stands for.
+        [dir] if dir.is_dir() => dir.file_name().map(|n| n.to_os_string()).or_else(|| std::fs::canonicalize(dir).ok()?.file_name().map(|n| n.to_os_string())),
+        _ => None,
+    };
+    let stems: Vec<String> = frames.iter().map(|f| f.file_stem().unwrap_or_default().to_string_lossy().into_owned()).collect();
+    let candidates = [dir_name.map(|n| n.to_string_lossy().into_owned()), Some(common_stem(&stems)), stems.first().cloned()];
+    candidates.into_iter().flatten().map(|n| clean(&n)).find(|n| !n.is_empty()).unwrap_or_else(|| crate::export::DEFAULT_NAME.into())
+}
+
+/// The common prefix of `stems`, less a trailing run of digits that
+/// continues differently in some stem (the start of a frame number), less
+/// trailing separators.
+fn common_stem(stems: &[String]) -> String {
+    let Some(first) = stems.first() else { return String::new() };
+    let mut len = first.len();
+    for s in &stems[1..] {
+        len = first.char_indices().zip(s.chars()).find(|((_, a), b)| a != b).map_or(len.min(s.len()), |((i, _), _)| i).min(len);
+    }
+    let mut prefix = &first[..len];
+    let differs_at_digit = stems.iter().any(|s| s[len..].starts_with(|c: char| c.is_ascii_digit()));
+    if differs_at_digit && stems.len() > 1 {
+        prefix = prefix.trim_end_matches(|c: char| c.is_ascii_digit());
+    }
+    prefix.trim_end_matches(['_', '-', '.', ' ']).to_string()
+}
+
 /// The entries of `dir` whose name passes `keep`: regular files if `files`,
 /// else directories.
 fn list_dir(dir: &Path, files: bool, keep: impl Fn(&str) -> bool) -> Result<Vec<PathBuf>> {
