@@ -102,7 +102,8 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
 ///   tobj reports `w = 0` and a wrong count without a line, divides by a NaN
 ///   `w`, and renumbers vertices, so a non-finite coordinate could not be
 ///   traced back to its line afterwards;
-/// - a face has at least three corners, each `v`, `v/vt`, `v//vn` or
+/// - a face (a line, a point) has at least three (two, one) corners, each
+///   `v`, `v/vt`, `v//vn` or
 ///   `v/vt/vn` with indices that refer to an element defined above the line
 ///   (1-based, or negative counting back from the last one). tobj would take a
 ///   face of one or two corners (a file cut short in a face line) for a point
@@ -141,10 +142,17 @@ fn check_lines(path: &Path, bytes: &[u8]) -> Result<()> {
             }
             Some("vt") => counts[1] += 1,
             Some("vn") => counts[2] += 1,
-            Some("f") => {
+            Some(kind @ ("f" | "l" | "p")) => {
+                // Lines and points are dropped, but tobj still resolves
+                // their indices, with the same overflowing arithmetic.
                 let corners: Vec<&str> = words.collect();
-                if corners.len() < 3 {
-                    return Err(err(format!("a face needs at least 3 corners, this one has {}", corners.len())));
+                let (least, what) = match kind {
+                    "f" => (3, "a face"),
+                    "l" => (2, "a line ('l')"),
+                    _ => (1, "a point ('p')"),
+                };
+                if corners.len() < least {
+                    return Err(err(format!("{what} needs at least {least} corners, this one has {}", corners.len())));
                 }
                 for corner in corners {
                     let fields: Vec<&str> = corner.split('/').collect();
