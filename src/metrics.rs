@@ -2,7 +2,10 @@
 //! reference computes them, and of the dynamic mesh against its input
 //! ([`surface`]).
 
+pub mod coverage;
 pub mod surface;
+
+pub use coverage::{coverage, fit_outliers, Coverage, FitOutliers, FrameCoverage};
 
 pub use surface::{
     closest_point_on_triangle, fit_to_inputs, point_triangle_distance_squared, surface_fit, DistanceSummary, FrameFit, SequenceFit, Surface,

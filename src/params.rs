@@ -387,6 +387,52 @@ impl ConformParams {
     }
 }
 
+/// Warning of parts the tracker lost ([`crate::metrics::coverage`]; not in
+/// the paper): frames with input volume no tracked cell reaches, or whose
+/// fit to the input is far worse than the sequence's usual.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CoverageParams {
+    /// A voxel is unreached when it lies farther from its cell's center
+    /// than this many times the cell's frame-0 reach (the distance to its
+    /// farthest voxel then). Default 2; in [1, 1e6].
+    pub reach: Real,
+    /// Smallest connected region of unreached voxels counted as lost, in
+    /// cells' volume (frame 0's occupied voxels / N). Default 2; in [0, 1e6].
+    pub min_region: Real,
+    /// A frame is flagged when the lost volume is at least this share of
+    /// its occupied volume. Default 0.002; in (0, 1].
+    pub min_share: Real,
+    /// A frame's fit to the input (the 95th percentile of its two-sided
+    /// distance, [`crate::metrics::FrameFit::two_sided`]) is flagged when it
+    /// is more than this many times the sequence's usual fit, the lower
+    /// quartile over the frames after the first (the quartile, not the
+    /// median: a lost part often stays lost to the end, so the bad frames
+    /// can be the majority)... Default 4; in [1, 1e6].
+    pub fit_ratio: Real,
+    /// ... and more than this, in percent of the bounding-box diagonal (so a
+    /// sequence fitted closely everywhere is never flagged). Default 2; in
+    /// [0, 1e6].
+    pub fit_floor: Real,
+}
+
+impl Default for CoverageParams {
+    fn default() -> Self {
+        CoverageParams { reach: 2.0, min_region: 2.0, min_share: 0.002, fit_ratio: 4.0, fit_floor: 2.0 }
+    }
+}
+
+impl CoverageParams {
+    /// Checks every field's range.
+    pub fn validate(&self) -> crate::Result<()> {
+        check("the coverage reach", self.reach, Span::closed(1.0, 1e6))?;
+        check("the smallest lost region", self.min_region, Span::closed(0.0, 1e6))?;
+        check("the least lost share", self.min_share, Span::open_closed(0.0, 1.0))?;
+        check("the fit ratio", self.fit_ratio, Span::closed(1.0, 1e6))?;
+        check("the fit floor", self.fit_floor, Span::closed(0.0, 1e6))?;
+        Ok(())
+    }
+}
+
 /// Largest number of centers: far more than any capture needs, small enough
 /// that per-center tables stay addressable.
 pub const MAX_CENTERS: usize = 1_000_000;

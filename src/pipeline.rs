@@ -5,7 +5,8 @@ use crate::deform::{conform_to_inputs, deform, DynamicMesh};
 use crate::error::{Error, Result};
 use crate::math::Real;
 use crate::mesh::TriangleMesh;
-use crate::params::{ConformParams, DeformParams, RefineParams, TrackParams};
+use crate::metrics::Coverage;
+use crate::params::{ConformParams, CoverageParams, DeformParams, RefineParams, TrackParams};
 use crate::progress::{Progress, Stage};
 use crate::refine::{global_affinity, refine, RefineResult, SequenceCells};
 use crate::track::{track_with_checkpoints, Checkpointing, TrackResult, Trajectories};
@@ -129,6 +130,9 @@ pub struct Conversion {
     pub tracked: TrackResult,
     pub refined: Option<RefineResult>,
     pub mesh: DynamicMesh,
+    /// Input volume the final centers' cells do not reach, per frame, at
+    /// the default [`CoverageParams`]: frames where a part was lost.
+    pub coverage: Coverage,
     pub seconds: Vec<(Stage, f64)>,
 }
 
@@ -161,9 +165,10 @@ pub fn convert(
     if let Some(r) = &refined {
         seconds.push((Stage::Refine, r.seconds));
     }
+    let traj = refined.as_ref().map_or(&tracked.trajectories, |r| &r.trajectories);
+    let coverage = check_coverage(traj, &sequence, &CoverageParams::default())?;
     let clock = Instant::now();
     progress.report(Stage::Deform, 0, 1);
-    let traj = refined.as_ref().map_or(&tracked.trajectories, |r| &r.trajectories);
     let mesh = deform_sequence(&first, traj, &sequence, refine_params, deform_params)?;
     progress.report(Stage::Deform, 1, 1);
     seconds.push((Stage::Deform, clock.elapsed().as_secs_f64()));
@@ -173,7 +178,17 @@ pub fn convert(
     if conform_params.iterations > 0 {
         seconds.push((Stage::Conform, clock.elapsed().as_secs_f64()));
     }
-    Ok(Conversion { sequence, tracked, refined, mesh, seconds })
+    Ok(Conversion { sequence, tracked, refined, mesh, coverage, seconds })
+}
+
+/// [`crate::metrics::coverage`] of the final trajectories, logging the
+/// frames it flags.
+pub fn check_coverage(traj: &Trajectories, seq: &VoxelSequence, params: &CoverageParams) -> Result<Coverage> {
+    let coverage = crate::metrics::coverage(traj, seq, params)?;
+    for (a, b) in coverage.flagged_runs() {
+        log::info!("frames {a}-{b}: input volume no tracked cell reaches (a part may have been lost)");
+    }
+    Ok(coverage)
 }
 
 /// [`refine`] after [`track_with_checkpoints`]: when interrupted, says that

@@ -11,8 +11,9 @@
 
 use crate::error::Result;
 use crate::math::Real;
-use crate::metrics::{fit_to_inputs, irregularity_curves_svg, FrameFit, SequenceFit};
-use crate::params::{ConformParams, DeformParams, RefineParams, TrackParams};
+use crate::metrics::coverage::runs;
+use crate::metrics::{fit_outliers, fit_to_inputs, irregularity_curves_svg, FitOutliers, FrameFit, SequenceFit};
+use crate::params::{ConformParams, CoverageParams, DeformParams, RefineParams, TrackParams};
 use crate::pipeline::{measure, measure_with_counts, Conversion, Quality};
 use crate::plot::{bar_chart, escape, line_plot, significant, Axis, Series};
 use crate::progress::{Progress, Stage};
@@ -29,6 +30,9 @@ pub struct Measurements {
     pub refined: Option<Quality>,
     /// The dynamic mesh against every input frame.
     pub fit: SequenceFit,
+    /// Frames whose fit is far worse than the sequence's usual, at the
+    /// default [`CoverageParams`].
+    pub fit_outliers: FitOutliers,
 }
 
 impl Measurements {
@@ -41,7 +45,8 @@ impl Measurements {
         let tracked = measure_with_counts(&conv.tracked.trajectories, &conv.tracked.cell_counts);
         let refined = conv.refined.as_ref().map(|r| measure(&r.trajectories, &conv.sequence));
         let fit = fit_to_inputs(&conv.mesh, &conv.sequence.paths, conv.sequence.bounds.diagonal(), progress)?;
-        Ok(Measurements { tracked, refined, fit })
+        let fit_outliers = fit_outliers(&fit, &CoverageParams::default())?;
+        Ok(Measurements { tracked, refined, fit, fit_outliers })
     }
 }
 
@@ -109,8 +114,10 @@ pub fn report_html(input: &ReportInput) -> String {
         env!("CARGO_PKG_VERSION")
     );
     h.push_str(&glance_html(input));
+    h.push_str(&warning_html(input));
     h.push_str(&input_html(input));
     h.push_str(&fit_html(input));
+    h.push_str(&coverage_html(input));
     h.push_str(&tracking_html(input));
     if let Some(r) = &conv.refined {
         if !r.batches.is_empty() {
@@ -341,6 +348,118 @@ fn fit_html(input: &ReportInput) -> String {
     h
 }
 
+/// Frame numbers as runs: "3, 7-9".
+fn frame_runs(frames: &[usize]) -> String {
+    runs(frames).iter().map(|&(a, b)| if a == b { a.to_string() } else { format!("{a}-{b}") }).collect::<Vec<_>>().join(", ")
+}
+
+/// A box under the headline figures naming the frames where a part may
+/// have been lost; nothing when none were flagged.
+fn warning_html(input: &ReportInput) -> String {
+    let coverage = &input.conversion.coverage;
+    let fit = &input.measurements.fit_outliers;
+    if coverage.flagged.is_empty() && fit.flagged.is_empty() {
+        return String::new();
+    }
+    let mut h = String::from("<section class=\"warning\">\n<h2>Warning: a part may have been lost</h2>\n<ul>\n");
+    if let Some((worst, share)) = coverage.worst().filter(|_| !coverage.flagged.is_empty()) {
+        let _ = writeln!(
+            h,
+            "<li>Frames {}: input volume that no tracked cell reaches, up to {} of the frame's volume (frame {worst}). \
+             A fast or thin part (a limb) may have lost its centers, which then sit in the body or in another part \
+             while the captured part stands empty.</li>",
+            frame_runs(&coverage.flagged),
+            percent(100.0 * share)
+        );
+    }
+    if !fit.flagged.is_empty() {
+        let _ = writeln!(
+            h,
+            "<li>Frames {}: the result is far from the input (95th percentile of the distance above {}, against a usual {}): \
+             a part may have been lost, or torn between two parts whose centers were swapped.</li>",
+            frame_runs(&fit.flagged),
+            percent(fit.limit),
+            percent(fit.usual)
+        );
+    }
+    h.push_str(
+        "</ul>\n<p>Check these frames in the result. More centers (<code>--centers</code>) or a higher <code>--resolution</code> \
+         give a thin part more cells to be tracked by. The section on coverage below shows the figures per frame.</p>\n</section>\n",
+    );
+    h
+}
+
+/// Per frame: input volume no cell reaches, and the fit against its limit.
+fn coverage_html(input: &ReportInput) -> String {
+    let coverage = &input.conversion.coverage;
+    let fit = &input.measurements.fit_outliers;
+    let lost: Vec<(Real, Real)> = coverage.frames.iter().enumerate().map(|(f, c)| (f as Real, 100.0 * c.lost_share)).collect();
+    let limit: Vec<(Real, Real)> = (0..coverage.frames.len()).map(|f| (f as Real, 100.0 * coverage.params.min_share)).collect();
+    let mut h = String::from("<section id=\"coverage\">\n<h2>Coverage: parts the tracking may have lost</h2>\n");
+    h.push_str(&figure(
+        &line_plot(
+            "Input volume no tracked cell reaches, per frame",
+            &Axis::linear("frame").integer(),
+            &Axis::linear("% of the frame's occupied volume").from_zero(),
+            &[Series::new("lost volume", lost), Series::new("flagged above", limit).color(1).dashed()],
+        ),
+        &format!(
+            "Occupied voxels farther from their Voronoi cell's center than {} times that cell's reach in frame 0, \
+             counted where they form connected regions of at least {} cells' volume: input volume the tracked centers \
+             have left. Lower is better, 0 the best; a frame at or above the dashed line is flagged ({}).",
+            significant(coverage.params.reach, 3),
+            significant(coverage.params.min_region, 3),
+            if coverage.flagged.is_empty() { "none is".to_string() } else { format!("frames {}", frame_runs(&coverage.flagged)) }
+        ),
+    ));
+    let p95: Vec<(Real, Real)> = fit.p95.iter().enumerate().map(|(f, &v)| (f as Real, v)).collect();
+    let fit_limit: Vec<(Real, Real)> = (0..fit.p95.len()).map(|f| (f as Real, fit.limit)).collect();
+    h.push_str(&figure(
+        &line_plot(
+            "Fit to the input against the sequence's usual, per frame",
+            &Axis::linear("frame").integer(),
+            &Axis::linear("p95 distance (% of the diagonal)").from_zero(),
+            &[Series::new("both directions, p95", p95), Series::new("flagged above", fit_limit).color(1).dashed()],
+        ),
+        &format!(
+            "The 95th percentile of the distance between the result and the input (both directions) in each frame, against \
+             max({} &#215; the lower quartile over the frames, {}) = {}. Lower is better; a frame above the dashed line is \
+             flagged ({}).",
+            significant(coverage.params.fit_ratio, 3),
+            percent(coverage.params.fit_floor),
+            percent(fit.limit),
+            if fit.flagged.is_empty() { "none is".to_string() } else { format!("frames {}", frame_runs(&fit.flagged)) }
+        ),
+    ));
+    let open = if coverage.frames.len() <= 20 || !coverage.flagged.is_empty() || !fit.flagged.is_empty() { " open" } else { "" };
+    let _ = writeln!(h, "<details{open}>\n<summary>Coverage per frame</summary>");
+    h.push_str(
+        "<table class=\"numbers\">\n<tr><th class=\"n\">frame</th><th class=\"n\">lost volume</th><th class=\"n\">largest region (cells)</th>\
+         <th class=\"n\">unreached voxels</th><th class=\"n\">farthest (&#215; reach)</th><th class=\"n\">fit p95</th><th>flagged</th></tr>\n",
+    );
+    for (f, c) in coverage.frames.iter().enumerate() {
+        let (by_volume, by_fit) = (coverage.flagged.contains(&f), fit.flagged.contains(&f));
+        let why = match (by_volume, by_fit) {
+            (true, true) => "volume, fit",
+            (true, false) => "volume",
+            (false, true) => "fit",
+            (false, false) => "",
+        };
+        let _ = writeln!(
+            h,
+            "<tr{}><td>{f}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"note\">{why}</td></tr>",
+            if why.is_empty() { "" } else { " class=\"flagged\"" },
+            percent(100.0 * c.lost_share),
+            significant(c.largest_region as Real / coverage.cell_voxels.max(1e-12), 3),
+            c.unreached,
+            significant(c.farthest, 3),
+            fit.p95.get(f).map_or("-".into(), |&v| percent(v)),
+        );
+    }
+    h.push_str("</table>\n</details>\n</section>\n");
+    h
+}
+
 /// Irregularity, PCAC and DFU, before and after refinement.
 fn tracking_html(input: &ReportInput) -> String {
     let m = input.measurements;
@@ -537,5 +656,8 @@ table.numbers th[colspan] { text-align: center; }
 .params { display: flex; flex-wrap: wrap; gap: 16px; align-items: flex-start; }
 details { margin: 10px 0; }
 summary { cursor: pointer; color: #2a4d8f; }
+.warning { background: #fff4e5; border: 1px solid #e8a33d; border-radius: 8px; padding: 4px 16px 8px; margin: 16px 0; }
+.warning h2 { border: none; margin: 10px 0 4px; color: #8a4b00; }
+tr.flagged td { background: #fff4e5; }
 footer { margin-top: 40px; font-size: 13px; color: #5a6374; }
 "#;

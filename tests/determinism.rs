@@ -1,5 +1,6 @@
 //! The same input and seed give byte-identical GLB and EXR output whatever
-//! the number of threads (the whole pipeline, on the bending-bar fixture).
+//! the number of threads (the whole pipeline, on the bending-bar fixture),
+//! and so does the check for lost parts.
 
 mod common;
 use common::Scratch;
@@ -7,7 +8,7 @@ use std::path::Path;
 use voltrack::params::{DeformParams, RefineParams, TrackParams};
 use voltrack::voxel::VoxelParams;
 
-fn convert_bytes(threads: usize, dir: &Scratch) -> (Vec<u8>, Vec<u8>) {
+fn convert_bytes(threads: usize, dir: &Scratch) -> (Vec<u8>, Vec<u8>, voltrack::metrics::Coverage) {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
     pool.install(|| {
         let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/bending_bar");
@@ -21,7 +22,7 @@ fn convert_bytes(threads: usize, dir: &Scratch) -> (Vec<u8>, Vec<u8>) {
         let refined = conv.refined.as_ref().unwrap();
         let attrs = voltrack::pipeline::trajectory_attributes(&conv.sequence, &voxel, &track, Some((&RefineParams::default(), &refined.removed)));
         voltrack::export::exr::write_trajectories_exr(&exr, &refined.trajectories, &attrs).unwrap();
-        (std::fs::read(glb).unwrap(), std::fs::read(exr).unwrap())
+        (std::fs::read(glb).unwrap(), std::fs::read(exr).unwrap(), conv.coverage)
     })
 }
 
@@ -32,4 +33,5 @@ fn outputs_do_not_depend_on_the_thread_count() {
     let many = convert_bytes(3, &dir);
     assert!(one.0 == many.0, "GLB differs between 1 and 3 threads");
     assert!(one.1 == many.1, "EXR differs between 1 and 3 threads");
+    assert_eq!(one.2, many.2, "the coverage check differs between 1 and 3 threads");
 }

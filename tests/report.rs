@@ -134,10 +134,10 @@ fn report_of_a_conversion() {
     assert!(html.contains("out &lt;b&gt;.glb"));
     assert!(html.contains("-r 48 -n 150"));
 
-    // Seven plots, each in a figure whose caption says which way is better.
+    // Nine plots, each in a figure whose caption says which way is better.
     let svgs = between(&html, "<svg", "</svg>");
-    assert_eq!(svgs.len(), 7, "plots");
-    assert_eq!(html.matches("<figure>").count(), 7);
+    assert_eq!(svgs.len(), 9, "plots");
+    assert_eq!(html.matches("<figure>").count(), 9);
     for caption in between(&html, "<figcaption>", "</figcaption>") {
         assert!(caption.contains("is better") || caption.contains("is faster"), "caption without a direction: {caption}");
     }
@@ -149,6 +149,8 @@ fn report_of_a_conversion() {
         "Time per stage",
         "Tracking time per frame",
         "Tracking iterations per frame",
+        "Input volume no tracked cell reaches, per frame",
+        "Fit to the input against the sequence's usual, per frame",
     ] {
         let plot = svgs.iter().find(|s| s.contains(&format!(">{title}</text>"))).unwrap_or_else(|| panic!("no plot titled {title}"));
         assert!(plot.contains("<polyline") || plot.contains("<rect x="), "{title} draws nothing");
@@ -158,14 +160,19 @@ fn report_of_a_conversion() {
     assert_eq!(fit_plot.matches("<polyline").count(), 6);
     assert_eq!(fit_plot.matches("<circle").count(), 6 * BENDING_BAR_FRAMES);
     assert_eq!(fit_plot.matches("stroke-dasharray").count(), 3 + 3, "dashed lines and their legend entries");
-    // Irregularity and DFU: before and after refinement.
+    // Coverage: the lost volume and the fit, each with its limit; the bar
+    // is tracked well, so no warning and no flagged frame.
     assert_eq!(svgs[1].matches("<polyline").count(), 2);
     assert_eq!(svgs[2].matches("<polyline").count(), 2);
-    assert!(svgs[1].contains("forward tracking") && svgs[1].contains("after refinement"));
+    assert!(!html.contains("Warning: a part may have been lost") && !html.contains("class=\"flagged\""));
+    // Irregularity and DFU: before and after refinement.
+    assert_eq!(svgs[3].matches("<polyline").count(), 2);
+    assert_eq!(svgs[4].matches("<polyline").count(), 2);
+    assert!(svgs[3].contains("forward tracking") && svgs[3].contains("after refinement"));
     // Energy: one line per batch. Stages: one bar each.
-    assert_eq!(svgs[3].matches("<polyline").count(), conv.refined.as_ref().unwrap().batches.len());
+    assert_eq!(svgs[5].matches("<polyline").count(), conv.refined.as_ref().unwrap().batches.len());
     for stage in ["read", "voxelize", "track", "refine", "deform", "export"] {
-        assert!(svgs[4].contains(&format!(">{stage}</text>")), "no bar for {stage}");
+        assert!(svgs[6].contains(&format!(">{stage}</text>")), "no bar for {stage}");
     }
 
     // The numbers: header facts, qualities before and after, the fit table.
@@ -207,8 +214,8 @@ fn report_of_a_conversion() {
     let html = report_html(&ReportInput::new(&conv, &measured, &voxel, &track, None, &deform, &Default::default()));
     assert_well_formed(&html);
     let svgs = between(&html, "<svg", "</svg>");
-    assert_eq!(svgs.len(), 6);
+    assert_eq!(svgs.len(), 8);
     assert!(!html.contains("Refinement: energy") && html.contains("<caption>Refinement</caption><tr><td>skipped</td></tr>"));
-    assert_eq!(svgs[1].matches("<polyline").count(), 1);
+    assert_eq!(svgs[3].matches("<polyline").count(), 1);
     assert!(html.contains("150 (not refined)"));
 }

@@ -7,6 +7,8 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use options::{ConvertArgs, InputArgs, OutputFormat, RefineArgs, TrackArgs};
 use std::path::{Path, PathBuf};
+use voltrack::metrics::{Coverage, FitOutliers};
+use voltrack::params::CoverageParams;
 use voltrack::pipeline::{self, Quality};
 use voltrack::Stage;
 
@@ -169,6 +171,7 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
     voltrack::export::exr::write_trajectories_exr(&output, &traj, &attrs)?;
     bars.finish();
     let after = refined.as_ref().map(|_| pipeline::measure(&traj, &seq));
+    let coverage = pipeline::check_coverage(&traj, &seq, &CoverageParams::default())?;
     let timings: Vec<_> = tracked.timings.iter().map(|t| serde_json::json!({"seconds": t.total, "iterations": t.iterations, "assign": t.assign, "fit": t.fit, "affinity": t.affinity, "dropped_iterations": t.dropped_iterations, "damped_guess_kept": t.damped_guess_kept})).collect();
     if json {
         return print_json(&serde_json::json!({
@@ -181,6 +184,7 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
             "dfu": before.dfu,
             "seconds": {"read": seq.read_seconds, "voxelize": seq.voxelize_seconds, "voxelize_per_frame": seq.voxelize_seconds / seq.frames.len() as f64, "track_per_frame": timings},
             "refined": refined.as_ref().zip(after.as_ref()).map(|(r, q)| serde_json::json!({"removed": r.removed, "after": quality_json(q), "energy": r.batches, "seconds": r.seconds})),
+            "coverage": coverage,
         }));
     }
     let tracking: f64 = tracked.timings.iter().skip(1).map(|t| t.total).sum();
@@ -191,7 +195,44 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
         println!("refined: removed {} centers in {:.1} s; PCAC {:.4}  DFU {:.4}", r.removed.len(), r.seconds, q.pcac, q.dfu);
     }
     println!("wrote {}", output.display());
+    for w in lost_part_warnings(&coverage, None) {
+        println!("{w}");
+    }
     Ok(())
+}
+
+/// Frame numbers as runs: "3, 7-9".
+fn frame_runs(frames: &[usize]) -> String {
+    voltrack::metrics::coverage::runs(frames).iter().map(|&(a, b)| if a == b { a.to_string() } else { format!("{a}-{b}") }).collect::<Vec<_>>().join(", ")
+}
+
+/// One warning per kind of evidence that a part was lost: input volume no
+/// cell reaches, and (when the fit was measured) frames fitted far worse
+/// than the rest.
+fn lost_part_warnings(coverage: &Coverage, fit: Option<&FitOutliers>) -> Vec<String> {
+    let mut out = Vec::new();
+    for (a, b) in coverage.flagged_runs() {
+        let frames = &coverage.frames[a..=b];
+        let worst = frames.iter().map(|c| c.lost_share).fold(0.0, f64::max);
+        let region = frames.iter().map(|c| c.largest_region).max().unwrap_or(0) as f64 / coverage.cell_voxels.max(1e-12);
+        let which = if a == b { format!("frame {a}") } else { format!("frames {a}-{b}") };
+        out.push(format!(
+            "warning: {which}: up to {:.2} % of the input volume is not reached by any tracked cell (a connected region of {region:.1} cells' volume): \
+             a fast or thin part may have been lost, its centers left in the body or another part; check these frames, \
+             and try more --centers or a higher --resolution",
+            100.0 * worst
+        ));
+    }
+    if let Some(fit) = fit.filter(|f| !f.flagged.is_empty()) {
+        out.push(format!(
+            "warning: frames {}: the result is far from the input (p95 distance above {:.2} % of the diagonal, against a usual {:.2} %): \
+             a part may have been lost or torn between two parts; see the report",
+            frame_runs(&fit.flagged),
+            fit.limit,
+            fit.usual
+        ));
+    }
+    out
 }
 
 type Tracked = (voltrack::track::Trajectories, Vec<(String, String)>);
@@ -380,7 +421,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
             };
             voltrack::report::write_report(path, &report)?;
             notes.push(format!("report: {}", path.display()));
-            Some(measured.fit)
+            Some((measured.fit, measured.fit_outliers))
         }
         None => None,
     };
@@ -408,7 +449,10 @@ fn convert(args: ConvertArgs) -> Result<()> {
             "removed": conv.refined.as_ref().map(|r| &r.removed),
             "seconds": stages,
             // In percent of the input's bounding-box diagonal, as printed.
-            "fit_percent": fit.map(|f| f.summary()),
+            "fit_percent": fit.as_ref().map(|f| f.0.summary()),
+            "fit_outliers": fit.as_ref().map(|f| &f.1),
+            "coverage": &conv.coverage,
+            "warnings": lost_part_warnings(&conv.coverage, fit.as_ref().map(|f| &f.1)),
             "basis": glb_report.map(|r| serde_json::json!({
                 "targets": r.targets,
                 "components": r.basis,
@@ -431,7 +475,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
         println!("  {:>9} {:>8.2} s  {:>5.1} %", stage.name(), s, 100.0 * s / total.max(1e-9));
     }
     println!("  {:>9} {:>8.2} s", "total", total);
-    if let Some(fit) = fit {
+    if let Some((fit, _)) = &fit {
         let s = fit.summary();
         println!("fit to the input: mean {:.3} %, p95 {:.3} %, max {:.3} % of the diagonal", s.mean, s.p95, s.max);
     }
@@ -440,6 +484,9 @@ fn convert(args: ConvertArgs) -> Result<()> {
     }
     let called = if named { format!(", object \"{name}\"") } else { String::new() };
     println!("wrote {} ({}{called})", out.display(), human_size(size));
+    for w in lost_part_warnings(&conv.coverage, fit.as_ref().map(|f| &f.1)) {
+        println!("{w}");
+    }
     Ok(())
 }
 
