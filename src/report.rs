@@ -44,9 +44,17 @@ impl Measurements {
     pub fn of(conv: &Conversion, progress: Progress) -> Result<Self> {
         let tracked = measure_with_counts(&conv.tracked.trajectories, &conv.tracked.cell_counts);
         let refined = conv.refined.as_ref().map(|r| measure(&r.trajectories, &conv.sequence));
-        let fit = fit_to_inputs(&conv.mesh, &conv.sequence.paths, conv.sequence.bounds.diagonal(), progress)?;
-        let fit_outliers = fit_outliers(&fit, &CoverageParams::default())?;
+        let (fit, fit_outliers) = Self::fit_of(conv, progress)?;
         Ok(Measurements { tracked, refined, fit, fit_outliers })
+    }
+
+    /// The result's fit to every input frame and the frames fitted far worse
+    /// than the rest: the part of [`Measurements::of`] every conversion's
+    /// summary shows, since a lost part often leaves no input volume empty.
+    pub fn fit_of(conv: &Conversion, progress: Progress) -> Result<(SequenceFit, FitOutliers)> {
+        let fit = fit_to_inputs(&conv.mesh, &conv.sequence.paths, conv.sequence.bounds.diagonal(), progress)?;
+        let outliers = fit_outliers(&fit, &CoverageParams::default())?;
+        Ok((fit, outliers))
     }
 }
 

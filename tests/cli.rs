@@ -185,7 +185,9 @@ fn convert_prints_a_json_summary() {
     let summary = json(&ok(&dir, &convert_args("anim.pc2", &["--json", "--no-refine", "--name", "Bar"])));
     assert_eq!(summary["files"], serde_json::json!(["anim.pc2", "anim.obj"]));
     assert_eq!((summary["format"].as_str(), summary["name"].as_str(), summary["fps"].as_f64()), (Some("pc2"), Some("Bar"), Some(30.0)));
-    assert!(summary["removed"].is_null() && summary["basis"].is_null() && summary["fit_percent"].is_null(), "{summary}");
+    assert!(summary["removed"].is_null() && summary["basis"].is_null(), "{summary}");
+    // Measured on every mesh output, report or not, so that lost parts are warned of.
+    assert!(summary["fit_percent"]["p95"].as_f64().is_some() && summary["warnings"].as_array().is_some_and(|w| w.is_empty()), "{summary}");
     assert_eq!(summary["centers"].as_u64(), Some(120));
     assert!(summary["seconds"].get("refine").is_none());
     let summary = json(&ok(&dir, &convert_args("b.glb", &["--json", "--basis", "2"])));
@@ -193,6 +195,7 @@ fn convert_prints_a_json_summary() {
     // Trajectories carry neither a name nor a frame rate.
     let summary = json(&ok(&dir, &convert_args("c.exr", &["--json", "--no-refine"])));
     assert!(summary["name"].is_null() && summary["fps"].is_null() && summary["basis"].is_null(), "{summary}");
+    assert!(summary["fit_percent"].is_null(), "trajectories alone have no fitted mesh: {summary}");
     assert_eq!(dir.files(), ["anim.obj", "anim.pc2", "b.glb", "c.exr", "x.glb", "x.html"]);
 }
 

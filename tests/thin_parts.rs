@@ -189,6 +189,9 @@ fn convert_warns_after_its_summary_and_the_report_marks_the_frames() {
     common::assert_well_formed(&html);
     assert!(html.contains("Warning: a part may have been lost") && html.contains("Frames 6-9"), "no warning in the report");
     assert_eq!(html.matches("<tr class=\"flagged\">").count(), 4);
+    // Without a report too: the fit is measured for every mesh output.
+    let plain = voltrack("plain", &["convert", input.to_str().unwrap(), "-r", "48", "-n", "150", "-o", "plain.glb"]);
+    assert!(plain.contains("warning: frames 6-9: the result is far from the input"), "no warning without --report:\n{plain}");
     // The bar is not flagged.
     let bar = fixture("bending_bar");
     let stdout = voltrack("bar", &["convert", bar.to_str().unwrap(), "-r", "48", "-n", "120", "-o", "bar.glb"]);

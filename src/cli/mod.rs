@@ -209,9 +209,19 @@ fn frame_runs(frames: &[usize]) -> String {
 /// One warning per kind of evidence that a part was lost: input volume no
 /// cell reaches, and (when the fit was measured) frames fitted far worse
 /// than the rest.
+/// Warnings of parts the tracking may have lost. With the result's fit to
+/// the input (`convert`), volume left unreached is warned of only where the
+/// fit is bad too (within a frame): a few unreached voxels where the result
+/// lies on the input are a cell lagging, not a part lost. Without it
+/// (`track`), the unreached volume is all there is to go by.
 fn lost_part_warnings(coverage: &Coverage, fit: Option<&FitOutliers>) -> Vec<String> {
     let mut out = Vec::new();
+    let confirmed = |a: usize, b: usize| fit.is_none_or(|f| f.flagged.iter().any(|&k| k + 1 >= a && k <= b + 1));
     for (a, b) in coverage.flagged_runs() {
+        if !confirmed(a, b) {
+            log::info!("frames {a}-{b}: some input volume is not reached by any tracked cell, but the result fits the input there");
+            continue;
+        }
         let frames = &coverage.frames[a..=b];
         let worst = frames.iter().map(|c| c.lost_share).fold(0.0, f64::max);
         let region = frames.iter().map(|c| c.largest_region).max().unwrap_or(0) as f64 / coverage.cell_voxels.max(1e-12);
@@ -226,7 +236,7 @@ fn lost_part_warnings(coverage: &Coverage, fit: Option<&FitOutliers>) -> Vec<Str
     if let Some(fit) = fit.filter(|f| !f.flagged.is_empty()) {
         out.push(format!(
             "warning: frames {}: the result is far from the input (p95 distance above {:.2} % of the diagonal, against a usual {:.2} %): \
-             a part may have been lost or torn between two parts; see the report",
+             a part may have been lost or torn between two parts; --report FILE shows every frame's fit",
             frame_runs(&fit.flagged),
             fit.limit,
             fit.usual
@@ -423,7 +433,9 @@ fn convert(args: ConvertArgs) -> Result<()> {
             notes.push(format!("report: {}", path.display()));
             Some((measured.fit, measured.fit_outliers))
         }
-        None => None,
+        // Trajectories alone: the mesh was not fitted and is not written.
+        None if format == OutputFormat::Exr => None,
+        None => Some(voltrack::report::Measurements::fit_of(&conv, bars.progress())?),
     };
     bars.finish();
     let size = output_size(out);
