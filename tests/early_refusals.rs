@@ -29,10 +29,7 @@ fn bar_sequence(dir: &Scratch) {
     let seq = dir.0.join("seq");
     std::fs::create_dir_all(&seq).unwrap();
     for f in 0..8 {
-        let m = voltrack::fixtures::bending_bar(f);
-        let mut bytes = Vec::new();
-        voltrack::export::obj::write_obj(&mut bytes, &m, &m.positions).unwrap();
-        std::fs::write(seq.join(format!("frame_{f}.obj")), bytes).unwrap();
+        std::fs::write(seq.join(format!("frame_{f}.obj")), common::obj_bytes(&voltrack::fixtures::bending_bar(f))).unwrap();
     }
 }
 

@@ -15,7 +15,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
-use voltrack::export::ply::{write_ply, PlyEncoding};
+use voltrack::export::ply::PlyEncoding;
 use voltrack::io::{read_binvox, read_frame, read_gltf, read_obj, read_ply};
 use voltrack::math::{Point3, Real};
 use voltrack::{fixtures, TriangleMesh};
@@ -34,17 +34,7 @@ fn bar(f: usize) -> TriangleMesh {
     fixtures::bending_bar(f)
 }
 
-fn obj(m: &TriangleMesh) -> Vec<u8> {
-    let mut out = Vec::new();
-    voltrack::export::obj::write_obj(&mut out, m, &m.positions).unwrap();
-    out
-}
-
-fn ply(m: &TriangleMesh, encoding: PlyEncoding) -> Vec<u8> {
-    let mut out = Vec::new();
-    write_ply(&mut out, m, encoding).unwrap();
-    out
-}
+use common::{obj_bytes as obj, ply_bytes as ply};
 
 fn glb(m: &TriangleMesh) -> Vec<u8> {
     voltrack::export::gltf::glb_bytes(m, None, &Default::default()).unwrap()

@@ -7,7 +7,7 @@
 
 use std::process::{Command, Output};
 use std::path::Path;
-use voltrack::export::ply::{write_ply, PlyEncoding};
+use voltrack::export::ply::PlyEncoding;
 use voltrack::io::{discover_frames, read_gltf, read_obj, read_ply};
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
 use voltrack::{fixtures, TriangleMesh};
@@ -19,17 +19,7 @@ const BIN: &str = env!("CARGO_BIN_EXE_voltrack");
 /// Tiny settings: every run is well under a second.
 const SMALL: [&str; 4] = ["-r", "32", "-n", "20"];
 
-fn obj(m: &TriangleMesh) -> Vec<u8> {
-    let mut out = Vec::new();
-    voltrack::export::obj::write_obj(&mut out, m, &m.positions).unwrap();
-    out
-}
-
-fn ply(m: &TriangleMesh, encoding: PlyEncoding) -> Vec<u8> {
-    let mut out = Vec::new();
-    write_ply(&mut out, m, encoding).unwrap();
-    out
-}
+use common::{obj_bytes as obj, ply_bytes as ply};
 
 /// The reader for `name`'s extension, called directly.
 fn read(name: &str, bytes: &[u8]) -> Result<TriangleMesh, String> {

@@ -33,6 +33,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 mod common;
+use common::Scratch;
 
 const BIN: &str = env!("CARGO_BIN_EXE_voltrack");
 const SMALL: [&str; 4] = ["-r", "32", "-n", "20"];
@@ -40,23 +41,6 @@ const FRAMES: usize = 8;
 const THREADS: usize = 2;
 const KILL_AFTER: Duration = Duration::from_secs(30);
 
-/// A scratch directory removed when dropped.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("voltrack-test-inputs-untouched-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Scratch(dir)
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 #[derive(Clone, PartialEq, Debug)]
 enum Entry {
@@ -354,7 +338,7 @@ fn check(case: &Case, before: &BTreeMap<String, Entry>, dir: &Path, status: &Res
 
 #[test]
 fn no_command_modifies_its_inputs() {
-    let scratch = Scratch::new("all");
+    let scratch = Scratch::new("inputs-untouched", "all");
     let template = scratch.0.join("template");
     std::fs::create_dir_all(&template).unwrap();
     let before = make_fixture(&template);

@@ -20,13 +20,14 @@
 mod cli;
 
 use clap::{Arg, ArgAction, Command as ClapCommand, CommandFactory, ValueHint};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 mod common;
+use common::Scratch;
 
 const BIN: &str = env!("CARGO_BIN_EXE_voltrack");
 /// The promise: every run ends within this.
@@ -40,23 +41,6 @@ const THREADS: usize = 2;
 /// Numbers fed to every value-taking option.
 const HOSTILE_NUMBERS: [&str; 7] = ["0", "-1", "1e308", "inf", "NaN", "18446744073709551615", "1e-40"];
 
-/// A scratch directory removed when dropped.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("voltrack-test-options-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Scratch(dir)
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 /// Writes frames 0..3 of the bending bar as OBJ into `dir/seq` and tracks
 /// them once into `dir/centers.exr` (for refine and metrics).
@@ -377,7 +361,7 @@ fn run(root: &Path, fixture: &Path, k: usize, argv: &[String]) -> Outcome {
 
 /// Runs every case on [`THREADS`] threads; returns the failures as table rows.
 fn run_all(cases: &[Case], name: &str, allowed: impl Fn(&Case) -> &'static [i32] + Sync) -> (Vec<String>, f64) {
-    let scratch = Scratch::new(name);
+    let scratch = Scratch::new("options", name);
     let fixture = scratch.0.join("fixture");
     make_fixture(&fixture);
     let next = AtomicUsize::new(0);

@@ -115,3 +115,17 @@ pub fn wait_or_kill(child: &mut std::process::Child, started: std::time::Instant
         std::thread::sleep(std::time::Duration::from_millis(5));
     }
 }
+
+/// `m` as OBJ text.
+pub fn obj_bytes(m: &voltrack::TriangleMesh) -> Vec<u8> {
+    let mut out = Vec::new();
+    voltrack::export::obj::write_obj(&mut out, m, &m.positions).unwrap();
+    out
+}
+
+/// `m` as PLY in `encoding`.
+pub fn ply_bytes(m: &voltrack::TriangleMesh, encoding: voltrack::export::ply::PlyEncoding) -> Vec<u8> {
+    let mut out = Vec::new();
+    voltrack::export::ply::write_ply(&mut out, m, encoding).unwrap();
+    out
+}
