@@ -325,10 +325,9 @@ fn fit_html(input: &ReportInput) -> String {
     let summary = fit.summary();
     let _ = writeln!(
         h,
-        "<p>Over all frames, as <code>evaluate.py</code> reports fidelity (both directions pooled): mean {}, 95th percentile {}, \
-         maximum {} (worst frame by mean: {}). Measured in {} from every vertex to the exact nearest point of the \
-         other surface; evaluate.py measures between random samples of the surfaces instead, which reads a little \
-         higher where the surfaces nearly coincide.</p>",
+        "<p>Over all frames, both directions pooled: mean {}, 95th percentile {}, maximum {} (worst frame by mean: {}). \
+         Measured in {} from every vertex to the exact nearest point of the other surface; a measure between random \
+         samples of the two surfaces reads a little higher where they nearly coincide.</p>",
         percent(summary.mean),
         percent(summary.p95),
         percent(summary.max),
@@ -340,7 +339,7 @@ fn fit_html(input: &ReportInput) -> String {
     h.push_str(
         "<table class=\"numbers\">\n<tr><th rowspan=\"2\" class=\"n\">frame</th><th rowspan=\"2\">input file</th>\
          <th colspan=\"3\" class=\"group\">result &#8594; input</th><th colspan=\"3\" class=\"group\">input &#8594; result</th>\
-         <th colspan=\"3\" class=\"group\">both (as evaluate.py)</th></tr>\n<tr>\
+         <th colspan=\"3\" class=\"group\">both directions</th></tr>\n<tr>\
          <th class=\"n group\">mean</th><th class=\"n\">p95</th><th class=\"n\">max</th>\
          <th class=\"n group\">mean</th><th class=\"n\">p95</th><th class=\"n\">max</th>\
          <th class=\"n group\">mean</th><th class=\"n\">p95</th><th class=\"n\">max</th></tr>\n",
@@ -497,6 +496,19 @@ fn tracking_html(input: &ReportInput) -> String {
         let _ = writeln!(h, "<td class=\"note\">{note}</td></tr>");
     }
     h.push_str("</table>\n");
+    if let (Some(after), Some(_)) = (m.refined.as_ref(), conv.refined.as_ref()) {
+        if after.dfu > m.tracked.dfu {
+            // Users read a rising DFU as refinement gone wrong; it is the
+            // trade the global energy makes (method.md §7).
+            h.push_str(
+                "<p class=\"note\">DFU rises after refinement here. That is expected: the global optimisation moves every \
+                 center toward the motion its neighbours predict from the frames before and after (the smoothness term) as \
+                 much as toward the middle of its own cell (the centroid term, weighted by β̂), so cells become \
+                 somewhat less even in size while the trajectories become more regular (PCAC and the largest I<sub>i</sub>). \
+                 A larger β̂ (<code>--beta-hat</code>) keeps the cells more even at the cost of smoothness.</p>\n",
+            );
+        }
+    }
 
     let curves: Vec<(&str, &[Real])> = qualities.iter().map(|(label, q, _)| (*label, q.irregularity.as_slice())).collect();
     h.push_str(&figure(
@@ -650,6 +662,9 @@ figure { margin: 18px 0; background: #fff; border: 1px solid #e0e3e9; border-rad
 figure svg { display: block; max-width: 100%; height: auto; margin: 0 auto; }
 figcaption { font-size: 14px; color: #363e4c; padding: 8px 8px 2px; max-width: 80ch; margin: 0 auto; }
 table { border-collapse: collapse; background: #fff; font-variant-numeric: tabular-nums; margin: 8px 0; }
+/* Wide tables scroll inside the page on a narrow screen instead of overflowing it. */
+table.numbers { display: block; max-width: 100%; overflow-x: auto; }
+p.note { color: #363e4c; max-width: 80ch; }
 caption { text-align: left; font-weight: 600; padding: 4px 0; }
 th, td { padding: 4px 10px; border-bottom: 1px solid #e7e9ee; text-align: left; vertical-align: top; }
 th { font-weight: 600; color: #363e4c; }

@@ -787,11 +787,31 @@ fn obj_sequence_shares_one_connectivity() {
         assert_eq!(face_indices(&f0), mesh.base.triangles);
         if let Some(uv) = &mesh.base.uvs {
             assert_eq!(vt0.len(), uv.len());
-            assert!(f0.iter().all(|l| l.matches('/').count() == 3), "{}", f0[0]);
+            assert!(f0.iter().all(|l| l.matches('/').count() == 6), "v/vt/vn corners: {}", f0[0]);
+        } else {
+            assert!(f0.iter().all(|l| l.matches("//").count() == 3), "v//vn corners: {}", f0[0]);
         }
         for (path, frame) in paths.iter().zip(&mesh.frames) {
             let text = std::fs::read_to_string(path).unwrap();
-            assert_eq!(obj_objects_and_normals(&text).0, [name], "{}: one object, named", path.display());
+            let (objects, normals) = obj_objects_and_normals(&text);
+            assert_eq!(objects, [name], "{}: one object, named", path.display());
+            // This frame's own normals, so every file is smooth-shaded: per
+            // vertex, the area-weighted sum of its faces' normals over every
+            // copy of it at a UV seam (brute force: copies by frame-0 position).
+            assert_eq!(normals.len(), frame.len(), "{}", path.display());
+            let mut sum = vec![Vector3::zeros(); frame.len()];
+            for t in &mesh.base.triangles {
+                let [a, b, c] = t.map(|i| frame[i as usize]);
+                for &i in t {
+                    sum[i as usize] += (b - a).cross(&(c - a));
+                }
+            }
+            for (i, n) in normals.iter().enumerate() {
+                let copies = (0..frame.len()).filter(|&j| mesh.frames[0][j] == mesh.frames[0][i]);
+                let Some(want) = copies.map(|j| sum[j]).sum::<Vector3>().try_normalize(1e-12) else { continue };
+                let got = Vector3::new(n[0] as Real, n[1] as Real, n[2] as Real);
+                assert!((got - want).norm() < 1e-5, "{}: normal {i} is {got:?}, want {want:?}", path.display());
+            }
             let (v, vt, f) = obj_lines(&text);
             assert_eq!(f, f0, "{}: face lines differ", path.display());
             assert_eq!(vt, vt0, "{}: texture coordinates differ", path.display());

@@ -60,10 +60,17 @@ pub fn write_obj_sequence(dir: &Path, mesh: &DynamicMesh, name: &str) -> Result<
     super::basis::check_frames(mesh)?;
     let width = (mesh.frames.len() - 1).to_string().len().max(4);
     let paths: Vec<PathBuf> = (0..mesh.frames.len()).map(|f| dir.join(format!("frame_{f:0width$}.obj"))).collect();
+    // Each frame's own normals (welded at UV seams, as the GLB's), so every
+    // file is smooth-shaded where it is imported.
+    let normals = super::normals::FrameNormals::new(&mesh.base.triangles, &mesh.frames[0]);
+    let normals = &normals;
     let files = paths
         .iter()
         .zip(&mesh.frames)
-        .map(|(path, positions)| (path.as_path(), Box::new(move |w: &mut _| write_named_obj(w, &mesh.base, positions, name, None)) as super::Fill))
+        .map(|(path, positions)| {
+            let fill = move |w: &mut _| write_named_obj(w, &mesh.base, positions, name, Some(&normals.of(positions)));
+            (path.as_path(), Box::new(fill) as super::Fill)
+        })
         .collect();
     super::write_atomic_into(dir, files)?;
     Ok(paths)
