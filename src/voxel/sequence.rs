@@ -22,7 +22,7 @@ pub struct VoxelParams {
     /// Bytes the run may take beyond the frames read; a resolution whose
     /// estimated need ([`super::MemoryEstimate`]) is larger fails before any
     /// voxel is filled. Default None: the memory available when the frames
-    /// have been read (no check where that is unknown); > 0.
+    /// have been read (no check where that is unknown); in (0, 1e9 GiB].
     pub max_memory: Option<f64>,
 }
 
@@ -32,7 +32,7 @@ impl VoxelParams {
         crate::params::check_count("the resolution", self.resolution, 2..=super::MAX_RESOLUTION)?;
         crate::params::check("the largest extent ratio", self.max_extent_ratio, crate::params::Span::closed(1.0, 1e12))?;
         if let Some(m) = self.max_memory {
-            crate::params::check("the memory limit", m, crate::params::Span::open_closed(0.0, 1e18))?;
+            crate::params::check("the memory limit", m, crate::params::Span::open_closed(0.0, 1e9 * (1u64 << 30) as f64))?;
         }
         Ok(())
     }
