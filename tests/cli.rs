@@ -248,10 +248,12 @@ fn convert_to_trajectories_exr() {
 fn convert_to_vertex_animation_texture() {
     let dir = Scratch::new("cli", "vat");
     ok(&dir, &convert_args("v.exr", &["--vat"]));
-    assert_eq!(dir.files(), ["v.exr", "v.json"]);
+    assert_eq!(dir.files(), ["v.exr", "v.glb", "v.json"]);
     let info: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("v.json")).unwrap()).unwrap();
     assert_eq!(info["frames"], FRAMES);
     let vertices = info["vertices"].as_u64().unwrap() as usize;
+    // Few enough vertices for one row each: one frame per row, as before.
+    assert_eq!((info["width"].as_u64(), info["rows_per_frame"].as_u64()), (Some(vertices as u64), Some(1)));
     let (texture, _) = voltrack::io::exr::read_trajectories_exr(&dir.join("v.exr")).unwrap();
     assert_eq!((texture.frames, texture.centers), (FRAMES, vertices));
     // Frame 0 of the texture is the first input mesh, as loaded.
@@ -473,4 +475,132 @@ fn non_finite_vertex_is_named_at_its_own_line() {
     std::fs::write(dir.join("seq/frame_1.obj"), "v 0 0 nan\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 2 3 4\nf 1 2 3\n").unwrap();
     let stderr = fails(&dir, &["track", "seq", "-r", "32", "-n", "20", "-o", "c.exr"], 1);
     assert!(stderr.contains("frame_1.obj:1:"), "{stderr}");
+}
+
+/// An RGB float EXR read with the exr crate alone: (width, height, texels
+/// row by row, row 0 first as stored).
+fn exr_texels(path: &Path) -> (usize, usize, Vec<[f32; 3]>) {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .specific_channels()
+        .required("R")
+        .required("G")
+        .required("B")
+        .collect_pixels(
+            |size: Vec2<usize>, _| (size.width(), size.height(), vec![[0f32; 3]; size.width() * size.height()]),
+            |(w, _, px): &mut (usize, usize, Vec<[f32; 3]>), p: Vec2<usize>, (r, g, b): (f32, f32, f32)| px[p.y() * *w + p.x()] = [r, g, b],
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .unwrap();
+    image.layer_data.channel_data.pixels
+}
+
+/// Every frame of a morph-target GLB: base + Σ weight · target at each
+/// frame's key (f / fps), and its triangle indices.
+fn glb_frames(path: &Path) -> (Vec<Vec<[f64; 3]>>, Vec<u32>) {
+    let doc = gltf::Gltf::from_slice(&std::fs::read(path).unwrap()).expect("a valid GLB");
+    let blob = doc.blob.as_deref().unwrap();
+    let primitive = doc.meshes().next().unwrap().primitives().next().unwrap();
+    let reader = primitive.reader(|_| Some(blob));
+    let base: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+    let targets: Vec<Vec<[f32; 3]>> = reader.read_morph_targets().map(|(p, _, _)| p.unwrap().collect()).collect();
+    let channel = doc.animations().next().unwrap().channels().next().unwrap();
+    let weights: Vec<f32> = match channel.reader(|_| Some(blob)).read_outputs().unwrap() {
+        gltf::animation::util::ReadOutputs::MorphTargetWeights(w) => w.into_f32().collect(),
+        _ => panic!("not morph weights"),
+    };
+    let frames = weights
+        .chunks(targets.len())
+        .take(FRAMES)
+        .map(|w| {
+            (0..base.len())
+                .map(|v| std::array::from_fn(|a| base[v][a] as f64 + targets.iter().zip(w).map(|(t, &w)| w as f64 * t[v][a] as f64).sum::<f64>()))
+                .collect()
+        })
+        .collect();
+    (frames, reader.read_indices().unwrap().into_u32().collect())
+}
+
+/// Issue 23: the vertex-animation texture decoded as a shader does, through
+/// the sidecar's layout and the mesh's TEXCOORD_1, is the GLB's animation.
+#[test]
+fn vat_decoded_through_sidecar_and_mesh_uvs_replays_the_glb() {
+    let dir = Scratch::new("cli", "vat_round_trip");
+    ok(&dir, &convert_args("anim.exr", &["--vat", "--fps", "24"]));
+    ok(&dir, &convert_args("morph.glb", &["--fps", "24"]));
+    assert_eq!(dir.files(), ["anim.exr", "anim.glb", "anim.json", "morph.glb"]);
+    let info: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("anim.json")).unwrap()).unwrap();
+    let int = |k: &str| info[k].as_u64().unwrap_or_else(|| panic!("{k} in {info}")) as usize;
+    let (width, height, rows_per_frame) = (int("width"), int("height"), int("rows_per_frame"));
+    assert_eq!((info["fps"].as_f64(), int("frames")), (Some(24.0), FRAMES));
+    assert_eq!((info["texture"].as_str(), info["mesh"].as_str(), info["uv_set"].as_str()), (Some("anim.exr"), Some("anim.glb"), Some("TEXCOORD_1")));
+
+    let (w, h, texels) = exr_texels(&dir.join("anim.exr"));
+    assert_eq!((w, h), (width, height));
+    assert!(width <= 8192 && height >= FRAMES * rows_per_frame);
+
+    // The mesh beside the texture: frame 0, the GLB's connectivity, and one
+    // texel address per vertex.
+    let (frames, indices) = glb_frames(&dir.join("morph.glb"));
+    let doc = gltf::Gltf::from_slice(&std::fs::read(dir.join("anim.glb")).unwrap()).unwrap();
+    let blob = doc.blob.as_deref().unwrap();
+    assert_eq!(doc.animations().count(), 0);
+    let primitive = doc.meshes().next().unwrap().primitives().next().unwrap();
+    let reader = primitive.reader(|_| Some(blob));
+    assert_eq!(reader.read_indices().unwrap().into_u32().collect::<Vec<_>>(), indices);
+    let uv1: Vec<[f32; 2]> = reader.read_tex_coords(1).expect("TEXCOORD_1").into_f32().collect();
+    assert_eq!(uv1.len(), int("vertices"));
+    assert_eq!(uv1.len(), frames[0].len());
+    let rest: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+
+    let diagonal = {
+        let all = frames.iter().flatten();
+        let lo: [f64; 3] = std::array::from_fn(|a| all.clone().map(|p| p[a]).fold(f64::INFINITY, f64::min));
+        let hi: [f64; 3] = std::array::from_fn(|a| all.clone().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max));
+        (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
+    };
+    let mut worst: f64 = 0.0;
+    let mut seen = std::collections::HashSet::new();
+    for (v, uv) in uv1.iter().enumerate() {
+        // As a shader samples: the texel under the UV, glTF's origin top-left.
+        let (column, row) = ((uv[0] as f64 * width as f64).floor() as usize, (uv[1] as f64 * height as f64).floor() as usize);
+        assert!(column < width && row < rows_per_frame, "vertex {v}: uv {uv:?}");
+        assert!(seen.insert((column, row)), "vertex {v} shares its texel");
+        for (f, frame) in frames.iter().enumerate() {
+            let texel = texels[(row + f * rows_per_frame) * width + column];
+            if f == 0 {
+                assert_eq!(texel, rest[v], "vertex {v}: the mesh is not frame 0");
+            }
+            worst = worst.max((0..3).map(|a| (texel[a] as f64 - frame[v][a]).powi(2)).sum::<f64>().sqrt());
+        }
+    }
+    assert!(worst <= 1e-6 * diagonal, "largest difference {worst} (diagonal {diagonal})");
+}
+
+/// The texture's shape from the command line: powers of two, the widest row,
+/// `--fps` in the sidecar; a height that cannot fit is refused before any
+/// work when the frames alone exceed it, with the numbers once the mesh is
+/// known; the flags are refused for other formats.
+#[test]
+fn vat_options_on_the_command_line() {
+    let dir = Scratch::new("cli", "vat_options");
+    let out = json(&ok(&dir, &convert_args("p.exr", &["--vat", "--vat-power-of-two", "--vat-max-width", "100", "--fps", "12", "--json"])));
+    let info: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("p.json")).unwrap()).unwrap();
+    let (width, height, rows) = (info["width"].as_u64().unwrap(), info["height"].as_u64().unwrap(), info["rows_per_frame"].as_u64().unwrap());
+    assert!(width == 64 && height.is_power_of_two() && height >= FRAMES as u64 * rows, "{info}");
+    assert_eq!((info["fps"].as_f64(), out["fps"].as_f64()), (Some(12.0), Some(12.0)));
+    assert_eq!(out["vat"], serde_json::json!({"width": width, "height": height, "rows_per_frame": rows}));
+    assert_eq!(out["files"], serde_json::json!(["p.exr", "p.glb", "p.json"]));
+
+    let stderr = fails(&dir, &convert_args("short.exr", &["--vat", "--vat-max-height", "4"]), 2);
+    assert!(stderr.contains("8 frames") && stderr.contains("--vat-max-height"), "{stderr}");
+    let stderr = fails(&dir, &convert_args("narrow.exr", &["--vat", "--vat-max-width", "100", "--vat-max-height", "20"]), 2);
+    assert!(stderr.contains("rows per frame") && stderr.contains("--vat-max-width"), "{stderr}");
+    let stderr = fails(&dir, &convert_args("x.glb", &["--vat-power-of-two"]), 2);
+    assert!(stderr.contains("vertex-animation texture"), "{stderr}");
+    assert_eq!(dir.files(), ["p.exr", "p.glb", "p.json"]);
 }

@@ -6,6 +6,7 @@ use gltf::animation::Interpolation;
 use std::path::{Path, PathBuf};
 use voltrack::deform::DynamicMesh;
 use voltrack::export::gltf::{write_dynamic_glb, BasisChoice, GltfExportOptions, GltfExportReport};
+use voltrack::export::vat::{write_vat, VatOptions};
 use voltrack::fixtures;
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
 use voltrack::mesh::Aabb;
@@ -833,4 +834,121 @@ fn obj_sequence_shares_one_connectivity() {
     assert!(err.contains("frame_0003.obj"), "{err}");
     let left: Vec<PathBuf> = std::fs::read_dir(&out).unwrap().flatten().map(|e| e.path()).collect();
     assert_eq!(left, [out.join("frame_0003.obj")]);
+}
+
+/// Issue 23: a mesh of 100,000 vertices wraps into rows a GPU samples
+/// (one column per vertex was 100,000 texels wide), every vertex of every
+/// frame at the texel the layout names; with `power_of_two` both sides are
+/// powers of two and the texels no vertex uses are zero.
+#[test]
+fn vat_of_100k_vertices_fits_a_gpu_texture() {
+    let dir = Scratch::new("export", "vat_width");
+    let base = fixtures::torus(Point3::origin(), 1.0, 0.3, 500, 200);
+    let vertices = base.positions.len();
+    assert_eq!(vertices, 100_000);
+    let frames = (0..3).map(|f| base.positions.iter().map(|p| turning(f, p)).collect()).collect();
+    let mesh = DynamicMesh { base, frames };
+    // 100,000 vertices in rows of 8192: 13 rows per frame, the last holding 1696.
+    for (power_of_two, height) in [(false, 39), (true, 64)] {
+        let path = dir.join(if power_of_two { "pow2.exr" } else { "plain.exr" });
+        let report = write_vat(&path, &mesh, &VatOptions { power_of_two, ..Default::default() }).unwrap();
+        let layout = report.layout;
+        assert_eq!((layout.width, layout.rows_per_frame, layout.height), (8192, 13, height), "power of two: {power_of_two}");
+        let (texture, _) = voltrack::io::exr::read_trajectories_exr(&path).unwrap();
+        assert_eq!((texture.centers, texture.frames), (layout.width, layout.height));
+        assert!(texture.centers <= 8192);
+        if power_of_two {
+            assert!(texture.centers.is_power_of_two() && texture.frames.is_power_of_two());
+        }
+        let info: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path.with_extension("json")).unwrap()).unwrap();
+        assert_eq!((info["width"].as_u64(), info["height"].as_u64(), info["rows_per_frame"].as_u64()), (Some(8192), Some(height as u64), Some(13)));
+        for (f, frame) in mesh.frames.iter().enumerate() {
+            for v in (0..vertices).step_by(97).chain([vertices - 1]) {
+                let (column, row) = (v % 8192, f * 13 + v / 8192);
+                assert_eq!(layout.texel(v, f), (column, row));
+                let texel = texture.get(row, column);
+                assert!((0..3).all(|a| texel[a] == frame[v][a] as f32 as Real), "vertex {v} of frame {f}");
+            }
+            // The rest of each frame's last row is unused.
+            assert_eq!(texture.get(f * 13 + 12, 1696), Point3::origin());
+            assert_eq!(texture.get(f * 13 + 12, 8191), Point3::origin());
+        }
+        // Padding rows, with power_of_two.
+        for row in 39..height {
+            assert!((0..8192).step_by(511).all(|c| texture.get(row, c) == Point3::origin()), "row {row}");
+        }
+    }
+}
+
+/// What decides the texture's size: the widest row allowed, powers of two,
+/// and a height past the largest allowed refused with a message that says why.
+#[test]
+fn vat_layout_sizes_and_limits() {
+    let plain = VatOptions::default();
+    let pow2 = VatOptions { power_of_two: true, ..Default::default() };
+    let size = |o: &VatOptions, v: usize, f: usize| o.layout(v, f).map(|l| (l.width, l.rows_per_frame, l.height)).unwrap();
+    assert_eq!(size(&plain, 50, 6), (50, 1, 6));
+    assert_eq!(size(&pow2, 50, 6), (64, 1, 8));
+    assert_eq!(size(&plain, 8192, 3), (8192, 1, 3));
+    assert_eq!(size(&plain, 8193, 3), (8192, 2, 6));
+    // A width that is no power of two: the largest one within it.
+    let narrow = VatOptions { max_width: 1000, power_of_two: true, ..Default::default() };
+    assert_eq!(size(&narrow, 5000, 2), (512, 10, 32));
+    assert_eq!(size(&VatOptions { max_width: 1000, ..Default::default() }, 5000, 2), (1000, 5, 10));
+    let l = plain.layout(8193, 3).unwrap();
+    assert_eq!((l.texel(8192, 2), l.vertex_at(0, 5), l.vertex_at(1, 5)), ((0, 5), Some((8192, 2)), None));
+    let uv = l.uv(8192);
+    assert_eq!(uv, [0.5 / 8192.0, 1.5 / 6.0]);
+    // Too high: refused, with the numbers.
+    let err = plain.layout(100_000, 1261).unwrap_err().to_string();
+    assert!(err.contains("16393") && err.contains("16384"), "{err}");
+    assert!(plain.layout(100_000, 1260).is_ok());
+    assert!(plain.check_frames(16_385).is_err() && plain.check_frames(16_384).is_ok());
+    // 17 rows fit 30, but not as 32.
+    assert!(VatOptions { max_height: 30, ..Default::default() }.layout(10, 17).is_ok());
+    let err = VatOptions { max_height: 30, ..pow2.clone() }.layout(10, 17).unwrap_err().to_string();
+    assert!(err.contains("32 as a power of two"), "{err}");
+    // Out-of-range options.
+    for bad in [
+        VatOptions { max_width: 0, ..Default::default() },
+        VatOptions { max_height: 65_537, ..Default::default() },
+        VatOptions { fps: 0.0, ..Default::default() },
+        VatOptions { name: " ".into(), ..Default::default() },
+    ] {
+        assert!(bad.validate().is_err(), "{bad:?}");
+    }
+}
+
+/// The mesh beside the texture: frame 0 with normals, its UVs and TEXCOORD_1
+/// at each vertex's frame-0 texel center, marked as a VAT's mesh near the
+/// start of its JSON, where a rerun looks before replacing it.
+#[test]
+fn vat_mesh_carries_frame_0_and_texel_uvs() {
+    let dir = Scratch::new("export", "vat_mesh");
+    let mesh = torus(5, turning);
+    let path = dir.join("walk.exr");
+    let options = VatOptions { fps: 24.0, name: "walk".into(), max_width: 100, ..Default::default() };
+    let layout = write_vat(&path, &mesh, &options).unwrap().layout;
+    assert_eq!((layout.width, layout.rows_per_frame), (100, 3));
+    let bytes = std::fs::read(path.with_extension("glb")).unwrap();
+    let head = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]).into_owned();
+    assert!(head.contains(voltrack::export::vat::MESH_MARK), "{head}");
+    let doc = gltf::Gltf::from_slice(&bytes).unwrap();
+    let blob = doc.blob.as_deref().unwrap();
+    assert_eq!((doc.animations().count(), doc.nodes().next().unwrap().name()), (0, Some("walk")));
+    let primitive = doc.meshes().next().unwrap().primitives().next().unwrap();
+    assert!(primitive.morph_targets().next().is_none());
+    let reader = primitive.reader(|_| Some(blob));
+    let positions: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+    assert!(positions.iter().zip(&mesh.frames[0]).all(|(a, b)| (0..3).all(|k| a[k] == b[k] as f32)));
+    assert_eq!(reader.read_normals().unwrap().count(), positions.len());
+    let uv0: Vec<[f32; 2]> = reader.read_tex_coords(0).unwrap().into_f32().collect();
+    assert_eq!(Some(&uv0), mesh.base.uvs.as_ref());
+    let uv1: Vec<[f32; 2]> = reader.read_tex_coords(1).unwrap().into_f32().collect();
+    for (v, uv) in uv1.iter().enumerate() {
+        let (column, row) = layout.texel(v, 0);
+        assert_eq!(*uv, [((column as f64 + 0.5) / 100.0) as f32, ((row as f64 + 0.5) / 15.0) as f32], "vertex {v}");
+    }
+    let scene: serde_json::Value = serde_json::from_str(doc.default_scene().unwrap().extras().as_ref().unwrap().get()).unwrap();
+    assert_eq!(scene, serde_json::json!({"fps": 24.0, "frames": 5}));
 }

@@ -4,7 +4,9 @@
 //! file, and no temporary file left behind.
 
 use std::path::Path;
-use voltrack::export::exr::{write_trajectories_exr, write_vat_exr};
+use voltrack::deform::DynamicMesh;
+use voltrack::export::exr::write_trajectories_exr;
+use voltrack::export::vat::{write_vat, VatOptions};
 use voltrack::io::exr::read_trajectories_exr;
 use voltrack::math::{Point3, Real};
 use voltrack::track::Trajectories;
@@ -46,6 +48,18 @@ fn trajectories(frames: usize, centers: usize) -> Trajectories {
     t.set(0, 0, Point3::new(-0.0, 1e-40, 3.0e30));
     t.set(frames - 1, centers - 1, Point3::new(1.0 / 3.0, -123456.789, Real::MIN_POSITIVE));
     t
+}
+
+/// The frames of `t` as an animated mesh (a triangle per three points), for
+/// the vertex-animation texture.
+fn animated(t: &Trajectories) -> DynamicMesh {
+    let frames: Vec<Vec<Point3>> = (0..t.frames).map(|f| t.frame(f).to_vec()).collect();
+    let triangles = (0..t.centers as u32 / 3).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
+    DynamicMesh { base: voltrack::TriangleMesh { positions: frames[0].clone(), triangles, ..Default::default() }, frames }
+}
+
+fn write_vat_exr(path: &Path, mesh: &DynamicMesh) -> voltrack::Result<()> {
+    write_vat(path, mesh, &VatOptions::default()).map(drop)
 }
 
 fn attributes() -> Vec<(String, String)> {
@@ -117,22 +131,26 @@ fn attributes_round_trip() {
 fn output_is_byte_identical_across_runs_and_thread_counts() {
     let dir = Scratch::new("exr", "determinism");
     let t = trajectories(33, 257);
-    let frames: Vec<Vec<Point3>> = (0..t.frames).map(|f| t.frame(f).to_vec()).collect();
+    let frames = animated(&t);
     let write = |name: &str, threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        let exr = dir.join(&format!("{name}.exr"));
-        let vat = dir.join(&format!("{name}_vat.exr"));
+        // One folder per run: the VAT's sidecar and mesh name its files.
+        std::fs::create_dir(dir.join(name)).unwrap();
+        let exr = dir.join(&format!("{name}/c.exr"));
+        let vat = dir.join(&format!("{name}/vat.exr"));
         pool.install(|| {
             write_trajectories_exr(&exr, &t, &attributes()).unwrap();
             write_vat_exr(&vat, &frames).unwrap();
         });
         let json = std::fs::read(vat.with_extension("json")).unwrap();
-        (std::fs::read(exr).unwrap(), std::fs::read(vat).unwrap(), json)
+        let mesh = std::fs::read(vat.with_extension("glb")).unwrap();
+        (std::fs::read(exr).unwrap(), std::fs::read(vat).unwrap(), json, mesh)
     };
     let first = write("a", 1);
-    assert_eq!(first, write("b", 1), "two runs differ");
-    assert_eq!(first, write("c", 4), "1 and 4 threads differ");
-    assert_eq!(first, write("d", 2), "1 and 2 threads differ");
+    // assert!, not assert_eq!: the bytes are too many to print.
+    assert!(first == write("b", 1), "two runs differ");
+    assert!(first == write("c", 4), "1 and 4 threads differ");
+    assert!(first == write("d", 2), "1 and 2 threads differ");
 }
 
 #[test]
@@ -177,9 +195,9 @@ fn vertex_animation_texture_with_json_sidecar() {
     let dir = Scratch::new("exr", "vat");
     let path = dir.join("anim.exr");
     let t = trajectories(6, 50);
-    let frames: Vec<Vec<Point3>> = (0..t.frames).map(|f| t.frame(f).to_vec()).collect();
-    write_vat_exr(&path, &frames).unwrap();
-    assert_eq!(files_under(&dir.0), vec!["anim.exr", "anim.json"]);
+    let mesh = animated(&t);
+    write_vat_exr(&path, &mesh).unwrap();
+    assert_eq!(files_under(&dir.0), vec!["anim.exr", "anim.glb", "anim.json"]);
 
     let (back, meta) = read_trajectories_exr(&path).unwrap();
     assert_eq!((back.frames, back.centers), (6, 50));
@@ -204,20 +222,23 @@ fn vertex_animation_texture_with_json_sidecar() {
     assert_eq!(vat, info);
 
     // Frames of different lengths, no vertices, or a name that would collide
-    // with the sidecar: errors, nothing written.
-    let ragged = vec![frames[0].clone(), frames[1][..49].to_vec()];
+    // with the sidecar or the mesh: errors, nothing written.
+    let mut ragged = mesh.clone();
+    ragged.frames[1].pop();
     assert!(write_vat_exr(&dir.join("ragged.exr"), &ragged).is_err());
-    assert!(write_vat_exr(&dir.join("none.exr"), &[vec![], vec![]]).is_err());
-    assert!(write_vat_exr(&dir.join("none.exr"), &[]).is_err());
-    assert!(write_vat_exr(&dir.join("clash.json"), &frames).is_err());
-    assert_eq!(files_under(&dir.0), vec!["anim.exr", "anim.json"]);
+    let empty = DynamicMesh { base: Default::default(), frames: vec![vec![], vec![]] };
+    assert!(write_vat_exr(&dir.join("none.exr"), &empty).is_err());
+    assert!(write_vat_exr(&dir.join("none.exr"), &DynamicMesh { frames: vec![], ..mesh.clone() }).is_err());
+    assert!(write_vat_exr(&dir.join("clash.json"), &mesh).is_err());
+    assert!(write_vat_exr(&dir.join("clash.glb"), &mesh).is_err());
+    assert_eq!(files_under(&dir.0), vec!["anim.exr", "anim.glb", "anim.json"]);
 }
 
 #[test]
 fn failed_writes_leave_nothing_behind() {
     let dir = Scratch::new("exr", "failed");
     let t = trajectories(4, 5);
-    let frames: Vec<Vec<Point3>> = (0..t.frames).map(|f| t.frame(f).to_vec()).collect();
+    let frames = animated(&t);
     // Into a directory that does not exist.
     let nowhere = dir.join("no/such/dir/c.exr");
     let err = write_trajectories_exr(&nowhere, &t, &[]).unwrap_err().to_string();

@@ -1,7 +1,7 @@
 //! Issue 22: no command ever modifies its input.
 //!
 //! Every command and every kind of output (convert to GLB, trajectory EXR,
-//! VAT + JSON sidecar, PC2 + OBJ sidecar, OBJ-sequence directory, HTML
+//! VAT + GLB mesh + JSON sidecar, PC2 + OBJ sidecar, OBJ-sequence directory, HTML
 //! report, checkpoint directory; track -o / --checkpoint; refine -o; metrics
 //! --plot; voxelize -o) is aimed at the inputs: a frame file directly, the
 //! same through `./seq/../seq/`, through a symlink, the input directory
@@ -206,7 +206,8 @@ fn cases() -> Vec<Case> {
     rerun.runs = 2;
     out.push(rerun);
     out.push(case("convert -o seq/anim.glb", convert(&["-o", "seq/anim.glb"]), NotPickedUp, &[]));
-    out.push(case("convert --vat -o seq/anim.exr", convert(&["--vat", "-o", "seq/anim.exr"]), NotPickedUp, &[]));
+    // The texture's mesh, seq/anim.glb, would be read as a frame.
+    out.push(case("convert --vat -o seq/anim.exr", convert(&["--vat", "-o", "seq/anim.exr"]), Refuse, &["anim.glb"]));
     out.push(case("convert --report seq/report.html", convert(&["-o", "out.glb", "--report", "seq/report.html"]), NotPickedUp, &[]));
     out.push(case("convert obj-sequence -o seq/objs", convert(&["-o", "seq/objs"]), NotPickedUp, &[]));
 

@@ -353,6 +353,8 @@ fn convert(args: ConvertArgs) -> Result<()> {
         voltrack::export::check_name(name)?;
     }
     args.gltf_options(voltrack::export::DEFAULT_NAME.into()).validate()?;
+    let vat = args.vat_options(voltrack::export::DEFAULT_NAME.into());
+    vat.validate()?;
     if format == OutputFormat::Exr && args.report.is_none() {
         // Only the trajectories are written: the fitted mesh would go unused.
         conform.iterations = 0;
@@ -366,9 +368,14 @@ fn convert(args: ConvertArgs) -> Result<()> {
         plan = plan.dir(&c.dir, "the checkpoint folder");
     }
     plan.check()?;
+    let found = voltrack::io::discover_frames(&args.input.input)?;
+    if format == OutputFormat::Vat {
+        // The rows a frame takes are known only once the mesh is; one each must fit now.
+        vat.check_frames(found.len())?;
+    }
     let name = match &args.name {
         Some(name) => name.clone(),
-        None => voltrack::io::sequence_name(&args.input.input, &voltrack::io::discover_frames(&args.input.input)?),
+        None => voltrack::io::sequence_name(&args.input.input, &found),
     };
     let bars = bars::Bars::new();
     let conv = pipeline::convert(&args.input.input, &voxel, &track, refine.as_ref(), &deform, &conform, checkpoint.as_ref(), bars.progress())?;
@@ -377,6 +384,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
     let out = &args.output;
     let mut notes = Vec::new();
     let mut glb_report = None;
+    let mut vat_layout = None;
     let files = match format {
         OutputFormat::Glb => {
             let report = voltrack::export::gltf::write_dynamic_glb(out, &conv.mesh, &args.gltf_options(name.clone()), bars.progress())?;
@@ -407,8 +415,11 @@ fn convert(args: ConvertArgs) -> Result<()> {
             vec![out.clone()]
         }
         OutputFormat::Vat => {
-            voltrack::export::exr::write_vat_exr(out, &conv.mesh.frames)?;
-            vec![out.clone(), out.with_extension("json")]
+            let report = voltrack::export::vat::write_vat(out, &conv.mesh, &args.vat_options(name.clone()))?;
+            let l = report.layout;
+            notes.push(format!("texture {} x {} texels, {} row(s) per frame; mesh {}", l.width, l.height, l.rows_per_frame, out.with_extension("glb").display()));
+            vat_layout = Some(l);
+            vec![out.clone(), out.with_extension("glb"), out.with_extension("json")]
         }
         OutputFormat::Pc2 => {
             voltrack::export::pc2::write_pc2(out, &conv.mesh, args.fps, &name)?;
@@ -442,8 +453,8 @@ fn convert(args: ConvertArgs) -> Result<()> {
     let traj = conv.refined.as_ref().map_or(&conv.tracked.trajectories, |r| &r.trajectories);
     let total: f64 = seconds.iter().map(|s| s.1).sum();
     // What carries the name and the frame rate, and where they are written.
-    let named = matches!(format, OutputFormat::Glb | OutputFormat::Pc2 | OutputFormat::ObjSequence);
-    let timed = matches!(format, OutputFormat::Glb | OutputFormat::Pc2);
+    let named = matches!(format, OutputFormat::Glb | OutputFormat::Vat | OutputFormat::Pc2 | OutputFormat::ObjSequence);
+    let timed = matches!(format, OutputFormat::Glb | OutputFormat::Vat | OutputFormat::Pc2);
     if args.json {
         let mut stages: serde_json::Map<String, serde_json::Value> = seconds.iter().map(|(stage, s)| (stage.name().to_string(), (*s).into())).collect();
         stages.insert("total".into(), total.into());
@@ -471,6 +482,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
                 "reconstruction_error_max": r.reconstruction_error_max,
                 "reconstruction_error_mean": r.reconstruction_error_mean,
             })),
+            "vat": vat_layout.map(|l| serde_json::json!({"width": l.width, "height": l.height, "rows_per_frame": l.rows_per_frame})),
             "report": args.report,
             "bytes": size,
         }));
@@ -506,7 +518,10 @@ fn convert(args: ConvertArgs) -> Result<()> {
 fn planned_outputs(format: OutputFormat, out: &Path, plan: voltrack::export::OutputPlan) -> voltrack::export::OutputPlan {
     match format {
         OutputFormat::Glb | OutputFormat::Exr => plan.file(out, "the output"),
-        OutputFormat::Vat => plan.file(out, "the output").sidecar(&out.with_extension("json"), "its JSON sidecar", voltrack::export::exr::VAT_SIDECAR_MARK),
+        OutputFormat::Vat => plan
+            .file(out, "the output")
+            .sidecar(&out.with_extension("glb"), "its mesh", voltrack::export::vat::MESH_MARK)
+            .sidecar(&out.with_extension("json"), "its JSON sidecar", voltrack::export::vat::SIDECAR_MARK),
         OutputFormat::Pc2 => plan.file(out, "the output").sidecar(&out.with_extension("obj"), "its OBJ mesh", voltrack::export::pc2::MESH_MARK),
         OutputFormat::ObjSequence => plan.dir(out, "the output folder"),
     }

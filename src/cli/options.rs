@@ -5,6 +5,7 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use voltrack::export::gltf::{BasisChoice, GltfExportOptions};
+use voltrack::export::vat::VatOptions;
 use voltrack::params::{AffinityKind, Blending, ConformParams, DeformParams, RefineParams, TrackParams};
 use voltrack::track::Checkpointing;
 use voltrack::voxel::VoxelParams;
@@ -184,7 +185,7 @@ pub enum OutputFormat {
     Glb,
     /// Center trajectories (as `voltrack track`)
     Exr,
-    /// Per-vertex positions as an EXR vertex-animation texture plus a JSON sidecar
+    /// Per-vertex positions as an EXR vertex-animation texture, with its mesh (.glb) and a JSON sidecar
     Vat,
     /// Blender point cache (.pc2) with the base mesh as OBJ beside it
     Pc2,
@@ -220,9 +221,18 @@ pub struct ConvertArgs {
     /// Output format [default: from the extension; a directory means an OBJ sequence]
     #[arg(long, value_enum)]
     pub format: Option<OutputFormat>,
-    /// Per-vertex animation as an EXR texture (same as --format vat)
+    /// Per-vertex animation as an EXR vertex-animation texture, with its mesh (.glb, TEXCOORD_1 addressing the texels) and a JSON sidecar beside it (same as --format vat)
     #[arg(long, conflicts_with = "format")]
     pub vat: bool,
+    /// Most vertices per row of the vertex-animation texture: its width; a frame takes as many rows as its vertices need (range: 1..=65536)
+    #[arg(long, value_name = "TEXELS", default_value_t = VatOptions::default().max_width)]
+    pub vat_max_width: usize,
+    /// Largest height of the vertex-animation texture (frames × rows per frame); a longer animation is refused (range: 1..=65536)
+    #[arg(long, value_name = "TEXELS", default_value_t = VatOptions::default().max_height)]
+    pub vat_max_height: usize,
+    /// Vertex-animation texture with power-of-two sides (unused texels zero)
+    #[arg(long)]
+    pub vat_power_of_two: bool,
     #[command(flatten)]
     pub track: TrackArgs,
     /// Skip irregular-center removal and the global optimisation
@@ -294,6 +304,10 @@ impl ConvertArgs {
         if self.basis.is_some() && format != OutputFormat::Glb {
             return bad(format!("--basis shapes glTF morph targets, but the output is {}", format.name()));
         }
+        let d = VatOptions::default();
+        if (self.vat_power_of_two || self.vat_max_width != d.max_width || self.vat_max_height != d.max_height) && format != OutputFormat::Vat {
+            return bad(format!("--vat-max-width, --vat-max-height and --vat-power-of-two shape a vertex-animation texture, but the output is {}", format.name()));
+        }
         Ok(format)
     }
 
@@ -316,6 +330,11 @@ impl ConvertArgs {
             absolute_units: self.track.absolute_units,
             ..Default::default()
         }
+    }
+
+    /// The vertex-animation texture's options, the mesh called `name`.
+    pub fn vat_options(&self, name: String) -> VatOptions {
+        VatOptions { fps: self.fps, name, max_width: self.vat_max_width, max_height: self.vat_max_height, power_of_two: self.vat_power_of_two }
     }
 
     /// The glTF options, the object called `name`.

@@ -1,15 +1,15 @@
 //! OpenEXR output: center trajectories and vertex-animation textures.
 //!
-//! Both are one RGB float32 image, one column per point, one row per frame,
-//! R, G, B = x, y, z in the input's units, ZIP-compressed (lossless). Our
+//! Both are one RGB float32 image, R, G, B = x, y, z in the input's units,
+//! ZIP-compressed (lossless): trajectories one column per center and one row
+//! per frame, textures as [`super::vat`] lays them out. Our
 //! metadata travel as one JSON text attribute, `voltrack`: the exr crate keeps
 //! extra attributes in a `HashMap` and writes them in its random order, so one
 //! attribute is what keeps the file bit-identical from run to run.
 
-use super::{write_atomic, write_atomic_all};
+use super::write_atomic;
 use crate::error::{Error, Result};
 use crate::math::Point3;
-use crate::mesh::Aabb;
 use crate::track::Trajectories;
 use exr::meta::attribute::{AttributeValue, Text};
 use exr::prelude::*;
@@ -27,44 +27,8 @@ pub fn write_trajectories_exr(path: &Path, traj: &Trajectories, attributes: &[(S
     write_atomic(path, |w| w.write_all(&bytes))
 }
 
-/// What every VAT sidecar holds near its start (its `software` field), by
-/// which a rerun knows it may replace the file.
-pub const VAT_SIDECAR_MARK: &str = "\"software\": \"voltrack ";
-
-/// Writes per-vertex positions as a vertex-animation texture (width =
-/// vertices, height = frames) and a JSON sidecar `path.with_extension("json")`
-/// with the frame count, vertex count and the bounds of all positions, which
-/// shaders that take normalised textures need.
-pub fn write_vat_exr(path: &Path, frames: &[Vec<Point3>]) -> Result<()> {
-    let vertices = frames.first().map_or(0, Vec::len);
-    if vertices == 0 || frames.iter().any(|f| f.len() != vertices) {
-        return Err(Error::InvalidInput("a vertex animation needs frames with the same, non-zero vertex count".into()));
-    }
-    let sidecar = path.with_extension("json");
-    if sidecar == path {
-        return Err(Error::write(path, "the texture would overwrite its JSON sidecar; name it .exr"));
-    }
-    let bounds = Aabb::from_points(frames.iter().flatten());
-    let info = serde_json::json!({
-        "frames": frames.len(),
-        "vertices": vertices,
-        "layout": "width = vertices in the base mesh's order, height = frames, RGB = xyz",
-        "bounds_min": bounds.min.coords.as_slice(),
-        "bounds_max": bounds.max.coords.as_slice(),
-        "software": concat!("voltrack ", env!("CARGO_PKG_VERSION")),
-    });
-    let attrs = vec![("vat".to_string(), info.to_string())];
-    let bytes = encode_points_exr(path, "vertex animation", vertices, frames.len(), |x, y| frames[y][x], &attrs)?;
-    let text = serde_json::to_string_pretty(&info).map_err(|e| Error::write(&sidecar, e))?;
-    // Both or neither: the texture cannot be decoded without its bounds.
-    write_atomic_all(vec![
-        (path, Box::new(|w: &mut _| w.write_all(&bytes))),
-        (&sidecar, Box::new(|w: &mut _| w.write_all(text.as_bytes()))),
-    ])
-}
-
 /// The OpenEXR file of `width` × `height` points; `path` names it in errors.
-fn encode_points_exr(
+pub(super) fn encode_points_exr(
     path: &Path,
     name: &str,
     width: usize,

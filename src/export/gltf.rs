@@ -339,13 +339,32 @@ fn raw_json(value: &impl serde::Serialize) -> Result<Box<serde_json::value::RawV
 /// committed fixtures are built this way, with the default `scene`, byte for
 /// byte).
 pub fn glb_bytes(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo) -> Result<Vec<u8>> {
+    glb_bytes_with(mesh, animation, scene, GlbExtras::default())
+}
+
+/// What a GLB may hold beyond [`glb_bytes`]'s.
+#[derive(Default)]
+pub(crate) struct GlbExtras<'a> {
+    /// TEXCOORD_1, one per vertex; the mesh must have UVs (TEXCOORD_0).
+    pub uv1: Option<&'a [[f32; 2]]>,
+    /// The asset's `extras`.
+    pub asset: Option<Box<serde_json::value::RawValue>>,
+}
+
+/// [`glb_bytes`] with `extras` added.
+pub(crate) fn glb_bytes_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo, extras: GlbExtras) -> Result<Vec<u8>> {
     super::check_name(&scene.name)?;
     if let Some(anim) = animation {
         anim.check(mesh)?;
     }
+    if extras.uv1.is_some_and(|uv| uv.len() != mesh.positions.len() || mesh.uvs.is_none()) {
+        // glTF numbers UV sets from 0, without gaps.
+        return Err(Error::InvalidInput("a second UV set needs a first, and one UV per vertex".into()));
+    }
     let timing = scene.timing.as_ref().map(raw_json).transpose()?;
     let mut b = Builder { root: json::Root::default(), bin: Vec::new() };
     b.root.asset.generator = Some(format!("voltrack {}", env!("CARGO_PKG_VERSION")));
+    b.root.asset.extras = extras.asset;
     let array = Some(json::buffer::Target::ArrayBuffer);
     let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
     let mut attributes = BTreeMap::new();
@@ -353,7 +372,8 @@ pub fn glb_bytes(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene:
     if let Some(n) = &mesh.normals {
         attributes.insert(Valid(json::mesh::Semantic::Normals), b.vec3(n, false, array));
     }
-    if let Some(uv) = &mesh.uvs {
+    for (set, uv) in [(0, mesh.uvs.as_deref()), (1, extras.uv1)] {
+        let Some(uv) = uv else { continue };
         let acc = b.accessor(
             &f32_bytes(uv.iter().flatten().copied()),
             uv.len(),
@@ -362,7 +382,7 @@ pub fn glb_bytes(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene:
             None,
             array,
         );
-        attributes.insert(Valid(json::mesh::Semantic::TexCoords(0)), acc);
+        attributes.insert(Valid(json::mesh::Semantic::TexCoords(set)), acc);
     }
     let idx: Vec<u8> = mesh.triangles.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
     let indices = b.accessor(

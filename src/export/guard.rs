@@ -195,7 +195,7 @@ fn check_ours(out: &Planned, id: PathBuf, mark: &str) -> Result<PathBuf> {
     if String::from_utf8_lossy(&head).contains(mark) {
         Ok(id)
     } else {
-        Err(Error::refuse(&out.path, format!("{} would replace this file, which voltrack did not write: move it or name the output otherwise", out.what)))
+        Err(Error::refuse(&out.path, format!("{} would replace this file, which voltrack did not write as such: move it or name the output otherwise", out.what)))
     }
 }
 

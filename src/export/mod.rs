@@ -1,4 +1,4 @@
-//! Writing results (glTF, OBJ, PLY, binvox, EXR). Every writer goes through [`write_atomic`]
+//! Writing results (glTF, OBJ, PLY, binvox, EXR, vertex-animation textures). Every writer goes through [`write_atomic`]
 //! (or [`write_atomic_all`] for files that belong together), so a failure never leaves a
 //! half-written file behind.
 
@@ -10,6 +10,7 @@ mod normals;
 pub mod obj;
 pub mod pc2;
 pub mod ply;
+pub mod vat;
 
 use crate::error::{Error, Result};
 use std::io::{BufWriter, Write};
