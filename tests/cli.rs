@@ -73,7 +73,7 @@ fn help_lists_the_commands() {
     }
     assert!(ok(&dir, &["--version"]).contains(env!("CARGO_PKG_VERSION")));
     let convert = ok(&dir, &["convert", "--help"]);
-    for flag in ["--resolution", "--centers", "--output", "--format", "--vat", "--basis", "--fps", "--no-refine", "--report", "--checkpoint", "--resume", "--name", "--json"] {
+    for flag in ["--resolution", "--centers", "--output", "--format", "--vat", "--basis", "--compress", "--fps", "--no-refine", "--report", "--checkpoint", "--resume", "--name", "--json"] {
         assert!(convert.contains(flag), "convert --help lacks {flag}");
     }
 }
@@ -138,6 +138,29 @@ fn convert_to_glb_with_a_compact_basis() {
     assert!((3..=6).contains(&targets), "{targets}");
     assert_eq!(interpolation, gltf::animation::Interpolation::Linear);
     assert_eq!(dir.files(), ["b.glb"]);
+}
+
+/// Issue 23: `--compress` writes a smaller GLB that requires the meshopt and
+/// quantisation extensions, and reports the decoded positions' error.
+#[test]
+fn convert_to_a_compressed_glb() {
+    let dir = Scratch::new("cli", "glb-compress");
+    let plain = json(&ok(&dir, &convert_args("p.glb", &["--json", "--no-refine"])));
+    assert_eq!(plain["basis"]["compressed"], false);
+    let stdout = ok(&dir, &convert_args("c.glb", &["--compress", "--no-refine"]));
+    assert!(stdout.contains("compressed (KHR_mesh_quantization + EXT_meshopt_compression): reconstruction error max"), "{stdout}");
+    let summary = json(&ok(&dir, &convert_args("c.glb", &["--json", "--compress", "--no-refine"])));
+    let basis = &summary["basis"];
+    assert_eq!(basis["compressed"], true, "{basis}");
+    let error = basis["reconstruction_error_max"].as_f64().unwrap();
+    assert!(error > 0.0 && error < 0.0005, "{basis}");
+    assert!(summary["bytes"].as_u64().unwrap() * 2 < plain["bytes"].as_u64().unwrap(), "{summary}\n{plain}");
+    let glb = std::fs::read(dir.join("c.glb")).unwrap();
+    let doc: serde_json::Value = serde_json::from_slice(&gltf::binary::Glb::from_slice(&glb).unwrap().json).unwrap();
+    assert_eq!(doc["extensionsRequired"], serde_json::json!(["EXT_meshopt_compression", "KHR_mesh_quantization"]));
+    let stderr = fails(&dir, &convert_args("c.pc2", &["--compress"]), 2);
+    assert!(stderr.contains("--compress"), "{stderr}");
+    assert_eq!(dir.files(), ["c.glb", "p.glb"]);
 }
 
 /// Names of the node, the mesh and the animation of a GLB.

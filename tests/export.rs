@@ -952,3 +952,125 @@ fn vat_mesh_carries_frame_0_and_texel_uvs() {
     let scene: serde_json::Value = serde_json::from_str(doc.default_scene().unwrap().extras().as_ref().unwrap().get()).unwrap();
     assert_eq!(scene, serde_json::json!({"fps": 24.0, "frames": 5}));
 }
+/// Decodes one accessor of a compressed GLB as meshoptimizer and glTF say:
+/// EXT_meshopt_compression's stream decoded with the meshopt crate, then the
+/// normalized SHORT or BYTE components dequantised to [-1, 1].
+fn decode_quantised(json: &serde_json::Value, bin: &[u8], accessor: usize) -> Vec<[f64; 3]> {
+    let acc = &json["accessors"][accessor];
+    let view = &json["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+    let ext = &view["extensions"]["EXT_meshopt_compression"];
+    assert_eq!(ext["mode"], "ATTRIBUTES");
+    assert_eq!(acc["normalized"], true);
+    let (off, len) = (ext["byteOffset"].as_u64().unwrap() as usize, ext["byteLength"].as_u64().unwrap() as usize);
+    let count = ext["count"].as_u64().unwrap() as usize;
+    assert_eq!(count, acc["count"].as_u64().unwrap() as usize);
+    let data = &bin[off..off + len];
+    match acc["componentType"].as_u64().unwrap() {
+        5122 => {
+            assert_eq!(ext["byteStride"], 8);
+            let v: Vec<[i16; 4]> = meshopt::decode_vertex_buffer(data, count).unwrap();
+            v.iter().map(|q| [0, 1, 2].map(|k| (q[k] as f64 / 32767.0).max(-1.0))).collect()
+        }
+        5120 => {
+            assert_eq!(ext["byteStride"], 4);
+            let v: Vec<[i8; 4]> = meshopt::decode_vertex_buffer(data, count).unwrap();
+            v.iter().map(|q| [0, 1, 2].map(|k| (q[k] as f64 / 127.0).max(-1.0))).collect()
+        }
+        other => panic!("component type {other}"),
+    }
+}
+
+#[test]
+fn compressed_glb_decodes_to_every_frame_within_the_reported_error() {
+    let dir = Scratch::new("export", "compress");
+    // 96 × 40 = 3840 vertices, 40 frames of a bend plus a turn.
+    let mut base = fixtures::torus(Point3::origin(), 1.0, 0.3, 96, 40);
+    base.uvs = Some((0..base.positions.len()).map(|v| [(v / 40) as f32 / 96.0, (v % 40) as f32 / 40.0]).collect());
+    let frames = (0..40)
+        .map(|f| base.positions.iter().map(|p| turning(f, p) + Vector3::new(0.0, 0.0, 0.2 * (f as Real * 0.1).sin() * p.x * p.x)).collect())
+        .collect();
+    let mesh = DynamicMesh { base, frames };
+    let d = diagonal(&mesh);
+    for basis in [BasisChoice::PerFrame, BasisChoice::Components(4)] {
+        let plain = write_dynamic_glb(&dir.join("plain.glb"), &mesh, &options(basis), Progress::none()).unwrap();
+        let path = dir.join("compressed.glb");
+        let report = write_dynamic_glb(&path, &mesh, &GltfExportOptions { compress: true, ..options(basis) }, Progress::none()).unwrap();
+        assert!(report.compressed && !plain.compressed);
+        assert_eq!(report.bytes, std::fs::metadata(&path).unwrap().len());
+        assert!(report.bytes * 3 <= plain.bytes, "{basis:?}: {} bytes compressed vs {} plain", report.bytes, plain.bytes);
+        assert!(report.reconstruction_error_max < 0.0005, "{basis:?}: {}", report.reconstruction_error_max);
+        eprintln!("{basis:?}: {} bytes plain, {} compressed, error max {} mean {}", plain.bytes, report.bytes, report.reconstruction_error_max, report.reconstruction_error_mean);
+
+        let bytes = std::fs::read(&path).unwrap();
+        let glb = gltf::binary::Glb::from_slice(&bytes).unwrap();
+        let json: serde_json::Value = serde_json::from_slice(&glb.json).unwrap();
+        let bin = glb.bin.unwrap();
+        let required: Vec<&str> = json["extensionsRequired"].as_array().unwrap().iter().map(|e| e.as_str().unwrap()).collect();
+        assert_eq!(required, ["EXT_meshopt_compression", "KHR_mesh_quantization"]);
+        assert_eq!(json["buffers"][1]["extensions"]["EXT_meshopt_compression"]["fallback"], true);
+        let node = &json["nodes"][0];
+        let t: Vec<f64> = node["translation"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        let s: Vec<f64> = node["scale"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        assert!(s[0] == s[1] && s[1] == s[2], "uniform scale {s:?}");
+        let prim = &json["meshes"][0]["primitives"][0];
+        let at = |v: &serde_json::Value| v.as_u64().unwrap() as usize;
+        let positions = decode_quantised(&json, &bin, at(&prim["attributes"]["POSITION"]));
+        let normals = decode_quantised(&json, &bin, at(&prim["attributes"]["NORMAL"]));
+        assert!(normals.iter().all(|n| ((n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt() - 1.0).abs() < 0.02));
+        let targets: Vec<Vec<[f64; 3]>> =
+            prim["targets"].as_array().unwrap().iter().map(|t| decode_quantised(&json, &bin, at(&t["POSITION"]))).collect();
+        // The indices too.
+        let idx_acc = &json["accessors"][at(&prim["indices"])];
+        let idx_ext = &json["bufferViews"][at(&idx_acc["bufferView"])]["extensions"]["EXT_meshopt_compression"];
+        assert_eq!(idx_ext["mode"], "TRIANGLES");
+        let (off, len) = (at(&idx_ext["byteOffset"]), at(&idx_ext["byteLength"]));
+        let indices: Vec<u32> = meshopt::decode_index_buffer(&bin[off..off + len], at(&idx_ext["count"])).unwrap();
+        assert_eq!(indices, mesh.base.triangles.iter().flatten().copied().collect::<Vec<u32>>());
+        // Every frame: base + Σ w · delta at its keyed weights, then the node transform.
+        let read = Glb::read_weights(&json, &bin);
+        let (mut max, mut sum, mut n) = (0.0f64, 0.0f64, 0usize);
+        for (f, frame) in mesh.frames.iter().enumerate() {
+            for (v, p) in frame.iter().enumerate() {
+                let mut q = positions[v];
+                for (w, target) in read[f].iter().zip(&targets) {
+                    for k in 0..3 {
+                        q[k] += *w as f64 * target[v][k];
+                    }
+                }
+                let world = [0, 1, 2].map(|k| q[k] * s[k] + t[k]);
+                let e = ((world[0] - p.x).powi(2) + (world[1] - p.y).powi(2) + (world[2] - p.z).powi(2)).sqrt() / d as f64;
+                assert!(e <= report.reconstruction_error_max as f64 + 1e-6, "{basis:?} frame {f} vertex {v}: {e} > {}", report.reconstruction_error_max);
+                max = max.max(e);
+                sum += e;
+                n += 1;
+            }
+        }
+        assert!((max - report.reconstruction_error_max as f64).abs() < 1e-6, "{basis:?}: decoded max {max} vs reported {}", report.reconstruction_error_max);
+        assert!((sum / n as f64 - report.reconstruction_error_mean as f64).abs() < 1e-6);
+    }
+}
+
+impl Glb {
+    /// The keyed weight vectors of the file's one animation (stored uncompressed).
+    fn read_weights(json: &serde_json::Value, bin: &[u8]) -> Vec<Vec<f32>> {
+        let sampler = &json["animations"][0]["samplers"][0];
+        let floats = |a: &serde_json::Value| -> Vec<f32> {
+            let acc = &json["accessors"][a.as_u64().unwrap() as usize];
+            let view = &json["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+            let count = acc["count"].as_u64().unwrap() as usize;
+            let ext = &view["extensions"]["EXT_meshopt_compression"];
+            if ext.is_null() {
+                assert_eq!(view["buffer"], 0);
+                let off = view["byteOffset"].as_u64().unwrap_or(0) as usize;
+                (0..count).map(|i| f32_at(bin, off + 4 * i)).collect()
+            } else {
+                let (off, len) = (ext["byteOffset"].as_u64().unwrap() as usize, ext["byteLength"].as_u64().unwrap() as usize);
+                assert_eq!((ext["mode"].as_str(), ext["byteStride"].as_u64(), ext["count"].as_u64()), (Some("ATTRIBUTES"), Some(4), Some(count as u64)));
+                meshopt::decode_vertex_buffer::<f32>(&bin[off..off + len], count).unwrap()
+            }
+        };
+        let times = floats(&sampler["input"]);
+        let weights = floats(&sampler["output"]);
+        weights.chunks(weights.len() / times.len()).map(|c| c.to_vec()).collect()
+    }
+}

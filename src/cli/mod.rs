@@ -397,9 +397,19 @@ fn convert(args: ConvertArgs) -> Result<()> {
                         voltrack::export::basis::AUTO_PER_FRAME_LIMIT
                     ));
                 }
+                if !report.compressed {
+                    notes.push(format!(
+                        "compact basis of {k} components ({} morph targets): reconstruction error max {:.4} %, mean {:.4} % of the diagonal",
+                        report.targets,
+                        100.0 * report.reconstruction_error_max,
+                        100.0 * report.reconstruction_error_mean
+                    ));
+                }
+            }
+            if report.compressed {
+                let basis = report.basis.map_or(String::new(), |k| format!(", compact basis of {k} components ({} morph targets)", report.targets));
                 notes.push(format!(
-                    "compact basis of {k} components ({} morph targets): reconstruction error max {:.4} %, mean {:.4} % of the diagonal",
-                    report.targets,
+                    "compressed (KHR_mesh_quantization + EXT_meshopt_compression{basis}): reconstruction error max {:.4} %, mean {:.4} % of the diagonal",
                     100.0 * report.reconstruction_error_max,
                     100.0 * report.reconstruction_error_mean
                 ));
@@ -479,6 +489,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
             "basis": glb_report.map(|r| serde_json::json!({
                 "targets": r.targets,
                 "components": r.basis,
+                "compressed": r.compressed,
                 "reconstruction_error_max": r.reconstruction_error_max,
                 "reconstruction_error_mean": r.reconstruction_error_mean,
             })),

@@ -246,6 +246,9 @@ pub struct ConvertArgs {
     /// Compact glTF: K principal components as morph targets [default: one target per frame up to 256 frames] (range: 1..=100000)
     #[arg(long)]
     pub basis: Option<usize>,
+    /// Compressed glTF for the web: quantised positions, normals and morph deltas (KHR_mesh_quantization) encoded by meshoptimizer (EXT_meshopt_compression); viewers need a meshopt decoder (three.js: MeshoptDecoder). Prints the positions' error
+    #[arg(long)]
+    pub compress: bool,
     /// Centers each vertex follows (range: 1..=64)
     #[arg(long, default_value_t = DeformParams::default().neighbors)]
     pub bind_neighbors: usize,
@@ -308,6 +311,9 @@ impl ConvertArgs {
         if (self.vat_power_of_two || self.vat_max_width != d.max_width || self.vat_max_height != d.max_height) && format != OutputFormat::Vat {
             return bad(format!("--vat-max-width, --vat-max-height and --vat-power-of-two shape a vertex-animation texture, but the output is {}", format.name()));
         }
+        if self.compress && format != OutputFormat::Glb {
+            return bad(format!("--compress compresses a GLB, but the output is {}", format.name()));
+        }
         Ok(format)
     }
 
@@ -343,6 +349,7 @@ impl ConvertArgs {
             fps: self.fps,
             name,
             basis: self.basis.map_or(BasisChoice::Auto, BasisChoice::Components),
+            compress: self.compress,
             ..Default::default()
         }
     }

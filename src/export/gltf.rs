@@ -41,11 +41,24 @@ pub struct GltfExportOptions {
     /// them the file has no normals and viewers derive them (three.js shades
     /// flat). Default true.
     pub normals: bool,
+    /// Write a compressed file ([`SceneInfo::compress`]): positions, normals
+    /// and their morph deltas quantised (KHR_mesh_quantization), vertex and
+    /// index data encoded with meshoptimizer (EXT_meshopt_compression), both
+    /// extensions required. The report's reconstruction error then includes
+    /// the quantisation. Default false.
+    pub compress: bool,
 }
 
 impl Default for GltfExportOptions {
     fn default() -> Self {
-        GltfExportOptions { fps: 30.0, name: super::DEFAULT_NAME.into(), basis: BasisChoice::Auto, max_basis_error: 0.001, normals: true }
+        GltfExportOptions {
+            fps: 30.0,
+            name: super::DEFAULT_NAME.into(),
+            basis: BasisChoice::Auto,
+            max_basis_error: 0.001,
+            normals: true,
+            compress: false,
+        }
     }
 }
 
@@ -79,12 +92,17 @@ pub struct GltfExportReport {
     pub basis: Option<usize>,
     /// Largest vertex error of the basis over all frames, as a fraction of the
     /// animation's bounding-box diagonal (0 for per-frame targets; f32
-    /// rounding of the file, ~1e-7, not included).
+    /// rounding of the file, ~1e-7, not included). For a compressed file, the
+    /// error of the positions the file decodes to (dequantised, at every
+    /// frame's keyed weights) against the captured frames: basis and
+    /// quantisation together.
     pub reconstruction_error_max: Real,
     /// Mean vertex error over all frames and vertices, same unit.
     pub reconstruction_error_mean: Real,
     /// Size of the file.
     pub bytes: u64,
+    /// Whether the file is compressed ([`GltfExportOptions::compress`]).
+    pub compressed: bool,
 }
 
 /// Writes `mesh` as a GLB holding one mesh: frame 0 as the base, morph targets
@@ -120,16 +138,129 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
         texture: mesh.base.texture.clone(),
     };
     let animation = (basis.targets() > 0).then(|| morph_animation(frames, &basis, normals.as_ref(), options.fps, progress)).transpose()?;
-    let scene = SceneInfo { name: options.name.clone(), timing: Some(Timing { fps: options.fps, frames: frames.len() }) };
+    let scene = SceneInfo {
+        name: options.name.clone(),
+        timing: Some(Timing { fps: options.fps, frames: frames.len() }),
+        compress: options.compress,
+    };
     let bytes = glb_bytes(&base, animation.as_ref(), &scene)?;
+    let (error_max, error_mean) = if options.compress {
+        quantised_error(frames, &base, animation.as_ref())
+    } else {
+        (error.max, error.mean)
+    };
     super::write_atomic(path, |w| std::io::Write::write_all(w, &bytes))?;
     Ok(GltfExportReport {
         targets: basis.targets(),
         basis: basis.components,
-        reconstruction_error_max: relative(error.max),
-        reconstruction_error_mean: relative(error.mean),
+        reconstruction_error_max: relative(error_max),
+        reconstruction_error_mean: relative(error_mean),
         bytes: bytes.len() as u64,
+        compressed: options.compress,
     })
+}
+
+/// Max and mean distance between the captured frames and the positions a
+/// compressed file decodes to at each frame's keyed weights.
+fn quantised_error(frames: &[Vec<Point3>], base: &TriangleMesh, animation: Option<&MorphAnimation>) -> (Real, Real) {
+    let q = Quantizer::new(&base.positions, animation);
+    let qbase: Vec<[i16; 3]> = base.positions.iter().map(|p| q.position(p)).collect();
+    let qdeltas: Vec<Vec<[i16; 3]>> =
+        animation.map(|a| a.position_deltas.iter().map(|d| d.iter().map(|v| q.delta(v)).collect()).collect()).unwrap_or_default();
+    let (mut max, mut sum, mut n) = (0.0 as Real, 0.0 as Real, 0usize);
+    for (f, frame) in frames.iter().enumerate() {
+        let weights: &[f32] = animation.map_or(&[], |a| &a.weights[f]);
+        for (v, p) in frame.iter().enumerate() {
+            let mut acc = [0.0f64; 3];
+            for k in 0..3 {
+                acc[k] = qbase[v][k] as f64;
+            }
+            for (w, d) in weights.iter().zip(&qdeltas) {
+                if *w != 0.0 {
+                    for k in 0..3 {
+                        acc[k] += *w as f64 * d[v][k] as f64;
+                    }
+                }
+            }
+            let decoded = q.dequantise(acc);
+            let e = ((decoded[0] - p.x).powi(2) + (decoded[1] - p.y).powi(2) + (decoded[2] - p.z).powi(2)).sqrt() as Real;
+            max = max.max(e);
+            sum += e;
+            n += 1;
+        }
+    }
+    (max, if n > 0 { sum / n as Real } else { 0.0 })
+}
+
+/// The quantisation of a compressed file (KHR_mesh_quantization): positions
+/// and position deltas as normalized SHORT in one common uniform scale (the
+/// node's, which glTF applies to both; uniform so that normals keep their
+/// directions), positions relative to the centre of the base mesh's bounds
+/// (the node's translation). The scale covers both the base positions' offsets
+/// from the centre and every delta, so nothing is clamped, in
+/// [`POSITION_BITS`] of precision.
+#[derive(Clone, Copy, Debug)]
+struct Quantizer {
+    center: [f32; 3],
+    scale: f32,
+}
+
+const SHORT: f64 = 32767.0;
+
+/// Precision of the quantised positions and deltas: normalized SHORT values
+/// confined to ±(2^(bits−1) − 1) (the node's scale is larger by as much), so
+/// that their high bytes vary little and meshoptimizer's codec packs them
+/// tighter. 14 bits (gltfpack's default) keep the error about 1e-4 of the
+/// diagonal; 16 would be the full range.
+const POSITION_BITS: i32 = 14;
+
+impl Quantizer {
+    fn new(positions: &[Point3], animation: Option<&MorphAnimation>) -> Self {
+        let (lo, hi) = bounds_of(&positions.iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect::<Vec<_>>());
+        let center = [0, 1, 2].map(|k| ((lo[k] as f64 + hi[k] as f64) / 2.0) as f32);
+        let mut extent = 0.0f64;
+        for p in positions {
+            for (k, c) in [p.x, p.y, p.z].into_iter().enumerate() {
+                extent = extent.max((c - center[k] as f64).abs());
+            }
+        }
+        for d in animation.iter().flat_map(|a| &a.position_deltas).flatten() {
+            for c in d {
+                extent = extent.max(c.abs() as f64);
+            }
+        }
+        // Rounded up to f32 (what the node holds) and a hair more, so that
+        // no value falls outside [-1, 1] after the f32 rounding.
+        let steps = (1i32 << (POSITION_BITS - 1)) as f64 - 1.0;
+        let scale = if extent > 0.0 && extent.is_finite() { (extent * (1.0 + 1e-6) * SHORT / steps) as f32 } else { 1.0 };
+        Quantizer { center, scale }
+    }
+
+    fn short(&self, x: f64) -> i16 {
+        (x / self.scale as f64 * SHORT).round().clamp(-SHORT, SHORT) as i16
+    }
+
+    fn position(&self, p: &Point3) -> [i16; 3] {
+        let c = [p.x, p.y, p.z];
+        [0, 1, 2].map(|k| self.short(c[k] - self.center[k] as f64))
+    }
+
+    fn delta(&self, d: &[f32; 3]) -> [i16; 3] {
+        d.map(|c| self.short(c as f64))
+    }
+
+    /// Dequantised point from (possibly weighted sums of) SHORT values.
+    fn dequantise(&self, q: [f64; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|k| q[k] / SHORT * self.scale as f64 + self.center[k] as f64)
+    }
+}
+
+/// A unit vector or a normal delta as normalized BYTE (clamped to [-1, 1];
+/// a normal delta is larger only where a normal turns by more than 90°, and
+/// affects the shading only), padded to 4 bytes.
+fn byte4(v: &[f32; 3]) -> [i8; 4] {
+    let b = |x: f32| (x.clamp(-1.0, 1.0) * 127.0).round() as i8;
+    [b(v[0]), b(v[1]), b(v[2]), 0]
 }
 
 /// The morph animation of `basis`: position targets from the displacements,
@@ -218,11 +349,123 @@ impl MorphAnimation {
 struct Builder {
     root: json::Root,
     bin: Vec<u8>,
+    /// Length of the EXT_meshopt_compression fallback buffer (buffer 1, no
+    /// data) that the compressed views describe; 0 when nothing is compressed.
+    fallback_len: usize,
+    /// The EXT_meshopt_compression object of each compressed view, by index.
+    meshopt: Vec<(usize, serde_json::Value)>,
+}
+
+/// How meshoptimizer encodes a compressed view.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum MeshoptMode {
+    Attributes,
+    Triangles,
 }
 
 impl Builder {
+    /// A view of `raw` (elements of `stride` bytes) stored encoded by
+    /// meshoptimizer in the GLB buffer, and described uncompressed in the
+    /// fallback buffer as EXT_meshopt_compression says.
+    fn meshopt_view(&mut self, raw: &[u8], stride: usize, mode: MeshoptMode, target: Option<json::buffer::Target>) -> Result<json::Index<json::buffer::View>> {
+        let count = raw.len() / stride;
+        let encoded = match mode {
+            // Version 0 of the vertex codec: EXT_meshopt_compression's (the
+            // later version 1 is KHR_meshopt_compression's).
+            MeshoptMode::Attributes => match stride {
+                4 => meshopt::encode_vertex_buffer_level(&chunks::<4>(raw), 2, Some(0)),
+                8 => meshopt::encode_vertex_buffer_level(&chunks::<8>(raw), 2, Some(0)),
+                _ => unreachable!("meshopt attribute stride {stride}"),
+            },
+            MeshoptMode::Triangles => {
+                let idx: Vec<u32> = raw.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+                let vertices = idx.iter().max().map_or(0, |&m| m as usize + 1);
+                meshopt::encode_index_buffer(&idx, vertices)
+            }
+        }
+        .map_err(|e| Error::InvalidInput(format!("meshoptimizer: {e:?}")))?;
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(&encoded);
+        self.fallback_len = self.fallback_len.next_multiple_of(4);
+        let fallback_offset = self.fallback_len;
+        self.fallback_len += raw.len();
+        let index = self.root.push(json::buffer::View {
+            buffer: json::Index::new(1),
+            byte_length: USize64::from(raw.len()),
+            byte_offset: Some(USize64::from(fallback_offset)),
+            // glTF's byteStride is for vertex attributes only.
+            byte_stride: (target == Some(json::buffer::Target::ArrayBuffer)).then_some(json::buffer::Stride(stride)),
+            name: None,
+            target: target.map(Valid),
+            extensions: None,
+            extras: Default::default(),
+        });
+        self.meshopt.push((
+            index.value(),
+            serde_json::json!({
+                "buffer": 0,
+                "byteOffset": offset,
+                "byteLength": encoded.len(),
+                "byteStride": stride,
+                "count": count,
+                "mode": if mode == MeshoptMode::Attributes { "ATTRIBUTES" } else { "TRIANGLES" },
+            }),
+        ));
+        Ok(index)
+    }
+
+    /// An accessor of `count` elements in `view`.
+    #[allow(clippy::too_many_arguments)]
+    fn accessor_in(
+        &mut self,
+        view: json::Index<json::buffer::View>,
+        count: usize,
+        component: json::accessor::ComponentType,
+        type_: json::accessor::Type,
+        normalized: bool,
+        bounds: Option<(Vec<f32>, Vec<f32>)>,
+    ) -> json::Index<json::Accessor> {
+        let (min, max) = match bounds {
+            Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
+            None => (None, None),
+        };
+        self.root.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: None,
+            count: USize64::from(count),
+            component_type: Valid(json::accessor::GenericComponentType(component)),
+            extensions: None,
+            extras: Default::default(),
+            type_: Valid(type_),
+            min,
+            max,
+            name: None,
+            normalized,
+            sparse: None,
+        })
+    }
+
+    /// A quantised VEC3 attribute: normalized SHORT padded to 8 bytes, with
+    /// exact bounds (in the stored integers) when asked.
+    fn short3(&mut self, data: &[[i16; 3]], with_bounds: bool) -> Result<json::Index<json::Accessor>> {
+        let raw: Vec<u8> = data.iter().flat_map(|v| [v[0], v[1], v[2], 0]).flat_map(i16::to_le_bytes).collect();
+        let view = self.meshopt_view(&raw, 8, MeshoptMode::Attributes, Some(json::buffer::Target::ArrayBuffer))?;
+        let bounds = with_bounds.then(|| bounds_of(&data.iter().map(|v| v.map(|c| c as f32)).collect::<Vec<_>>()));
+        Ok(self.accessor_in(view, data.len(), json::accessor::ComponentType::I16, json::accessor::Type::Vec3, true, bounds))
+    }
+
+    /// A quantised VEC3 direction or direction delta: normalized BYTE padded to 4 bytes.
+    fn byte3(&mut self, data: &[[f32; 3]]) -> Result<json::Index<json::Accessor>> {
+        let raw: Vec<u8> = data.iter().flat_map(byte4).map(|b| b as u8).collect();
+        let view = self.meshopt_view(&raw, 4, MeshoptMode::Attributes, Some(json::buffer::Target::ArrayBuffer))?;
+        Ok(self.accessor_in(view, data.len(), json::accessor::ComponentType::I8, json::accessor::Type::Vec3, true, None))
+    }
+
     fn view(&mut self, bytes: &[u8], target: Option<json::buffer::Target>) -> json::Index<json::buffer::View> {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         let offset = self.bin.len();
@@ -282,6 +525,10 @@ impl Builder {
     }
 }
 
+fn chunks<const N: usize>(raw: &[u8]) -> Vec<[u8; N]> {
+    raw.chunks_exact(N).map(|c| c.try_into().expect("chunk of N bytes")).collect()
+}
+
 fn f32_bytes(values: impl Iterator<Item = f32>) -> Vec<u8> {
     values.flat_map(f32::to_le_bytes).collect()
 }
@@ -321,11 +568,21 @@ pub struct SceneInfo {
     pub name: String,
     /// Frame rate and count for the `extras`; default None (no `extras`).
     pub timing: Option<Timing>,
+    /// Compress the file: positions and their morph deltas as normalized
+    /// SHORT and normals and theirs as normalized BYTE (KHR_mesh_quantization;
+    /// the node's translation and uniform scale dequantise the positions),
+    /// then vertex and index data encoded by meshoptimizer
+    /// (EXT_meshopt_compression, with a fallback buffer that has no data).
+    /// Both extensions are required: viewers need a meshopt decoder (three.js'
+    /// `MeshoptDecoder`). UVs stay float (encoded by meshoptimizer too), the animation's
+    /// weights are encoded, its times and the texture are stored as they are.
+    /// Default false.
+    pub compress: bool,
 }
 
 impl Default for SceneInfo {
     fn default() -> Self {
-        SceneInfo { name: super::DEFAULT_NAME.into(), timing: None }
+        SceneInfo { name: super::DEFAULT_NAME.into(), timing: None, compress: false }
     }
 }
 
@@ -362,37 +619,47 @@ pub(crate) fn glb_bytes_with(mesh: &TriangleMesh, animation: Option<&MorphAnimat
         return Err(Error::InvalidInput("a second UV set needs a first, and one UV per vertex".into()));
     }
     let timing = scene.timing.as_ref().map(raw_json).transpose()?;
-    let mut b = Builder { root: json::Root::default(), bin: Vec::new() };
+    let mut b = Builder { root: json::Root::default(), bin: Vec::new(), fallback_len: 0, meshopt: Vec::new() };
     b.root.asset.generator = Some(format!("voltrack {}", env!("CARGO_PKG_VERSION")));
     b.root.asset.extras = extras.asset;
     let array = Some(json::buffer::Target::ArrayBuffer);
+    let quantizer = scene.compress.then(|| Quantizer::new(&mesh.positions, animation));
     let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
     let mut attributes = BTreeMap::new();
-    attributes.insert(Valid(json::mesh::Semantic::Positions), b.vec3(&positions, true, array));
+    let position_accessor = match &quantizer {
+        Some(q) => b.short3(&mesh.positions.iter().map(|p| q.position(p)).collect::<Vec<_>>(), true)?,
+        None => b.vec3(&positions, true, array),
+    };
+    attributes.insert(Valid(json::mesh::Semantic::Positions), position_accessor);
     if let Some(n) = &mesh.normals {
-        attributes.insert(Valid(json::mesh::Semantic::Normals), b.vec3(n, false, array));
+        let acc = if scene.compress { b.byte3(n)? } else { b.vec3(n, false, array) };
+        attributes.insert(Valid(json::mesh::Semantic::Normals), acc);
     }
     for (set, uv) in [(0, mesh.uvs.as_deref()), (1, extras.uv1)] {
         let Some(uv) = uv else { continue };
-        let acc = b.accessor(
-            &f32_bytes(uv.iter().flatten().copied()),
-            uv.len(),
-            json::accessor::ComponentType::F32,
-            json::accessor::Type::Vec2,
-            None,
-            array,
-        );
+        let bytes = f32_bytes(uv.iter().flatten().copied());
+        let acc = if scene.compress {
+            let view = b.meshopt_view(&bytes, 8, MeshoptMode::Attributes, Some(json::buffer::Target::ArrayBuffer))?;
+            b.accessor_in(view, uv.len(), json::accessor::ComponentType::F32, json::accessor::Type::Vec2, false, None)
+        } else {
+            b.accessor(&bytes, uv.len(), json::accessor::ComponentType::F32, json::accessor::Type::Vec2, None, array)
+        };
         attributes.insert(Valid(json::mesh::Semantic::TexCoords(set)), acc);
     }
     let idx: Vec<u8> = mesh.triangles.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
-    let indices = b.accessor(
-        &idx,
-        mesh.triangles.len() * 3,
-        json::accessor::ComponentType::U32,
-        json::accessor::Type::Scalar,
-        None,
-        Some(json::buffer::Target::ElementArrayBuffer),
-    );
+    let indices = if scene.compress {
+        let view = b.meshopt_view(&idx, 4, MeshoptMode::Triangles, Some(json::buffer::Target::ElementArrayBuffer))?;
+        b.accessor_in(view, mesh.triangles.len() * 3, json::accessor::ComponentType::U32, json::accessor::Type::Scalar, false, None)
+    } else {
+        b.accessor(
+            &idx,
+            mesh.triangles.len() * 3,
+            json::accessor::ComponentType::U32,
+            json::accessor::Type::Scalar,
+            None,
+            Some(json::buffer::Target::ElementArrayBuffer),
+        )
+    };
     let material = match (&mesh.texture, &mesh.uvs) {
         (Some(tex), Some(_)) => Some(texture_material(&mut b, tex)?),
         _ => None,
@@ -403,8 +670,18 @@ pub(crate) fn glb_bytes_with(mesh: &TriangleMesh, animation: Option<&MorphAnimat
     if let Some(anim) = animation {
         let mut t = Vec::with_capacity(anim.position_deltas.len());
         for (k, d) in anim.position_deltas.iter().enumerate() {
-            let normals = anim.normal_deltas.as_ref().map(|n| b.vec3(&n[k], false, array));
-            t.push(json::mesh::MorphTarget { positions: Some(b.vec3(d, true, array)), normals, tangents: None });
+            let target = match &quantizer {
+                Some(q) => {
+                    let normals = anim.normal_deltas.as_ref().map(|n| b.byte3(&n[k])).transpose()?;
+                    let positions = b.short3(&d.iter().map(|v| q.delta(v)).collect::<Vec<_>>(), true)?;
+                    json::mesh::MorphTarget { positions: Some(positions), normals, tangents: None }
+                }
+                None => {
+                    let normals = anim.normal_deltas.as_ref().map(|n| b.vec3(&n[k], false, array));
+                    json::mesh::MorphTarget { positions: Some(b.vec3(d, true, array)), normals, tangents: None }
+                }
+            };
+            t.push(target);
         }
         targets = Some(t);
         weights = Some(anim.weights[0].clone());
@@ -427,17 +704,43 @@ pub(crate) fn glb_bytes_with(mesh: &TriangleMesh, animation: Option<&MorphAnimat
         primitives: vec![primitive],
         weights,
     });
-    let node = b.root.push(json::Node { mesh: Some(mesh_index), name: Some(scene.name.clone()), ..Default::default() });
+    let node = b.root.push(json::Node {
+        mesh: Some(mesh_index),
+        name: Some(scene.name.clone()),
+        translation: quantizer.map(|q| q.center),
+        scale: quantizer.map(|q| [q.scale; 3]),
+        ..Default::default()
+    });
     let scene_index = b.root.push(json::Scene { extensions: None, extras: timing.clone(), name: None, nodes: vec![node] });
     b.root.scene = Some(scene_index);
     if let Some(anim) = animation {
-        add_weight_animation(&mut b, anim, node, &scene.name, timing);
+        add_weight_animation(&mut b, anim, node, &scene.name, timing, scene.compress)?;
     }
-    while b.bin.len() % 4 != 0 {
+    while !b.bin.len().is_multiple_of(4) {
         b.bin.push(0);
     }
     b.root.push(json::Buffer { byte_length: USize64::from(b.bin.len()), name: None, uri: None, extensions: None, extras: Default::default() });
-    let mut json_bytes = b.root.to_vec().map_err(|e| Error::InvalidInput(e.to_string()))?;
+    let mut json_bytes = if scene.compress {
+        let used = ["EXT_meshopt_compression", "KHR_mesh_quantization"].map(String::from).to_vec();
+        b.root.extensions_used = used.clone();
+        b.root.extensions_required = used;
+        b.root.push(json::Buffer {
+            byte_length: USize64::from(b.fallback_len.next_multiple_of(4)),
+            name: None,
+            uri: None,
+            extensions: None,
+            extras: Default::default(),
+        });
+        // gltf-json has no types for EXT_meshopt_compression: added to the JSON.
+        let mut value = serde_json::to_value(&b.root).map_err(|e| Error::InvalidInput(e.to_string()))?;
+        for (view, ext) in b.meshopt.drain(..) {
+            value["bufferViews"][view]["extensions"] = serde_json::json!({ "EXT_meshopt_compression": ext });
+        }
+        value["buffers"][1]["extensions"] = serde_json::json!({ "EXT_meshopt_compression": { "fallback": true } });
+        serde_json::to_vec(&value).map_err(|e| Error::InvalidInput(e.to_string()))?
+    } else {
+        b.root.to_vec().map_err(|e| Error::InvalidInput(e.to_string()))?
+    };
     while json_bytes.len() % 4 != 0 {
         json_bytes.push(b' ');
     }
@@ -449,7 +752,14 @@ pub(crate) fn glb_bytes_with(mesh: &TriangleMesh, animation: Option<&MorphAnimat
     glb.to_vec().map_err(|e| Error::InvalidInput(e.to_string()))
 }
 
-fn add_weight_animation(b: &mut Builder, anim: &MorphAnimation, node: json::Index<json::Node>, name: &str, extras: Option<Box<serde_json::value::RawValue>>) {
+fn add_weight_animation(
+    b: &mut Builder,
+    anim: &MorphAnimation,
+    node: json::Index<json::Node>,
+    name: &str,
+    extras: Option<Box<serde_json::value::RawValue>>,
+    compress: bool,
+) -> Result<()> {
     let tmin = anim.times.iter().copied().fold(f32::INFINITY, f32::min);
     let tmax = anim.times.iter().copied().fold(f32::NEG_INFINITY, f32::max);
     let input = b.accessor(
@@ -461,14 +771,15 @@ fn add_weight_animation(b: &mut Builder, anim: &MorphAnimation, node: json::Inde
         None,
     );
     let flat: Vec<f32> = anim.weights.iter().flatten().copied().collect();
-    let output = b.accessor(
-        &f32_bytes(flat.iter().copied()),
-        flat.len(),
-        json::accessor::ComponentType::F32,
-        json::accessor::Type::Scalar,
-        None,
-        None,
-    );
+    // The weights (F + 1 keys of T each: for per-frame targets a one-hot
+    // matrix, the larger part of a small mesh's file) compressed with the
+    // vertex data; the few times are not.
+    let output = if compress {
+        let view = b.meshopt_view(&f32_bytes(flat.iter().copied()), 4, MeshoptMode::Attributes, None)?;
+        b.accessor_in(view, flat.len(), json::accessor::ComponentType::F32, json::accessor::Type::Scalar, false, None)
+    } else {
+        b.accessor(&f32_bytes(flat.iter().copied()), flat.len(), json::accessor::ComponentType::F32, json::accessor::Type::Scalar, None, None)
+    };
     let interpolation = match anim.interpolation {
         Interpolation::Step => json::animation::Interpolation::Step,
         Interpolation::Linear => json::animation::Interpolation::Linear,
@@ -492,6 +803,7 @@ fn add_weight_animation(b: &mut Builder, anim: &MorphAnimation, node: json::Inde
         name: Some(name.into()),
         samplers: vec![sampler],
     });
+    Ok(())
 }
 
 /// Embeds the first frame's texture image as-is (PNG or JPEG) in the GLB.

@@ -279,6 +279,6 @@ fn mesh_bytes(mesh: &DynamicMesh, layout: &VatLayout, options: &VatOptions, text
     // Written by hand, not through serde_json, so its text is MESH_MARK's.
     let asset = format!("{{{MESH_MARK},\"texture\":{},\"sidecar\":{}}}", serde_json::Value::from(texture), serde_json::Value::from(sidecar));
     let asset = serde_json::value::RawValue::from_string(asset).map_err(|e| Error::InvalidInput(e.to_string()))?;
-    let scene = SceneInfo { name: options.name.clone(), timing: Some(Timing { fps: options.fps, frames: layout.frames }) };
+    let scene = SceneInfo { name: options.name.clone(), timing: Some(Timing { fps: options.fps, frames: layout.frames }), compress: false };
     glb_bytes_with(&base, None, &scene, GlbExtras { uv1: Some(&uv1), asset: Some(asset) })
 }
