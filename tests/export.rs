@@ -1048,6 +1048,11 @@ fn compressed_glb_decodes_to_every_frame_within_the_reported_error() {
         assert!((max - report.reconstruction_error_max as f64).abs() < 1e-6, "{basis:?}: decoded max {max} vs reported {}", report.reconstruction_error_max);
         assert!((sum / n as f64 - report.reconstruction_error_mean as f64).abs() < 1e-6);
     }
+    // A single frame: no animation, the base mesh quantised alone.
+    let still = DynamicMesh { base: mesh.base.clone(), frames: mesh.frames[..1].to_vec() };
+    let report = write_dynamic_glb(&dir.join("still.glb"), &still, &GltfExportOptions { compress: true, ..Default::default() }, Progress::none()).unwrap();
+    assert_eq!(report.targets, 0);
+    assert!(report.compressed && report.reconstruction_error_max > 0.0 && report.reconstruction_error_max < 0.0005, "{report:?}");
 }
 
 impl Glb {
