@@ -349,6 +349,9 @@ impl MorphAnimation {
 struct Builder {
     root: json::Root,
     bin: Vec<u8>,
+    /// Store the vertex, index and weight data meshopt-encoded
+    /// ([`SceneInfo::compress`]).
+    compress: bool,
     /// Length of the EXT_meshopt_compression fallback buffer (buffer 1, no
     /// data) that the compressed views describe; 0 when nothing is compressed.
     fallback_len: usize,
@@ -384,11 +387,7 @@ impl Builder {
             }
         }
         .map_err(|e| Error::InvalidInput(format!("meshoptimizer: {e:?}")))?;
-        while !self.bin.len().is_multiple_of(4) {
-            self.bin.push(0);
-        }
-        let offset = self.bin.len();
-        self.bin.extend_from_slice(&encoded);
+        let offset = self.append(&encoded);
         self.fallback_len = self.fallback_len.next_multiple_of(4);
         let fallback_offset = self.fallback_len;
         self.fallback_len += raw.len();
@@ -464,12 +463,33 @@ impl Builder {
         Ok(self.accessor_in(view, data.len(), json::accessor::ComponentType::I8, json::accessor::Type::Vec3, true, None))
     }
 
-    fn view(&mut self, bytes: &[u8], target: Option<json::buffer::Target>) -> json::Index<json::buffer::View> {
+    /// Appends `bytes` to the binary chunk at the next 4-byte boundary;
+    /// returns where they start.
+    fn append(&mut self, bytes: &[u8]) -> usize {
+        self.pad();
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(bytes);
+        offset
+    }
+
+    fn pad(&mut self) {
         while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
-        let offset = self.bin.len();
-        self.bin.extend_from_slice(bytes);
+    }
+
+    /// A view of data stored as the file is: meshopt-encoded (elements of
+    /// `stride` bytes, in `mode`) when compressing, plain otherwise.
+    fn data_view(&mut self, bytes: &[u8], stride: usize, mode: MeshoptMode, target: Option<json::buffer::Target>) -> Result<json::Index<json::buffer::View>> {
+        if self.compress {
+            self.meshopt_view(bytes, stride, mode, target)
+        } else {
+            Ok(self.view(bytes, target))
+        }
+    }
+
+    fn view(&mut self, bytes: &[u8], target: Option<json::buffer::Target>) -> json::Index<json::buffer::View> {
+        let offset = self.append(bytes);
         self.root.push(json::buffer::View {
             buffer: json::Index::new(0),
             byte_length: USize64::from(bytes.len()),
@@ -492,24 +512,7 @@ impl Builder {
         target: Option<json::buffer::Target>,
     ) -> json::Index<json::Accessor> {
         let view = self.view(bytes, target);
-        let (min, max) = match bounds {
-            Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
-            None => (None, None),
-        };
-        self.root.push(json::Accessor {
-            buffer_view: Some(view),
-            byte_offset: None,
-            count: USize64::from(count),
-            component_type: Valid(json::accessor::GenericComponentType(component)),
-            extensions: None,
-            extras: Default::default(),
-            type_: Valid(type_),
-            min,
-            max,
-            name: None,
-            normalized: false,
-            sparse: None,
-        })
+        self.accessor_in(view, count, component, type_, false, bounds)
     }
 
     fn vec3(&mut self, data: &[[f32; 3]], with_bounds: bool, target: Option<json::buffer::Target>) -> json::Index<json::Accessor> {
@@ -619,7 +622,7 @@ pub(crate) fn glb_bytes_with(mesh: &TriangleMesh, animation: Option<&MorphAnimat
         return Err(Error::InvalidInput("a second UV set needs a first, and one UV per vertex".into()));
     }
     let timing = scene.timing.as_ref().map(raw_json).transpose()?;
-    let mut b = Builder { root: json::Root::default(), bin: Vec::new(), fallback_len: 0, meshopt: Vec::new() };
+    let mut b = Builder { root: json::Root::default(), bin: Vec::new(), compress: scene.compress, fallback_len: 0, meshopt: Vec::new() };
     b.root.asset.generator = Some(format!("voltrack {}", env!("CARGO_PKG_VERSION")));
     b.root.asset.extras = extras.asset;
     let array = Some(json::buffer::Target::ArrayBuffer);
@@ -638,28 +641,13 @@ pub(crate) fn glb_bytes_with(mesh: &TriangleMesh, animation: Option<&MorphAnimat
     for (set, uv) in [(0, mesh.uvs.as_deref()), (1, extras.uv1)] {
         let Some(uv) = uv else { continue };
         let bytes = f32_bytes(uv.iter().flatten().copied());
-        let acc = if scene.compress {
-            let view = b.meshopt_view(&bytes, 8, MeshoptMode::Attributes, Some(json::buffer::Target::ArrayBuffer))?;
-            b.accessor_in(view, uv.len(), json::accessor::ComponentType::F32, json::accessor::Type::Vec2, false, None)
-        } else {
-            b.accessor(&bytes, uv.len(), json::accessor::ComponentType::F32, json::accessor::Type::Vec2, None, array)
-        };
+        let view = b.data_view(&bytes, 8, MeshoptMode::Attributes, array)?;
+        let acc = b.accessor_in(view, uv.len(), json::accessor::ComponentType::F32, json::accessor::Type::Vec2, false, None);
         attributes.insert(Valid(json::mesh::Semantic::TexCoords(set)), acc);
     }
     let idx: Vec<u8> = mesh.triangles.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
-    let indices = if scene.compress {
-        let view = b.meshopt_view(&idx, 4, MeshoptMode::Triangles, Some(json::buffer::Target::ElementArrayBuffer))?;
-        b.accessor_in(view, mesh.triangles.len() * 3, json::accessor::ComponentType::U32, json::accessor::Type::Scalar, false, None)
-    } else {
-        b.accessor(
-            &idx,
-            mesh.triangles.len() * 3,
-            json::accessor::ComponentType::U32,
-            json::accessor::Type::Scalar,
-            None,
-            Some(json::buffer::Target::ElementArrayBuffer),
-        )
-    };
+    let view = b.data_view(&idx, 4, MeshoptMode::Triangles, Some(json::buffer::Target::ElementArrayBuffer))?;
+    let indices = b.accessor_in(view, mesh.triangles.len() * 3, json::accessor::ComponentType::U32, json::accessor::Type::Scalar, false, None);
     let material = match (&mesh.texture, &mesh.uvs) {
         (Some(tex), Some(_)) => Some(texture_material(&mut b, tex)?),
         _ => None,
@@ -714,11 +702,9 @@ pub(crate) fn glb_bytes_with(mesh: &TriangleMesh, animation: Option<&MorphAnimat
     let scene_index = b.root.push(json::Scene { extensions: None, extras: timing.clone(), name: None, nodes: vec![node] });
     b.root.scene = Some(scene_index);
     if let Some(anim) = animation {
-        add_weight_animation(&mut b, anim, node, &scene.name, timing, scene.compress)?;
+        add_weight_animation(&mut b, anim, node, &scene.name, timing)?;
     }
-    while !b.bin.len().is_multiple_of(4) {
-        b.bin.push(0);
-    }
+    b.pad();
     b.root.push(json::Buffer { byte_length: USize64::from(b.bin.len()), name: None, uri: None, extensions: None, extras: Default::default() });
     let mut json_bytes = if scene.compress {
         let used = ["EXT_meshopt_compression", "KHR_mesh_quantization"].map(String::from).to_vec();
@@ -758,7 +744,6 @@ fn add_weight_animation(
     node: json::Index<json::Node>,
     name: &str,
     extras: Option<Box<serde_json::value::RawValue>>,
-    compress: bool,
 ) -> Result<()> {
     let tmin = anim.times.iter().copied().fold(f32::INFINITY, f32::min);
     let tmax = anim.times.iter().copied().fold(f32::NEG_INFINITY, f32::max);
@@ -774,12 +759,8 @@ fn add_weight_animation(
     // The weights (F + 1 keys of T each: for per-frame targets a one-hot
     // matrix, the larger part of a small mesh's file) compressed with the
     // vertex data; the few times are not.
-    let output = if compress {
-        let view = b.meshopt_view(&f32_bytes(flat.iter().copied()), 4, MeshoptMode::Attributes, None)?;
-        b.accessor_in(view, flat.len(), json::accessor::ComponentType::F32, json::accessor::Type::Scalar, false, None)
-    } else {
-        b.accessor(&f32_bytes(flat.iter().copied()), flat.len(), json::accessor::ComponentType::F32, json::accessor::Type::Scalar, None, None)
-    };
+    let view = b.data_view(&f32_bytes(flat.iter().copied()), 4, MeshoptMode::Attributes, None)?;
+    let output = b.accessor_in(view, flat.len(), json::accessor::ComponentType::F32, json::accessor::Type::Scalar, false, None);
     let interpolation = match anim.interpolation {
         Interpolation::Step => json::animation::Interpolation::Step,
         Interpolation::Linear => json::animation::Interpolation::Linear,
