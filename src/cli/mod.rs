@@ -206,9 +206,6 @@ fn frame_runs(frames: &[usize]) -> String {
     voltrack::metrics::coverage::runs(frames).iter().map(|&(a, b)| if a == b { a.to_string() } else { format!("{a}-{b}") }).collect::<Vec<_>>().join(", ")
 }
 
-/// One warning per kind of evidence that a part was lost: input volume no
-/// cell reaches, and (when the fit was measured) frames fitted far worse
-/// than the rest.
 /// Warnings of parts the tracking may have lost. With the result's fit to
 /// the input (`convert`), volume left unreached is warned of only where the
 /// fit is bad too (within a frame): a few unreached voxels where the result
@@ -360,7 +357,11 @@ fn convert(args: ConvertArgs) -> Result<()> {
         conform.iterations = 0;
     }
     let checkpoint = args.track.checkpointing()?;
-    let mut plan = planned_outputs(format, &args.output, args.input.plan()?);
+    // The frames are listed once, for the output checks, the VAT's height
+    // and the default name.
+    let found = voltrack::io::discover_frames(&args.input.input)?;
+    let reading = voltrack::export::OutputPlan::new().reading(&args.input.input, &found);
+    let mut plan = planned_outputs(format, &args.output, reading);
     if let Some(report) = &args.report {
         plan = plan.file(report, "the report");
     }
@@ -368,7 +369,6 @@ fn convert(args: ConvertArgs) -> Result<()> {
         plan = plan.dir(&c.dir, "the checkpoint folder");
     }
     plan.check()?;
-    let found = voltrack::io::discover_frames(&args.input.input)?;
     if format == OutputFormat::Vat {
         // The rows a frame takes are known only once the mesh is; one each must fit now.
         vat.check_frames(found.len())?;
