@@ -9,7 +9,7 @@ use std::time::Instant;
 use voltrack::export::basis::{choose, BasisChoice};
 use voltrack::fixtures;
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
-use voltrack::mesh::Aabb;
+use voltrack::model::mesh::Aabb;
 
 /// A turn, two travelling waves, a bend and a slowly chirping ripple: smooth
 /// motion of moderate rank whose spectrum decays, like a tracked capture's.

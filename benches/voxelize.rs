@@ -7,7 +7,8 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
-use voltrack::voxel::{voxelize, GridSpec, VoxelParams};
+use voltrack::model::GridSpec;
+use voltrack::voxel::{voxelize, VoxelParams};
 
 fn dancer(c: &mut Criterion) {
     let dir = std::env::var("VOLTRACK_BENCH_DATA").unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/dancer").into());

@@ -15,7 +15,7 @@
 
 use voltrack::math::{Point3, Real};
 use voltrack::params::{ConformParams, DeformParams, RefineParams, TrackParams};
-use voltrack::track::{fit_rigid, Rigid};
+use voltrack::model::{fit_rigid, Rigid};
 use voltrack::voxel::VoxelParams;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -5,7 +5,7 @@
 //! Coordinates are rounded to f32 so OBJ, PLY and GLB hold the same numbers.
 
 use crate::math::{Point3, Real};
-use crate::mesh::TriangleMesh;
+use crate::model::mesh::TriangleMesh;
 use std::f64::consts::PI;
 
 fn mesh(positions: Vec<Point3>, triangles: Vec<[u32; 3]>) -> TriangleMesh {

@@ -3,18 +3,15 @@
 //! ([`surface`]).
 
 pub mod coverage;
-pub mod surface;
+pub mod fit;
 
 pub use coverage::{coverage, fit_outliers, Coverage, FitOutliers, FrameCoverage};
 
-pub use surface::{
-    closest_point_on_triangle, fit_to_inputs, point_triangle_distance_squared, surface_fit, DistanceSummary, FrameFit, SequenceFit, Surface,
-    SurfaceIndex,
-};
+pub use fit::{fit_to_inputs, surface_fit, DistanceSummary, FrameFit, SequenceFit, Surface};
 
 use crate::math::Real;
 use crate::plot::{line_plot, Axis, Series};
-use crate::track::Trajectories;
+use crate::model::Trajectories;
 use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
 

@@ -140,7 +140,7 @@ impl TrackParams {
     }
 
     /// Factor from this struct's lengths to the input's units.
-    pub fn length_scale(&self, bounds: &crate::mesh::Aabb) -> Real {
+    pub fn length_scale(&self, bounds: &crate::model::mesh::Aabb) -> Real {
         length_scale(self.absolute_units, bounds)
     }
 
@@ -254,7 +254,7 @@ impl RefineParams {
     }
 
     /// Factor from this struct's lengths to the input's units.
-    pub fn length_scale(&self, bounds: &crate::mesh::Aabb) -> Real {
+    pub fn length_scale(&self, bounds: &crate::model::mesh::Aabb) -> Real {
         length_scale(self.absolute_units, bounds)
     }
 }
@@ -306,7 +306,7 @@ impl Default for DeformParams {
 
 /// Lengths are fractions of the bounding box's longest side (method.md §9)
 /// unless given in the input's units.
-fn length_scale(absolute_units: bool, bounds: &crate::mesh::Aabb) -> Real {
+fn length_scale(absolute_units: bool, bounds: &crate::model::mesh::Aabb) -> Real {
     if absolute_units {
         1.0
     } else {
@@ -382,7 +382,7 @@ impl ConformParams {
         Ok(())
     }
 
-    pub fn length_scale(&self, bounds: &crate::mesh::Aabb) -> Real {
+    pub fn length_scale(&self, bounds: &crate::model::mesh::Aabb) -> Real {
         length_scale(self.absolute_units, bounds)
     }
 }

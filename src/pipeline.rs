@@ -4,13 +4,14 @@
 use crate::deform::{conform_to_inputs, deform, DynamicMesh};
 use crate::error::{Error, Result};
 use crate::math::Real;
-use crate::mesh::TriangleMesh;
+use crate::model::mesh::TriangleMesh;
 use crate::metrics::Coverage;
 use crate::params::{ConformParams, CoverageParams, DeformParams, RefineParams, TrackParams};
 use crate::progress::{Progress, Stage};
 use crate::refine::{global_affinity, refine, RefineResult, SequenceCells};
-use crate::track::{track_with_checkpoints, Checkpointing, TrackResult, Trajectories};
-use crate::voxel::{voxelize_sequence, GridSpec, VoxelParams, VoxelSequence};
+use crate::model::{GridSpec, Trajectories};
+use crate::track::{track_with_checkpoints, Checkpointing, TrackResult};
+use crate::voxel::{voxelize_sequence, VoxelParams, VoxelSequence};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 

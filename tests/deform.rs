@@ -2,11 +2,10 @@
 
 use voltrack::deform::{bind, conform_frame, deform, smooth_bindings, Binding, DualQuaternion};
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
-use voltrack::metrics::SurfaceIndex;
+use voltrack::spatial::surface::SurfaceIndex;
 use voltrack::params::{Blending, ConformParams, DeformParams};
 use voltrack::refine::SparseAffinity;
-use voltrack::track::{Rigid, Trajectories};
-
+use voltrack::model::{Rigid, Trajectories};
 fn random_rigid(k: u32) -> Rigid {
     let a = k as Real;
     Rigid { rotation: *Rotation3::new(Vector3::new(0.3 * a.sin(), 0.7 * a.cos(), 0.2 + 0.1 * a)).matrix(), translation: Vector3::new(a, -0.5 * a, 0.25) }

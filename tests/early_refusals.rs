@@ -142,7 +142,7 @@ fn a_resolution_that_cannot_fit_in_memory_is_refused_with_one_that_fits() {
     // The resolution it names does fit under the same limit.
     let fits: usize = err.split("fits is about ").nth(1).unwrap().split(|c: char| !c.is_ascii_digit()).next().unwrap().parse().unwrap();
     assert!((2..1596).contains(&fits), "{err}");
-    let grid = voltrack::voxel::GridSpec::for_bounds(&bar_bounds(), fits).unwrap();
+    let grid = voltrack::model::GridSpec::for_bounds(&bar_bounds(), fits).unwrap();
     let meshes: Vec<_> = (0..8).map(voltrack::fixtures::bending_bar).collect();
     let refs: Vec<_> = meshes.iter().collect();
     let estimate = voltrack::voxel::MemoryEstimate::of(&refs, &grid, rayon::current_num_threads().max(2));
@@ -159,7 +159,7 @@ fn the_memory_estimate_is_not_below_what_a_run_holds() {
     // Occupied voxels counted by voxelising must not exceed the estimate's
     // share for them (4 bytes each of its 24 per voxel would be the index alone).
     let meshes: Vec<_> = (0..3).map(voltrack::fixtures::bending_bar).collect();
-    let grid = voltrack::voxel::GridSpec::for_bounds(&bar_bounds(), 64).unwrap();
+    let grid = voltrack::model::GridSpec::for_bounds(&bar_bounds(), 64).unwrap();
     let refs: Vec<_> = meshes.iter().collect();
     let estimate = voltrack::voxel::MemoryEstimate::of(&refs, &grid, 1);
     let occupied: usize = meshes.iter().map(|m| voltrack::voxel::voxelize(m, &grid).len()).sum();

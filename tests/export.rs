@@ -9,7 +9,7 @@ use voltrack::export::gltf::{write_dynamic_glb, BasisChoice, GltfExportOptions, 
 use voltrack::export::vat::{write_vat, VatOptions};
 use voltrack::fixtures;
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
-use voltrack::mesh::Aabb;
+use voltrack::model::mesh::Aabb;
 use voltrack::Progress;
 
 mod common;

@@ -9,7 +9,7 @@ use voltrack::export::exr::write_trajectories_exr;
 use voltrack::export::vat::{write_vat, VatOptions};
 use voltrack::io::exr::read_trajectories_exr;
 use voltrack::math::{Point3, Real};
-use voltrack::track::Trajectories;
+use voltrack::model::Trajectories;
 
 mod common;
 use common::Scratch;

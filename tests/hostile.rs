@@ -43,7 +43,7 @@ fn glb(m: &TriangleMesh) -> Vec<u8> {
 /// The cube voxelised at resolution 6, as binvox.
 fn binvox() -> Vec<u8> {
     let m = fixtures::cube(Point3::origin(), 1.0);
-    let grid = voltrack::voxel::GridSpec::for_bounds(&m.bounding_box(), 6).unwrap();
+    let grid = voltrack::model::GridSpec::for_bounds(&m.bounding_box(), 6).unwrap();
     let mut out = Vec::new();
     voltrack::io::write_binvox(&mut out, &grid, &voltrack::voxel::voxelize(&m, &grid)).unwrap();
     out
@@ -636,7 +636,7 @@ fn fuzz_crashers_are_errors() {
 #[test]
 fn exr_trajectories_truncated_or_mangled() {
     let dir = Scratch::new("hostile", "exr");
-    let traj = voltrack::track::Trajectories::from_frames(vec![vec![Point3::new(1.0, 2.0, 3.0); 5]; 3]);
+    let traj = voltrack::model::Trajectories::from_frames(vec![vec![Point3::new(1.0, 2.0, 3.0); 5]; 3]);
     let path = dir.join("c.exr");
     voltrack::export::exr::write_trajectories_exr(&path, &traj, &[]).unwrap();
     let bytes = std::fs::read(&path).unwrap();

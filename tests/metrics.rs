@@ -7,7 +7,7 @@ use common::assert_well_formed;
 use nalgebra::{DMatrix, DVector, Rotation3, SymmetricEigen, Vector3};
 use voltrack::math::{Point3, Real};
 use voltrack::metrics::{dfu, irregularity, irregularity_curve_svg, irregularity_curves_svg, pcac};
-use voltrack::track::Trajectories;
+use voltrack::model::Trajectories;
 
 /// SplitMix64: a fixed-seed generator, independent of the crate's own.
 struct Rng(u64);
@@ -401,7 +401,8 @@ fn irregularity_curve_is_well_formed_svg() {
 // Surface fit: exact point-to-triangle distances through the hierarchy.
 
 use voltrack::fixtures;
-use voltrack::metrics::{point_triangle_distance_squared, surface_fit, DistanceSummary, Surface, SurfaceIndex};
+use voltrack::spatial::surface::{point_triangle_distance_squared, SurfaceIndex};
+use voltrack::metrics::{surface_fit, DistanceSummary, Surface};
 use voltrack::TriangleMesh;
 
 /// Distance to every triangle, smallest taken: what the index must equal.
@@ -439,7 +440,7 @@ fn point_triangle_distance_in_each_region() {
             let m = |v: &Point3| motion * v;
             assert!(close(point_triangle_distance_squared(&m(&q), &m(&x), &m(&y), &m(&z)), want, 1e-12), "{p:?} moved");
         }
-        let got = voltrack::metrics::closest_point_on_triangle(&p, &a, &b, &c);
+        let got = voltrack::spatial::surface::closest_point_on_triangle(&p, &a, &b, &c);
         assert!((got - closest).norm() < 1e-14, "{p:?}: closest {got:?}, want {closest:?}");
     }
     // Degenerate triangles are their edges: collinear corners, and one point.

@@ -3,7 +3,8 @@
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
 use voltrack::params::{RefineParams, TrackParams};
 use voltrack::refine::{global_affinity, most_irregular, optimise, refine, SequenceCells};
-use voltrack::track::{track, Rigid, Trajectories};
+use voltrack::model::{Rigid, Trajectories};
+use voltrack::track::track;
 use voltrack::voxel::VoxelSequence;
 
 mod common;

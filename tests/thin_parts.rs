@@ -12,7 +12,7 @@ use voltrack::math::Real;
 use voltrack::params::{CoverageParams, DeformParams, RefineParams, TrackParams};
 use voltrack::pipeline::Conversion;
 use voltrack::report::Measurements;
-use voltrack::track::Trajectories;
+use voltrack::model::Trajectories;
 use voltrack::voxel::{VoxelParams, VoxelSequence};
 use voltrack::Progress;
 

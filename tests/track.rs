@@ -4,9 +4,11 @@
 use voltrack::math::{Matrix3, Point3, Real, Rotation3, Vector3};
 use voltrack::params::{sigma_for, AffinityKind, TrackParams};
 use voltrack::track::affinity::{motion_dissimilarity2, Affinity};
-use voltrack::track::assign::{Assignment, CellMoments, CenterIndex, NO_OWNER};
-use voltrack::track::{fit_rigid, track, Rigid, RigidFits};
-use voltrack::voxel::{GridSpec, VoxelSequence};
+use voltrack::spatial::cells::{Assignment, CellMoments, CenterIndex, NO_OWNER};
+use voltrack::model::{fit_rigid, Rigid, RigidFits};
+use voltrack::track::track;
+use voltrack::model::GridSpec;
+use voltrack::voxel::VoxelSequence;
 
 mod common;
 

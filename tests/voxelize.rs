@@ -3,7 +3,8 @@
 
 use std::path::{Path, PathBuf};
 use voltrack::io::read_mesh;
-use voltrack::voxel::{voxelize, winding_number, GridSpec};
+use voltrack::model::GridSpec;
+use voltrack::voxel::{voxelize, winding_number};
 use voltrack::{fixtures, Aabb};
 
 fn fixture(name: &str) -> PathBuf {
@@ -152,7 +153,7 @@ fn sequence_grid_spans_all_frames_with_a_margin() {
     let b = fixtures::cube(voltrack::math::Point3::new(3.0, 0.0, 0.0), 1.0);
     let bounds: Aabb = a.bounding_box().union(&b.bounding_box());
     let g = GridSpec::for_bounds(&bounds, 64).unwrap();
-    assert_eq!(g.dims[0], 64 + 2 * voltrack::voxel::GRID_MARGIN);
+    assert_eq!(g.dims[0], 64 + 2 * voltrack::model::GRID_MARGIN);
     assert!((g.voxel_size - 4.0 / 64.0).abs() < 1e-12);
     assert!(voxelize(&a, &g).len() == voxelize(&b, &g).len());
 }

@@ -242,7 +242,7 @@ fn lost_part_warnings(coverage: &Coverage, fit: Option<&FitOutliers>) -> Vec<Str
     out
 }
 
-type Tracked = (voltrack::track::Trajectories, Vec<(String, String)>);
+type Tracked = (voltrack::model::Trajectories, Vec<(String, String)>);
 
 /// Reads trajectories written by `voltrack track`.
 fn read_tracked(centers: &Path) -> Result<Tracked> {

@@ -1,7 +1,7 @@
 //! Dual quaternions for blending rigid motions (Kavan et al. 2008).
 
 use crate::math::{Point3, Real, UnitQuaternion};
-use crate::track::Rigid;
+use crate::model::Rigid;
 use nalgebra::{Quaternion, Rotation3, Vector3};
 
 /// real + ε dual; a unit dual quaternion is a rigid motion.

@@ -39,11 +39,11 @@
 use super::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Matrix3, Point3, Real, UnitQuaternion, Vector3};
-use crate::mesh::{Aabb, TriangleMesh};
-use crate::metrics::SurfaceIndex;
+use crate::model::mesh::{Aabb, TriangleMesh};
+use crate::spatial::surface::SurfaceIndex;
 use crate::params::ConformParams;
 use crate::progress::{Counter, Progress, Stage};
-use crate::track::rotation_from_covariance;
+use crate::model::rotation_from_covariance;
 use nalgebra::Unit;
 use rayon::prelude::*;
 use std::path::PathBuf;

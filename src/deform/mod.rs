@@ -16,10 +16,10 @@ pub use conform::{conform_frame, conform_to_inputs};
 
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
-use crate::mesh::TriangleMesh;
+use crate::model::mesh::TriangleMesh;
 use crate::params::{Blending, DeformParams};
 use crate::refine::SparseAffinity;
-use crate::track::{Rigid, Trajectories};
+use crate::model::{Rigid, Trajectories};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 use std::num::NonZeroUsize;

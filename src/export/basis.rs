@@ -18,7 +18,7 @@ use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real, Vector3};
 use crate::progress::{Progress, Stage};
-use crate::track::rng::SplitMix64;
+use crate::model::rng::SplitMix64;
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 use std::ops::RangeInclusive;
@@ -606,7 +606,7 @@ mod tests {
     fn sketched_components_reconstruct_as_well_as_the_exact_decomposition() {
         for count in [150, 400] {
             let frames = sequence(count);
-            let diagonal = crate::mesh::Aabb::from_points(frames.iter().flatten()).diagonal();
+            let diagonal = crate::model::mesh::Aabb::from_points(frames.iter().flatten()).diagonal();
             let reference = exact(&frames);
             let all = reference.errors(&frames, 0..=24, &mut no_passes()).unwrap();
             for k in [1, 2, 3, 5, 8, 12, 16, 24] {

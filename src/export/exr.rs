@@ -10,7 +10,7 @@
 use super::write_atomic;
 use crate::error::{Error, Result};
 use crate::math::Point3;
-use crate::track::Trajectories;
+use crate::model::Trajectories;
 use exr::meta::attribute::{AttributeValue, Text};
 use exr::prelude::*;
 use std::io::Write as _;

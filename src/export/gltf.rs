@@ -11,7 +11,7 @@ use super::normals::FrameNormals;
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real, Vector3};
-use crate::mesh::{Aabb, TriangleMesh};
+use crate::model::mesh::{Aabb, TriangleMesh};
 use crate::progress::Progress;
 use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
@@ -790,7 +790,7 @@ fn add_weight_animation(
 /// Embeds the first frame's texture image as-is (PNG or JPEG) in the GLB.
 fn texture_material(b: &mut Builder, path: &std::path::Path) -> Result<json::Index<json::Material>> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let Some(mime) = crate::mesh::image_mime(&bytes) else {
+    let Some(mime) = crate::model::mesh::image_mime(&bytes) else {
         return Err(Error::parse(path, None, "texture is neither PNG nor JPEG"));
     };
     let view = b.view(&bytes, None);

@@ -18,7 +18,7 @@ pub(crate) struct FrameNormals<'a> {
 
 impl<'a> FrameNormals<'a> {
     pub fn new(triangles: &'a [[u32; 3]], frame0: &[Point3]) -> Self {
-        let weld = crate::mesh::weld_by_position(frame0);
+        let weld = crate::model::mesh::weld_by_position(frame0);
         let mut n = FrameNormals { triangles, weld, base: Vec::new() };
         n.base = n.raw(frame0).into_iter().map(|v| if v == Vector3::zeros() { Vector3::z() } else { v }).collect();
         n

@@ -3,7 +3,7 @@
 use crate::deform::DynamicMesh;
 use crate::error::Result;
 use crate::math::{Point3, Vector3};
-use crate::mesh::TriangleMesh;
+use crate::model::mesh::TriangleMesh;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

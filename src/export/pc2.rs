@@ -7,7 +7,7 @@ use super::obj::write_named_obj;
 use super::write_atomic_all;
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
-use crate::mesh::TriangleMesh;
+use crate::model::mesh::TriangleMesh;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::Path;

@@ -1,6 +1,6 @@
 //! Stanford PLY writing (used for fixtures and tests of the reader).
 
-use crate::mesh::TriangleMesh;
+use crate::model::mesh::TriangleMesh;
 use std::io::Write;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

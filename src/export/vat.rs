@@ -16,7 +16,7 @@ use super::write_atomic_all;
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
-use crate::mesh::{Aabb, TriangleMesh};
+use crate::model::mesh::{Aabb, TriangleMesh};
 use std::io::Write as _;
 use std::path::Path;
 

@@ -3,7 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
-use crate::voxel::{GridSpec, Occupancy};
+use crate::model::{GridSpec, Occupancy};
 use std::io::Write;
 use std::path::Path;
 

@@ -2,7 +2,7 @@
 
 use crate::error::{Error, Result};
 use crate::math::Point3;
-use crate::track::Trajectories;
+use crate::model::Trajectories;
 use exr::meta::attribute::AttributeValue;
 use exr::prelude::*;
 use std::path::Path;

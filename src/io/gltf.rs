@@ -8,7 +8,7 @@
 
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
-use crate::mesh::TriangleMesh;
+use crate::model::mesh::TriangleMesh;
 use gltf::mesh::Mode;
 use nalgebra::Matrix4;
 use std::path::Path;

@@ -16,8 +16,8 @@ pub use polygon::triangulate_polygon;
 pub use sequence::{discover_frames, glob_match, is_supported, sequence_name, sort_natural, would_discover, EXTENSIONS};
 
 use crate::error::{Error, Result};
-use crate::mesh::TriangleMesh;
-use crate::voxel::{GridSpec, Occupancy};
+use crate::model::mesh::TriangleMesh;
+use crate::model::{GridSpec, Occupancy};
 use std::path::Path;
 
 /// `bytes` without a leading UTF-8 byte-order mark, which some editors write

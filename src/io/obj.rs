@@ -5,7 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::math::Point3;
-use crate::mesh::TriangleMesh;
+use crate::model::mesh::TriangleMesh;
 use super::triangulate_polygon;
 use std::path::Path;
 
@@ -80,7 +80,7 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
             let tex = path.parent().unwrap_or(Path::new("")).join(tex.trim());
             if !tex.is_file() {
                 log::warn!("{}: texture {} not found; exporting without it", path.display(), tex.display());
-            } else if crate::mesh::embeddable_image(&tex).is_none() {
+            } else if crate::model::mesh::embeddable_image(&tex).is_none() {
                 // glTF carries PNG and JPEG; finding out at export would come
                 // after the whole conversion.
                 log::warn!("{}: texture {} is neither PNG nor JPEG, which glTF carries; exporting without it", path.display(), tex.display());

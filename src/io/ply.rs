@@ -4,7 +4,7 @@
 
 use crate::error::{Error, Result};
 use crate::math::Point3;
-use crate::mesh::TriangleMesh;
+use crate::model::mesh::TriangleMesh;
 use super::triangulate_polygon;
 use std::path::Path;
 

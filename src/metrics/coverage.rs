@@ -27,9 +27,10 @@
 use crate::math::Real;
 use crate::metrics::SequenceFit;
 use crate::params::CoverageParams;
-use crate::track::assign::{assign, carry_owners, CenterIndex, NO_OWNER};
-use crate::track::Trajectories;
-use crate::voxel::{GridSpec, VoxelSequence};
+use crate::spatial::cells::{assign, carry_owners, CenterIndex, NO_OWNER};
+use crate::model::Trajectories;
+use crate::model::GridSpec;
+use crate::voxel::VoxelSequence;
 use rayon::prelude::*;
 
 /// One frame's input volume that no tracked cell reaches.

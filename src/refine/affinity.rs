@@ -6,7 +6,8 @@ use super::cells::SequenceCells;
 use crate::math::Real;
 use crate::params::sigma_for;
 use crate::track::affinity::{motion_dissimilarity2, within_reach};
-use crate::track::{cell_moments, fit_rigid, Rigid, Trajectories};
+use crate::model::{fit_rigid, Rigid, Trajectories};
+use crate::track::cell_moments;
 use crate::voxel::VoxelSequence;
 use rayon::prelude::*;
 

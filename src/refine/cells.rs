@@ -2,8 +2,8 @@
 //! move (the global optimisation moves every frame in every step).
 
 use crate::math::{Point3, Real};
-use crate::track::assign::{Assignment, CellStats, CenterIndex, NO_OWNER};
-use crate::track::Trajectories;
+use crate::spatial::cells::{Assignment, CellStats, CenterIndex, NO_OWNER};
+use crate::model::Trajectories;
 use crate::voxel::VoxelSequence;
 use rayon::prelude::*;
 

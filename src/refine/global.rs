@@ -4,8 +4,8 @@
 use super::affinity::SparseAffinity;
 use super::cells::SequenceCells;
 use crate::math::{Point3, Real, Vector3};
-use crate::track::Trajectories;
-use crate::voxel::GridSpec;
+use crate::model::Trajectories;
+use crate::model::GridSpec;
 use rayon::prelude::*;
 
 /// Ê at one set of trajectories, with what its gradient needs.
@@ -34,7 +34,7 @@ pub fn evaluate(traj: &Trajectories, grid: &GridSpec, cells: &mut SequenceCells,
     let (frames, n) = (traj.frames, traj.centers);
     let stats = cells.update(traj, false);
     // motions[f] carries frame f-1 to f (index 0 unused).
-    let motions: Vec<Vec<crate::track::Rigid>> = (0..frames)
+    let motions: Vec<Vec<crate::model::Rigid>> = (0..frames)
         .into_par_iter()
         .map(|f| if f == 0 { Vec::new() } else { omega.fit_frames(traj, f - 1, f) })
         .collect();

@@ -14,7 +14,7 @@ pub use irregular::most_irregular;
 use crate::error::{Error, Result};
 use crate::params::RefineParams;
 use crate::progress::{Progress, Stage};
-use crate::track::Trajectories;
+use crate::model::Trajectories;
 use crate::voxel::VoxelSequence;
 use std::time::Instant;
 

@@ -6,8 +6,8 @@
 //! pair (N² floats, updated once per frame, never in the iteration loop) and
 //! rebuilds the lists from it.
 
-use super::assign::CellMoments;
-use super::rigid::Rigid;
+use crate::spatial::cells::CellMoments;
+use crate::model::Rigid;
 use crate::math::{Point3, Real};
 use crate::params::{sigma_for, AffinityKind};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};

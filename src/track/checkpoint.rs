@@ -10,7 +10,7 @@
 
 use super::affinity::{Affinity, Neighbor};
 use super::forward::FrameTiming;
-use super::Trajectories;
+use crate::model::Trajectories;
 use crate::error::{Error, Result};
 use crate::math::Point3;
 use crate::params::{AffinityKind, TrackParams};

@@ -7,15 +7,14 @@
 
 use super::affinity::Affinity;
 use super::checkpoint::{self, Checkpointing, Snapshot};
-use super::assign::{assign, carry_owners, Assignment, CellMoments, CellStats, CenterIndex, NO_OWNER};
+use crate::spatial::cells::{assign, carry_owners, Assignment, CellMoments, CellStats, CenterIndex, NO_OWNER};
 use super::lloyd::seed_centers;
-use super::rigid::{Rigid, RigidFits};
-use super::Trajectories;
+use crate::model::{GridSpec, Rigid, RigidFits, Trajectories};
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
 use crate::params::TrackParams;
 use crate::progress::{Progress, Stage};
-use crate::voxel::{GridSpec, VoxelSequence};
+use crate::voxel::VoxelSequence;
 use std::time::Instant;
 
 /// Where the time of one frame went, in seconds. With a damped guess the

@@ -1,10 +1,10 @@
 //! Frame 0: N distinct random occupied voxels, relaxed by over-relaxed Lloyd
 //! iterations into an even cover (method.md §2).
 
-use super::assign::{Assignment, CenterIndex, NO_OWNER};
-use super::rng::SplitMix64;
+use crate::spatial::cells::{Assignment, CenterIndex, NO_OWNER};
+use crate::model::rng::SplitMix64;
 use crate::math::{Point3, Real};
-use crate::voxel::GridSpec;
+use crate::model::GridSpec;
 
 /// Centers after at most `iterations` Lloyd steps c += ω (x̄ - c) from a
 /// seeded random choice of `n` distinct voxels (`n` <= voxels.len()),

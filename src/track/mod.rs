@@ -4,15 +4,9 @@
 //! whom), `forward` (the frame loop).
 
 pub mod affinity;
-pub mod assign;
 pub mod checkpoint;
 mod forward;
 pub mod lloyd;
-pub mod rigid;
-pub(crate) mod rng;
-mod trajectories;
 
 pub use checkpoint::Checkpointing;
 pub use forward::{cell_moments, predict, track, track_with_checkpoints, FrameTiming, TrackResult};
-pub use rigid::{fit_rigid, rotation_from_covariance, Rigid, RigidFits};
-pub use trajectories::Trajectories;

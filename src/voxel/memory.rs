@@ -2,9 +2,9 @@
 //! before any voxel is filled, so that a resolution the machine cannot hold
 //! fails at once instead of after minutes of swapping.
 
-use super::GridSpec;
+use crate::model::GridSpec;
 use crate::error::{Error, Result};
-use crate::mesh::TriangleMesh;
+use crate::model::mesh::TriangleMesh;
 
 /// Bytes held per occupied voxel of every frame through the run: its index
 /// (4), and the refinement's per-frame assignment of it to a cell (owner and

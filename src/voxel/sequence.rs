@@ -1,9 +1,10 @@
 //! The voxelisation stage: a whole sequence on one grid.
 
-use super::{voxelize_detailed, GridSpec, Occupancy};
+use super::voxelize_detailed;
+use crate::model::{GridSpec, Occupancy, MAX_RESOLUTION};
 use crate::error::{Error, Result};
 use crate::io::{read_frame, FrameData};
-use crate::mesh::{Aabb, TriangleMesh};
+use crate::model::mesh::{Aabb, TriangleMesh};
 use crate::progress::{Counter, Progress, Stage};
 use rayon::prelude::*;
 use std::path::PathBuf;
@@ -29,7 +30,7 @@ pub struct VoxelParams {
 impl VoxelParams {
     /// Checks every field's range.
     pub fn validate(&self) -> Result<()> {
-        crate::params::check_count("the resolution", self.resolution, 2..=super::MAX_RESOLUTION)?;
+        crate::params::check_count("the resolution", self.resolution, 2..=MAX_RESOLUTION)?;
         crate::params::check("the largest extent ratio", self.max_extent_ratio, crate::params::Span::closed(1.0, 1e12))?;
         if let Some(m) = self.max_memory {
             crate::params::check("the memory limit", m, crate::params::Span::open_closed(0.0, 1e9 * (1u64 << 30) as f64))?;

@@ -18,9 +18,9 @@
 //! rasteriser's top-left rule on exactly antisymmetric edge functions, so a ray
 //! through a shared edge or vertex crosses the surface exactly once.
 
-use super::grid::{GridSpec, Occupancy};
+use crate::model::{GridSpec, Occupancy};
 use crate::math::Real;
-use crate::mesh::TriangleMesh;
+use crate::model::mesh::TriangleMesh;
 
 const INSIDE: u8 = 1; // bit `axis`
 const ABSTAIN: u8 = 8; // bit `3 + axis`

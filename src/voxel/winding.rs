@@ -2,7 +2,7 @@
 //! reference our voxeliser is measured against, never used in the pipeline.
 
 use crate::math::{Point3, Real};
-use crate::mesh::TriangleMesh;
+use crate::model::mesh::TriangleMesh;
 
 /// Σ over triangles of the signed solid angle at `p`, divided by 4π: 1 inside
 /// a closed outward-oriented mesh, 0 outside, in between near holes.

@@ -50,7 +50,7 @@ impl Drop for Scratch {
 /// of their bounding box (frame f named `frame{f}.obj`).
 pub fn voxel_sequence(meshes: &[voltrack::TriangleMesh], resolution: usize) -> voltrack::voxel::VoxelSequence {
     let bounds = meshes.iter().map(|m| m.bounding_box()).reduce(|a, b| a.union(&b)).unwrap();
-    let grid = voltrack::voxel::GridSpec::for_bounds(&bounds, resolution).unwrap();
+    let grid = voltrack::model::GridSpec::for_bounds(&bounds, resolution).unwrap();
     voltrack::voxel::VoxelSequence {
         frames: meshes.iter().map(|m| voltrack::voxel::voxelize(m, &grid)).collect(),
         grid,

@@ -33,7 +33,7 @@
 //! on the number of threads. The shortcuts are tested against a linear scan.
 
 use crate::math::{Point3, Real};
-use crate::voxel::GridSpec;
+use crate::model::GridSpec;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 use std::num::NonZeroUsize;
@@ -648,7 +648,7 @@ pub fn carry_owners(prev_voxels: &[u32], prev_owners: &[u32], voxels: &[u32]) ->
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::track::rng::SplitMix64;
+    use crate::model::rng::SplitMix64;
 
     /// The f32 loosening never tightens a bound the f64 arithmetic allows,
     /// at any scale, on bounds built to fall within an f32 rounding of a tie.

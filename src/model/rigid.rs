@@ -242,7 +242,7 @@ fn mean(points: &[Point3]) -> Vector3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::track::rng::SplitMix64;
+    use crate::model::rng::SplitMix64;
 
     /// The AVX copy of the inner loop (taken on CPUs that have AVX) gives
     /// the same bits as the portable one, and two lists summed together the

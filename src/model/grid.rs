@@ -3,7 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real, Vector3};
-use crate::mesh::Aabb;
+use crate::model::mesh::Aabb;
 
 /// Voxels beyond the sequence's bounding box on every side, so that no
 /// occupied voxel touches the grid's border.
