@@ -18,13 +18,8 @@ fn main() {
     }
     let clock = Instant::now();
     let conv = voltrack::pipeline::convert(
-        &[dir.clone().into()],
-        &VoxelParams::default(),
-        &TrackParams::default(),
-        Some(&RefineParams::default()),
-        &DeformParams::default(),
-        &Default::default(),
-        None,
+        &voltrack::io::FrameFiles::discover(&[dir.clone().into()]).unwrap(),
+        &voltrack::pipeline::ConvertOptions { voxel: VoxelParams::default(), track: TrackParams::default(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: Default::default(), checkpoint: None, ..Default::default() },
         Default::default(),
     )
     .expect("converting");

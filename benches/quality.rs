@@ -35,7 +35,7 @@ fn main() {
             continue;
         };
         paths.truncate(frames);
-        let seq = voxelize_sequence(&paths, &VoxelParams { resolution: r, ..Default::default() }, Default::default()).expect("voxelising");
+        let seq = voxelize_sequence(&voltrack::io::FrameFiles::new(paths.to_vec()), &VoxelParams { resolution: r, ..Default::default() }, Default::default()).expect("voxelising");
         let mut results = Vec::new();
         for affinity in [AffinityKind::Max, AffinityKind::Iir] {
             let params = TrackParams { centers: n, affinity, ..Default::default() };

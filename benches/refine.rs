@@ -25,7 +25,7 @@ fn main() {
         return;
     };
     paths.truncate(frames);
-    let seq = voxelize_sequence(&paths, &VoxelParams { resolution: 256, ..Default::default() }, Default::default()).expect("voxelising");
+    let seq = voxelize_sequence(&voltrack::io::FrameFiles::new(paths.to_vec()), &VoxelParams { resolution: 256, ..Default::default() }, Default::default()).expect("voxelising");
     let tracked = voltrack::track::track(&seq, &TrackParams { centers: 1000, ..Default::default() }, Default::default()).expect("tracking");
     let traj = tracked.trajectories.clone();
     let params = RefineParams::default();

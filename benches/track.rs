@@ -29,7 +29,7 @@ fn main() {
     println!("threads: {}; {}", rayon::current_num_threads(), if single { "single guess" } else { "constant-velocity and damped guesses (default)" });
     for (r, n) in [(256, 1000), (512, 2000)].into_iter().filter(|&(r, _)| only.map_or(true, |o| o == r)) {
         let clock = Instant::now();
-        let seq = voxelize_sequence(&paths, &VoxelParams { resolution: r, ..Default::default() }, Default::default()).expect("voxelising");
+        let seq = voxelize_sequence(&voltrack::io::FrameFiles::new(paths.to_vec()), &VoxelParams { resolution: r, ..Default::default() }, Default::default()).expect("voxelising");
         let read_voxelize = clock.elapsed().as_secs_f64();
         let occupied: usize = seq.frames.iter().map(|f| f.len()).sum::<usize>() / seq.frames.len();
         let res = voltrack::track::track(&seq, &TrackParams { centers: n, ..params.clone() }, Default::default()).expect("tracking");

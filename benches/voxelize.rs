@@ -16,7 +16,7 @@ fn dancer(c: &mut Criterion) {
         eprintln!("voxelize bench: {dir} not found, skipped");
         return;
     };
-    let seq = voltrack::voxel::voxelize_sequence(&paths, &VoxelParams { resolution: 256, ..Default::default() }, Default::default())
+    let seq = voltrack::voxel::voxelize_sequence(&voltrack::io::FrameFiles::new(paths.to_vec()), &VoxelParams { resolution: 256, ..Default::default() }, Default::default())
         .expect("voxelising the sequence");
     let mesh = voltrack::io::read_mesh(&paths[0]).expect("reading frame 0");
     let one_core = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("thread pool");

@@ -12,7 +12,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let centers = std::path::Path::new(&args[1]);
     let (traj, attrs) = voltrack::io::exr::read_trajectories_exr(centers)?;
     let resolution = voltrack::pipeline::resolution_of(&attrs, centers)?;
-    let seq = voltrack::pipeline::load(&[args[2].clone().into()], &voltrack::voxel::VoxelParams { resolution, ..Default::default() }, Default::default())?;
+    let files = voltrack::io::FrameFiles::discover(&[args[2].clone().into()])?;
+    let seq = voltrack::voxel::voxelize_sequence(&files, &voltrack::voxel::VoxelParams { resolution, ..Default::default() }, Default::default())?;
     let reaches: Vec<f64> = if args.len() > 3 { args[3..].iter().map(|s| s.parse()).collect::<Result<_, _>>()? } else { vec![CoverageParams::default().reach] };
     for reach in reaches {
         let c = voltrack::metrics::coverage(&traj, &seq, &CoverageParams { reach, ..Default::default() })?;

@@ -18,7 +18,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let (traj, attrs) = voltrack::io::exr::read_trajectories_exr(args[0].as_ref())?;
     let resolution = voltrack::pipeline::resolution_of(&attrs, args[0].as_ref())?;
-    let seq = voltrack::pipeline::load(&[args[1].clone().into()], &VoxelParams { resolution, ..Default::default() }, Default::default())?;
+    let files = voltrack::io::FrameFiles::discover(&[args[1].clone().into()])?;
+    let seq = voltrack::voxel::voxelize_sequence(&files, &VoxelParams { resolution, ..Default::default() }, Default::default())?;
     let env = |k: &str| std::env::var(k).ok().and_then(|s| s.parse::<f64>().ok());
     let mut params = DeformParams::default();
     if let Some(k) = args.get(3) {
@@ -42,12 +43,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         min_normal_cosine: env("VOLTRACK_CONFORM_NORMAL_COSINE").unwrap_or(defaults.min_normal_cosine),
         ..defaults
     };
-    let mesh = voltrack::deform::conform_to_inputs(mesh, &seq.paths, &seq.bounds, &conform, Default::default())?;
+    let mesh = voltrack::deform::conform(mesh, &files, &seq.bounds, &conform, Default::default())?;
     if args[2].ends_with(".glb") {
         let report = voltrack::export::gltf::write_dynamic_glb(args[2].as_ref(), &mesh, &Default::default(), Default::default())?;
         println!("wrote {} ({} targets)", args[2], report.targets);
     } else {
-        let files = voltrack::export::obj::write_obj_sequence(args[2].as_ref(), &mesh, voltrack::export::DEFAULT_NAME)?;
+        let files = voltrack::export::obj::write_obj_sequence(args[2].as_ref(), &mesh, voltrack::model::DEFAULT_NAME)?;
         println!("wrote {} OBJ files into {}", files.len(), args[2]);
     }
     Ok(())

@@ -21,7 +21,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let env = |k: &str, d: usize| std::env::var(k).ok().and_then(|s| s.parse().ok()).unwrap_or(d);
     let (resolution, stride) = (env("VOLTRACK_R", 256), env("VOLTRACK_GWN_STRIDE", 1).max(1));
     let paths = voltrack::io::discover_frames(&[dir.clone().into()])?;
-    let seq = voxelize_sequence(&paths, &VoxelParams { resolution, ..Default::default() }, Default::default())?;
+    let seq = voxelize_sequence(&voltrack::io::FrameFiles::new(paths.to_vec()), &VoxelParams { resolution, ..Default::default() }, Default::default())?;
     let mesh = voltrack::io::read_mesh(&paths[frame])?;
     let grid = &seq.grid;
     let occupied = voxelize(&mesh, grid);

@@ -34,7 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let voxel = VoxelParams { resolution, ..Default::default() };
     let (frames, voxel_size): (Vec<Vec<Point3>>, Real) = match mode.as_str() {
         "centers" => {
-            let seq = voltrack::voxel::voxelize_sequence(&prism, &voxel, Default::default())?;
+            let seq = voltrack::voxel::voxelize_sequence(&voltrack::io::FrameFiles::new(prism.to_vec()), &voxel, Default::default())?;
             let params = TrackParams {
                 centers: env("VOLTRACK_CENTERS", 200),
                 lloyd_iterations: env("VOLTRACK_LLOYD", TrackParams::default().lloyd_iterations),
@@ -50,7 +50,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let defaults = TrackParams::default();
             let track = TrackParams { centers: env("VOLTRACK_CENTERS", 1000), threshold: real("VOLTRACK_THRESHOLD").unwrap_or(defaults.threshold), ..defaults };
             let conform = ConformParams { stiffness: real("VOLTRACK_CONFORM_STIFFNESS").unwrap_or(ConformParams::default().stiffness), ..Default::default() };
-            let conv = voltrack::pipeline::convert(&inputs, &voxel, &track, Some(&RefineParams::default()), &DeformParams::default(), &conform, None, Default::default())?;
+            let conv = voltrack::pipeline::convert(
+        &voltrack::io::FrameFiles::discover(&inputs)?,
+        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: conform.clone(), checkpoint: None, ..Default::default() },
+        Default::default(),
+    )?;
             (conv.mesh.frames, conv.sequence.grid.voxel_size)
         }
         other => return Err(format!("unknown mode {other}: centers or vertices").into()),

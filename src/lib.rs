@@ -7,18 +7,17 @@
 pub mod deform;
 pub mod error;
 pub mod export;
+pub mod files;
 pub mod fixtures;
 pub mod io;
 pub mod math;
 pub mod model;
 pub mod params;
 pub mod pipeline;
-pub mod plot;
 pub mod metrics;
 pub mod progress;
 pub mod refine;
 pub mod spatial;
-pub mod report;
 pub mod track;
 pub mod voxel;
 

@@ -7,10 +7,9 @@ pub mod fit;
 
 pub use coverage::{coverage, fit_outliers, Coverage, FitOutliers, FrameCoverage};
 
-pub use fit::{fit_to_inputs, surface_fit, DistanceSummary, FrameFit, SequenceFit, Surface};
+pub use fit::{fit_to_input, surface_fit, DistanceSummary, FrameFit, SequenceFit, Surface};
 
 use crate::math::Real;
-use crate::plot::{line_plot, Axis, Series};
 use crate::model::Trajectories;
 use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
@@ -139,27 +138,3 @@ pub fn irregularity(traj: &Trajectories) -> Vec<Real> {
         .collect()
 }
 
-/// The irregularity curve (I_i sorted in decreasing order, log scale) as a
-/// standalone SVG, optionally against other curves (label, values) for
-/// comparison; a better result's curve falls faster.
-pub fn irregularity_curve_svg(irregularity: &[Real]) -> String {
-    irregularity_curves_svg(&[("centers", irregularity)])
-}
-
-/// Several irregularity curves in one plot, e.g. before and after refinement.
-pub fn irregularity_curves_svg(curves: &[(&str, &[Real])]) -> String {
-    let series: Vec<Series> = curves
-        .iter()
-        .map(|(label, values)| {
-            let mut v: Vec<Real> = values.iter().copied().filter(|x| x.is_finite()).collect();
-            v.sort_by(|a, b| b.total_cmp(a));
-            Series::new(*label, v.iter().enumerate().map(|(r, &x)| (r as Real, x)).collect())
-        })
-        .collect();
-    line_plot(
-        "Irregularity curve",
-        &Axis::linear("rank (most irregular first)").integer(),
-        &Axis::log("I_i (squared length, log scale)"),
-        &series,
-    )
-}

@@ -14,7 +14,11 @@ fn the_converted_bar_follows_its_true_motion() {
     // The README's first command: -r 64 -n 200, everything else at defaults.
     let voxel = VoxelParams { resolution: 64, ..Default::default() };
     let track = TrackParams { centers: 200, ..Default::default() };
-    let conv = voltrack::pipeline::convert(&inputs, &voxel, &track, Some(&RefineParams::default()), &DeformParams::default(), &Default::default(), None, Default::default()).unwrap();
+    let conv = voltrack::pipeline::convert(
+        &voltrack::io::FrameFiles::discover(&inputs).unwrap(),
+        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: Default::default(), checkpoint: None, ..Default::default() },
+        Default::default(),
+    ).unwrap();
     let voxel_size = conv.sequence.grid.voxel_size;
     let base = &conv.mesh.frames[0];
     assert_eq!(conv.mesh.frames.len(), fixtures::BENDING_BAR_FRAMES);

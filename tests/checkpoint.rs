@@ -8,7 +8,7 @@ use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 use voltrack::params::{AffinityKind, ConformParams, DeformParams, RefineParams, TrackParams};
-use voltrack::pipeline::convert;
+use voltrack::pipeline::{convert, ConvertOptions};
 use voltrack::progress::ProgressSink;
 use voltrack::track::{track, track_with_checkpoints, Checkpointing, TrackResult};
 use voltrack::{Error, Progress, Stage};
@@ -198,7 +198,11 @@ fn interrupted_while_conforming_names_the_finished_tracking_and_resumes() {
     let voxel = voltrack::voxel::VoxelParams { resolution: 48, ..Default::default() };
     let track = TrackParams { centers: 100, ..Default::default() };
     let (refine, deform, conform) = (RefineParams::default(), DeformParams::default(), ConformParams::default());
-    let run = |ckpt: Option<&Checkpointing>, progress| convert(&inputs, &voxel, &track, Some(&refine), &deform, &conform, ckpt, progress);
+    let files = voltrack::io::FrameFiles::discover(&inputs).unwrap();
+    let run = |ckpt: Option<&Checkpointing>, progress| {
+        let options = ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(refine.clone()), deform: deform.clone(), conform: conform.clone(), checkpoint: ckpt.cloned(), ..Default::default() };
+        convert(&files, &options, progress)
+    };
     let dir = Scratch::new("checkpoint", "conform");
     let ckpt = Checkpointing { dir: dir.join("state"), every: 4, resume: false };
     let sink = StopAt(Stage::Conform, AtomicBool::new(false));

@@ -14,7 +14,11 @@ fn convert_bytes(threads: usize, dir: &Scratch) -> (Vec<u8>, Vec<u8>, voltrack::
         let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/bending_bar");
         let voxel = VoxelParams { resolution: 48, ..Default::default() };
         let track = TrackParams { centers: 120, seed: 7, ..Default::default() };
-        let conv = voltrack::pipeline::convert(&[input], &voxel, &track, Some(&RefineParams::default()), &DeformParams::default(), &Default::default(), None, Default::default())
+        let conv = voltrack::pipeline::convert(
+        &voltrack::io::FrameFiles::discover(&[input]).unwrap(),
+        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: Default::default(), checkpoint: None, ..Default::default() },
+        Default::default(),
+    )
             .unwrap();
         let glb = dir.join(&format!("bar{threads}.glb"));
         let exr = dir.join(&format!("bar{threads}.exr"));

@@ -360,7 +360,7 @@ fn glb_node_mesh_and_animation_carry_the_name() {
     // Without a name, the library's default.
     write_dynamic_glb(&path, &mesh, &GltfExportOptions::default(), Progress::none()).unwrap();
     let glb = Glb::read(&path);
-    let default = Some(voltrack::export::DEFAULT_NAME.to_string());
+    let default = Some(voltrack::model::DEFAULT_NAME.to_string());
     assert_eq!((&glb.node_name, &glb.mesh_name, &glb.animation_name), (&default, &default, &default));
     // A blank name, or one with a line break, is a bad parameter.
     for bad in ["", "  ", "two\nlines"] {

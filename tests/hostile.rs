@@ -45,7 +45,7 @@ fn binvox() -> Vec<u8> {
     let m = fixtures::cube(Point3::origin(), 1.0);
     let grid = voltrack::model::GridSpec::for_bounds(&m.bounding_box(), 6).unwrap();
     let mut out = Vec::new();
-    voltrack::io::write_binvox(&mut out, &grid, &voltrack::voxel::voxelize(&m, &grid)).unwrap();
+    voltrack::export::binvox::write_binvox(&mut out, &grid, &voltrack::voxel::voxelize(&m, &grid)).unwrap();
     out
 }
 
@@ -914,7 +914,7 @@ fn voxelize_writes_every_frame_or_none() {
 
 #[test]
 fn files_written_as_a_set_appear_together_or_not_at_all() {
-    use voltrack::export::{write_atomic_all, Fill};
+    use voltrack::files::{write_atomic_all, Fill};
     let dir = Scratch::new("hostile", "sets");
     let bytes = |b: &'static [u8]| -> Fill<'static> { Box::new(move |w| std::io::Write::write_all(w, b)) };
     let (a, b) = (dir.join("a.exr"), dir.join("a.json"));

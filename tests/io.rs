@@ -134,12 +134,12 @@ fn sequences_reject_one_frame_and_mixed_units() {
     let a = write(&d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
     let b = write(&d, "b.obj", "v 0 0 0\nv 1000 0 0\nv 0 1000 0\nv 0 0 1000\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
     let p = VoxelParams::default();
-    let e = err_text(voxelize_sequence(&[a.clone()], &p, Default::default()));
+    let e = err_text(voxelize_sequence(&voltrack::io::FrameFiles::new([a.clone()].to_vec()), &p, Default::default()));
     assert!(e.contains("a.obj") && e.contains("at least 2"), "{e}");
-    let e = err_text(voxelize_sequence(&[a.clone(), b.clone()], &p, Default::default()));
+    let e = err_text(voxelize_sequence(&voltrack::io::FrameFiles::new([a.clone(), b.clone()].to_vec()), &p, Default::default()));
     assert!(e.contains("b.obj") && e.contains("a.obj") && e.contains("units"), "{e}");
     let sheet = write(&d, "sheet.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-    let e = err_text(voxelize_sequence(&[a, sheet], &p, Default::default()));
+    let e = err_text(voxelize_sequence(&voltrack::io::FrameFiles::new([a, sheet].to_vec()), &p, Default::default()));
     assert!(e.contains("sheet.obj") && e.contains("encloses no voxel"), "{e}");
 }
 
@@ -176,7 +176,7 @@ fn a_sequence_is_named_after_its_folder_or_its_frames() {
     // Never a name the writers refuse.
     assert_eq!(names(&["tab\there_1", "tab\there_2"]), "tab_here");
     for n in [names(&["tab\there_1"]), names(&["_1", "_2"]), names(&[" ", "  "])] {
-        assert!(voltrack::export::check_name(&n).is_ok(), "{n:?}");
+        assert!(voltrack::model::check_name(&n).is_ok(), "{n:?}");
     }
     let _ = std::fs::remove_dir_all(&d);
 }

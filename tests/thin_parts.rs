@@ -11,7 +11,7 @@ use voltrack::fixtures::{swinging, swinging_leg, SWINGING_LEG_FRAMES};
 use voltrack::math::Real;
 use voltrack::params::{CoverageParams, DeformParams, RefineParams, TrackParams};
 use voltrack::pipeline::Conversion;
-use voltrack::report::Measurements;
+use voltrack::pipeline::Measurements;
 use voltrack::model::Trajectories;
 use voltrack::voxel::{VoxelParams, VoxelSequence};
 use voltrack::Progress;
@@ -24,11 +24,16 @@ fn fixture(name: &str) -> PathBuf {
 
 /// The README's kind of run at low resolution, everything else at defaults.
 fn convert(name: &str, resolution: usize, centers: usize) -> (Conversion, Measurements) {
+    let files = voltrack::io::FrameFiles::discover(&[fixture(name)]).unwrap();
     let voxel = VoxelParams { resolution, ..Default::default() };
     let track = TrackParams { centers, ..Default::default() };
-    let conv = voltrack::pipeline::convert(&[fixture(name)], &voxel, &track, Some(&RefineParams::default()), &DeformParams::default(), &Default::default(), None, Progress::none())
+    let conv = voltrack::pipeline::convert(
+        &files,
+        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: Default::default(), checkpoint: None, ..Default::default() },
+        Progress::none(),
+    )
         .unwrap();
-    let measured = Measurements::of(&conv, Progress::none()).unwrap();
+    let measured = Measurements::of(&conv, &files, Progress::none()).unwrap();
     (conv, measured)
 }
 

@@ -132,7 +132,7 @@ fn binvox_round_trips() {
     let grid = grid_for(&m, 40);
     let occ = voxelize(&m, &grid);
     let mut bytes = Vec::new();
-    voltrack::io::write_binvox(&mut bytes, &grid, &occ).unwrap();
+    voltrack::export::binvox::write_binvox(&mut bytes, &grid, &occ).unwrap();
     let (g2, o2) = voltrack::io::read_binvox(Path::new("mem.binvox"), &bytes).unwrap();
     assert_eq!(g2.dims, [grid.dims.iter().copied().max().unwrap(); 3]);
     assert!((g2.voxel_size - grid.voxel_size).abs() < 1e-12);

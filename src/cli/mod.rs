@@ -2,6 +2,12 @@
 
 mod bars;
 mod options;
+mod plot;
+mod report;
+#[cfg(test)]
+#[path = "../../tests/common/mod.rs"]
+#[allow(dead_code)]
+mod test_support;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
@@ -10,6 +16,7 @@ use std::path::{Path, PathBuf};
 use voltrack::metrics::{Coverage, FitOutliers};
 use voltrack::params::CoverageParams;
 use voltrack::pipeline::{self, Quality};
+use voltrack::io::FrameFiles;
 use voltrack::Stage;
 
 #[derive(Parser)]
@@ -94,6 +101,13 @@ pub fn run() -> Result<()> {
     }
 }
 
+/// The frames `inputs` name, voxelised.
+fn load(inputs: &[PathBuf], voxel: &voltrack::voxel::VoxelParams, bars: &bars::Bars) -> Result<(FrameFiles, voltrack::voxel::VoxelSequence)> {
+    let files = FrameFiles::discover(inputs)?;
+    let seq = voltrack::voxel::voxelize_sequence(&files, voxel, bars.progress())?;
+    Ok((files, seq))
+}
+
 fn print_json(value: &serde_json::Value) -> Result<()> {
     println!("{}", serde_json::to_string_pretty(value)?);
     Ok(())
@@ -104,15 +118,15 @@ fn voxelize(input: InputArgs, output: PathBuf, json: bool) -> Result<()> {
     params.validate()?;
     input.plan()?.dir(&output, "the output folder").check()?;
     let bars = bars::Bars::new();
-    let seq = pipeline::load(&input.input, &params, bars.progress())?;
-    let written = voltrack::export::write_binvox_frames(&seq, &output)?;
+    let (_, seq) = load(&input.input, &params, &bars)?;
+    let written = voltrack::export::binvox::write_binvox_frames(&seq, &output)?;
     bars.finish();
     let g = &seq.grid;
     if json {
         let frames: Vec<_> = seq
             .frames
             .iter()
-            .zip(&seq.paths)
+            .zip(&seq.names)
             .zip(&written)
             .map(|((o, p), w)| serde_json::json!({"input": p, "output": w, "occupied": o.len()}))
             .collect();
@@ -156,7 +170,7 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
     }
     plan.check()?;
     let bars = bars::Bars::new();
-    let seq = pipeline::load(&input.input, &voxel, bars.progress())?;
+    let (_, seq) = load(&input.input, &voxel, &bars)?;
     let tracked = voltrack::track::track_with_checkpoints(&seq, &params, checkpoint.as_ref(), bars.progress())?;
     let before = pipeline::measure_with_counts(&tracked.trajectories, &tracked.cell_counts);
     let (traj, refined, refine_params) = match refine {
@@ -254,15 +268,15 @@ fn load_tracked_input(centers: &Path, tracked: &Tracked, input: &[PathBuf], bars
     let (traj, attrs) = tracked;
     let resolution = pipeline::resolution_of(attrs, centers)?;
     let voxel = voltrack::voxel::VoxelParams { resolution, ..Default::default() };
-    let seq = pipeline::load(input, &voxel, bars.progress())?;
+    let (_, seq) = load(input, &voxel, bars)?;
     pipeline::check_grid(attrs, &seq.grid, traj, &seq, centers)?;
     Ok(seq)
 }
 
-/// What a command reads: the frames its inputs name, for [`voltrack::export::OutputPlan`].
-fn plan_reading(inputs: &[PathBuf]) -> Result<voltrack::export::OutputPlan> {
+/// What a command reads: the frames its inputs name, for [`voltrack::pipeline::OutputPlan`].
+fn plan_reading(inputs: &[PathBuf]) -> Result<voltrack::pipeline::OutputPlan> {
     let frames = voltrack::io::discover_frames(inputs)?;
-    Ok(voltrack::export::OutputPlan::new().reading(inputs, &frames))
+    Ok(voltrack::pipeline::OutputPlan::new().reading(inputs, &frames))
 }
 
 fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: RefineArgs, json: bool) -> Result<()> {
@@ -310,8 +324,8 @@ fn metrics(centers: PathBuf, input: Vec<PathBuf>, json: bool, plot: Option<PathB
     let q = pipeline::measure(&traj, &seq);
     bars.finish();
     if let Some(p) = &plot {
-        let svg = voltrack::metrics::irregularity_curve_svg(&q.irregularity);
-        voltrack::export::write_atomic(p, |w| std::io::Write::write_all(w, svg.as_bytes())).with_context(|| "writing the plot")?;
+        let svg = plot::irregularity_curve_svg(&q.irregularity);
+        voltrack::files::write_atomic(p, |w| std::io::Write::write_all(w, svg.as_bytes())).with_context(|| "writing the plot")?;
     }
     if json {
         return print_json(&serde_json::json!({
@@ -347,10 +361,10 @@ fn convert(args: ConvertArgs) -> Result<()> {
     deform.validate()?;
     conform.validate()?;
     if let Some(name) = &args.name {
-        voltrack::export::check_name(name)?;
+        voltrack::model::check_name(name)?;
     }
-    args.gltf_options(voltrack::export::DEFAULT_NAME.into()).validate()?;
-    let vat = args.vat_options(voltrack::export::DEFAULT_NAME.into());
+    args.gltf_options(voltrack::model::DEFAULT_NAME.into()).validate()?;
+    let vat = args.vat_options(voltrack::model::DEFAULT_NAME.into());
     vat.validate()?;
     if format == OutputFormat::Exr && args.report.is_none() {
         // Only the trajectories are written: the fitted mesh would go unused.
@@ -360,7 +374,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
     // The frames are listed once, for the output checks, the VAT's height
     // and the default name.
     let found = voltrack::io::discover_frames(&args.input.input)?;
-    let reading = voltrack::export::OutputPlan::new().reading(&args.input.input, &found);
+    let reading = voltrack::pipeline::OutputPlan::new().reading(&args.input.input, &found);
     let mut plan = planned_outputs(format, &args.output, reading);
     if let Some(report) = &args.report {
         plan = plan.file(report, "the report");
@@ -378,7 +392,17 @@ fn convert(args: ConvertArgs) -> Result<()> {
         None => voltrack::io::sequence_name(&args.input.input, &found),
     };
     let bars = bars::Bars::new();
-    let conv = pipeline::convert(&args.input.input, &voxel, &track, refine.as_ref(), &deform, &conform, checkpoint.as_ref(), bars.progress())?;
+    let source = FrameFiles::new(found);
+    let options = pipeline::ConvertOptions {
+        voxel: voxel.clone(),
+        track: track.clone(),
+        refine: refine.clone(),
+        deform: deform.clone(),
+        conform: conform.clone(),
+        coverage: CoverageParams::default(),
+        checkpoint,
+    };
+    let conv = pipeline::convert(&source, &options, bars.progress())?;
     let clock = std::time::Instant::now();
     bars.progress().report(Stage::Export, 0, 1);
     let out = &args.output;
@@ -442,21 +466,21 @@ fn convert(args: ConvertArgs) -> Result<()> {
     seconds.push((Stage::Export, clock.elapsed().as_secs_f64()));
     let fit = match &args.report {
         Some(path) => {
-            let measured = voltrack::report::Measurements::of(&conv, bars.progress())?;
+            let measured = pipeline::Measurements::of(&conv, &source, bars.progress())?;
             let command = std::env::args().collect::<Vec<_>>().join(" ");
-            let report = voltrack::report::ReportInput {
+            let report = report::ReportInput {
                 seconds: &seconds,
                 output: Some(out),
                 command: Some(&command),
-                ..voltrack::report::ReportInput::new(&conv, &measured, &voxel, &track, refine.as_ref(), &deform, &conform)
+                ..report::ReportInput::new(&conv, &measured, source.paths(), &voxel, &track, refine.as_ref(), &deform, &conform)
             };
-            voltrack::report::write_report(path, &report)?;
+            report::write_report(path, &report)?;
             notes.push(format!("report: {}", path.display()));
             Some((measured.fit, measured.fit_outliers))
         }
         // Trajectories alone: the mesh was not fitted and is not written.
         None if format == OutputFormat::Exr => None,
-        None => Some(voltrack::report::Measurements::fit_of(&conv, bars.progress())?),
+        None => Some(pipeline::Measurements::fit_of(&conv, &source, bars.progress())?),
     };
     bars.finish();
     let size = output_size(out);
@@ -526,7 +550,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
 }
 
 /// Adds every path `format` writes for `out` to `plan`.
-fn planned_outputs(format: OutputFormat, out: &Path, plan: voltrack::export::OutputPlan) -> voltrack::export::OutputPlan {
+fn planned_outputs(format: OutputFormat, out: &Path, plan: voltrack::pipeline::OutputPlan) -> voltrack::pipeline::OutputPlan {
     match format {
         OutputFormat::Glb | OutputFormat::Exr => plan.file(out, "the output"),
         OutputFormat::Vat => plan

@@ -25,7 +25,7 @@ pub struct InputArgs {
 
 impl InputArgs {
     /// An output plan that knows what this command reads.
-    pub fn plan(&self) -> Result<voltrack::export::OutputPlan> {
+    pub fn plan(&self) -> Result<voltrack::pipeline::OutputPlan> {
         super::plan_reading(&self.input)
     }
 

@@ -46,7 +46,7 @@ use crate::progress::{Counter, Progress, Stage};
 use crate::model::rotation_from_covariance;
 use nalgebra::Unit;
 use rayon::prelude::*;
-use std::path::PathBuf;
+use crate::model::FrameSource;
 
 /// Weight ε of staying at the blended position, against 1 for the surface:
 /// only there to keep a part that meets no compatible surface in place.
@@ -154,37 +154,36 @@ fn fans(mesh: &TriangleMesh) -> Fans {
 }
 
 /// Moves every frame after the first of `mesh` onto the input surface of
-/// the same frame, read again from `inputs` (one file per frame, as
-/// [`crate::voxel::VoxelSequence::paths`]). `bounds` is the input's bounding
+/// the same frame, read again from `source` (the frames the mesh was made
+/// from, read one per worker at a time). `bounds` is the input's bounding
 /// box, whose longest side `params.max_distance` is a fraction of.
 ///
 /// Frames are fitted in parallel, each independently of the others; frame 0
 /// is the mesh as loaded and stays. Reports `(Stage::Conform, frames done,
 /// frames after the first)` and stops with [`Error::Interrupted`] when
 /// cancelled.
-pub fn conform_to_inputs(mesh: DynamicMesh, inputs: &[PathBuf], bounds: &Aabb, params: &ConformParams, progress: Progress) -> Result<DynamicMesh> {
+pub fn conform(mesh: DynamicMesh, source: &dyn FrameSource, bounds: &Aabb, params: &ConformParams, progress: Progress) -> Result<DynamicMesh> {
     params.validate()?;
     if params.iterations == 0 {
         return Ok(mesh);
     }
-    if mesh.frames.len() != inputs.len() {
+    if mesh.frames.len() != source.len() {
         return Err(Error::InvalidInput(format!(
-            "the dynamic mesh has {} frames but {} input files were given",
+            "the dynamic mesh has {} frames but the input has {}",
             mesh.frames.len(),
-            inputs.len()
+            source.len()
         )));
     }
     let topology = Topology::new(&mesh.base);
     let max_distance = params.length_scale(bounds) * params.max_distance;
-    let counter = Counter::new(progress, Stage::Conform, inputs.len().saturating_sub(1));
-    let fitted: Vec<Vec<Point3>> = (1..inputs.len())
+    let counter = Counter::new(progress, Stage::Conform, source.len().saturating_sub(1));
+    let fitted: Vec<Vec<Point3>> = (1..source.len())
         .into_par_iter()
         .map(|f| {
             if progress.cancelled() {
                 return Err(Error::Interrupted { saved: None });
             }
-            let input = crate::io::read_mesh(&inputs[f])?;
-            input.validate(&inputs[f])?;
+            let input = source.mesh(f)?;
             let frame = fit_frame(&mesh.base, &topology, &mesh.frames[f], &input, max_distance, params, &|| progress.cancelled())
                 .ok_or(Error::Interrupted { saved: None })?;
             counter.tick();
@@ -198,7 +197,7 @@ pub fn conform_to_inputs(mesh: DynamicMesh, inputs: &[PathBuf], bounds: &Aabb, p
 }
 
 /// One frame: `blended` (positions of `base`'s vertices after method.md
-/// §10) fitted to `input`, as [`conform_to_inputs`] fits each frame.
+/// §10) fitted to `input`, as [`conform`] fits each frame.
 /// `bounds` is the box whose longest side `params.max_distance` is a
 /// fraction of (the whole input's, in a sequence). Both
 /// meshes' indices must be in range, as [`TriangleMesh::validate`] checks.

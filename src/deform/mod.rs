@@ -12,7 +12,7 @@ mod blend;
 mod conform;
 
 pub use blend::DualQuaternion;
-pub use conform::{conform_frame, conform_to_inputs};
+pub use conform::{conform, conform_frame};
 
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};

@@ -7,7 +7,7 @@
 //! extra attributes in a `HashMap` and writes them in its random order, so one
 //! attribute is what keeps the file bit-identical from run to run.
 
-use super::write_atomic;
+use crate::files::write_atomic;
 use crate::error::{Error, Result};
 use crate::math::Point3;
 use crate::model::Trajectories;

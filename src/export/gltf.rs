@@ -26,7 +26,7 @@ pub struct GltfExportOptions {
     pub fps: f32,
     /// Name of the node, the mesh and the animation: what Blender calls the
     /// object and its action, and three.js the object and its clip. Default
-    /// [`DEFAULT_NAME`](super::DEFAULT_NAME); not blank, no control characters.
+    /// [`DEFAULT_NAME`](crate::model::DEFAULT_NAME); not blank, no control characters.
     pub name: String,
     /// Morph basis: one target per frame, a fixed number of principal
     /// components, or chosen by length and error. Default [`BasisChoice::Auto`].
@@ -53,7 +53,7 @@ impl Default for GltfExportOptions {
     fn default() -> Self {
         GltfExportOptions {
             fps: 30.0,
-            name: super::DEFAULT_NAME.into(),
+            name: crate::model::DEFAULT_NAME.into(),
             basis: BasisChoice::Auto,
             max_basis_error: 0.001,
             normals: true,
@@ -69,7 +69,7 @@ impl GltfExportOptions {
             return Err(Error::InvalidParameter("a compact basis needs at least one component".into()));
         }
         crate::params::check("the frame rate", self.fps as Real, crate::params::Span::closed(1e-3, 1e5))?;
-        super::check_name(&self.name)?;
+        crate::model::check_name(&self.name)?;
         if let BasisChoice::Components(k) = self.basis {
             crate::params::check_count("the basis components", k, 1..=crate::params::MAX_ITERATIONS)?;
         }
@@ -149,7 +149,7 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
     } else {
         (error.max, error.mean)
     };
-    super::write_atomic(path, |w| std::io::Write::write_all(w, &bytes))?;
+    crate::files::write_atomic(path, |w| std::io::Write::write_all(w, &bytes))?;
     Ok(GltfExportReport {
         targets: basis.targets(),
         basis: basis.components,
@@ -567,7 +567,7 @@ pub struct Timing {
 #[derive(Clone, Debug, PartialEq)]
 pub struct SceneInfo {
     /// Name of the node, the mesh and the animation. Default
-    /// [`DEFAULT_NAME`](super::DEFAULT_NAME); not blank, no control characters.
+    /// [`DEFAULT_NAME`](crate::model::DEFAULT_NAME); not blank, no control characters.
     pub name: String,
     /// Frame rate and count for the `extras`; default None (no `extras`).
     pub timing: Option<Timing>,
@@ -585,7 +585,7 @@ pub struct SceneInfo {
 
 impl Default for SceneInfo {
     fn default() -> Self {
-        SceneInfo { name: super::DEFAULT_NAME.into(), timing: None, compress: false }
+        SceneInfo { name: crate::model::DEFAULT_NAME.into(), timing: None, compress: false }
     }
 }
 
@@ -613,7 +613,7 @@ pub(crate) struct GlbExtras<'a> {
 
 /// [`glb_bytes`] with `extras` added.
 pub(crate) fn glb_bytes_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo, extras: GlbExtras) -> Result<Vec<u8>> {
-    super::check_name(&scene.name)?;
+    crate::model::check_name(&scene.name)?;
     if let Some(anim) = animation {
         anim.check(mesh)?;
     }

@@ -16,7 +16,7 @@ pub fn write_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3]
 /// [`write_obj`] as one object called `name` (`o name`: what Blender's
 /// importer names the object), with one normal per vertex (`vn`, referenced
 /// by the vertex's own index) when `normals` is given, so importers shade it
-/// smooth. The name should pass [`check_name`](super::check_name).
+/// smooth. The name should pass [`check_name`](crate::model::check_name).
 pub fn write_named_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3], name: &str, normals: Option<&[Vector3]>) -> std::io::Result<()> {
     write_object(out, mesh, positions, Some(name), normals)
 }
@@ -56,7 +56,7 @@ fn write_object(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3],
 /// and UVs in every file, only the positions change. Returns the paths in
 /// frame order. On failure no frame is left.
 pub fn write_obj_sequence(dir: &Path, mesh: &DynamicMesh, name: &str) -> Result<Vec<PathBuf>> {
-    super::check_name(name)?;
+    crate::model::check_name(name)?;
     super::basis::check_frames(mesh)?;
     let width = (mesh.frames.len() - 1).to_string().len().max(4);
     let paths: Vec<PathBuf> = (0..mesh.frames.len()).map(|f| dir.join(format!("frame_{f:0width$}.obj"))).collect();
@@ -69,9 +69,9 @@ pub fn write_obj_sequence(dir: &Path, mesh: &DynamicMesh, name: &str) -> Result<
         .zip(&mesh.frames)
         .map(|(path, positions)| {
             let fill = move |w: &mut _| write_named_obj(w, &mesh.base, positions, name, Some(&normals.of(positions)));
-            (path.as_path(), Box::new(fill) as super::Fill)
+            (path.as_path(), Box::new(fill) as crate::files::Fill)
         })
         .collect();
-    super::write_atomic_into(dir, files)?;
+    crate::files::write_atomic_into(dir, files)?;
     Ok(paths)
 }

@@ -4,7 +4,7 @@
 use super::basis::check_frames;
 use super::normals::FrameNormals;
 use super::obj::write_named_obj;
-use super::write_atomic_all;
+use crate::files::write_atomic_all;
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::model::mesh::TriangleMesh;
@@ -37,7 +37,7 @@ pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32, name: &str) -> Resul
     if !(fps.is_finite() && fps > 0.0) {
         return Err(Error::InvalidParameter(format!("the frame rate must be positive, not {fps}")));
     }
-    super::check_name(name)?;
+    crate::model::check_name(name)?;
     check_frames(mesh)?;
     let obj_path = path.with_extension("obj");
     if obj_path == path {

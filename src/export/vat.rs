@@ -12,7 +12,7 @@ use super::basis::check_frames;
 use super::exr::encode_points_exr;
 use super::gltf::{glb_bytes_with, GlbExtras, SceneInfo, Timing};
 use super::normals::FrameNormals;
-use super::write_atomic_all;
+use crate::files::write_atomic_all;
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
@@ -40,7 +40,7 @@ pub struct VatOptions {
     /// Default 30; in [0.001, 100000].
     pub fps: f32,
     /// Name of the mesh's node and mesh. Default
-    /// [`DEFAULT_NAME`](super::DEFAULT_NAME); not blank, no control characters.
+    /// [`DEFAULT_NAME`](crate::model::DEFAULT_NAME); not blank, no control characters.
     pub name: String,
     /// Most vertices per texture row: the texture's width is the vertex count
     /// up to this, and a frame takes as many rows as its vertices need.
@@ -61,7 +61,7 @@ pub struct VatOptions {
 
 impl Default for VatOptions {
     fn default() -> Self {
-        VatOptions { fps: 30.0, name: super::DEFAULT_NAME.into(), max_width: 8192, max_height: 16384, power_of_two: false }
+        VatOptions { fps: 30.0, name: crate::model::DEFAULT_NAME.into(), max_width: 8192, max_height: 16384, power_of_two: false }
     }
 }
 
@@ -69,7 +69,7 @@ impl VatOptions {
     /// Checks the options before any work is done.
     pub fn validate(&self) -> Result<()> {
         crate::params::check("the frame rate", self.fps as Real, crate::params::Span::closed(1e-3, 1e5))?;
-        super::check_name(&self.name)?;
+        crate::model::check_name(&self.name)?;
         crate::params::check_count("the texture's largest width", self.max_width, 1..=MAX_TEXTURE_SIDE)?;
         crate::params::check_count("the texture's largest height", self.max_height, 1..=MAX_TEXTURE_SIDE)?;
         Ok(())

@@ -4,7 +4,7 @@
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
 use crate::model::{GridSpec, Occupancy};
-use std::io::Write;
+
 use std::path::Path;
 
 /// Decodes a binvox file into its grid and occupancy.
@@ -105,27 +105,3 @@ pub fn read_binvox(path: &Path, bytes: &[u8]) -> Result<(GridSpec, Occupancy)> {
     Ok((grid, Occupancy { indices }))
 }
 
-/// Encodes a frame as binvox, padding the grid to a cube.
-pub fn write_binvox(out: &mut impl Write, grid: &GridSpec, occ: &Occupancy) -> std::io::Result<()> {
-    let d = *grid.dims.iter().max().unwrap();
-    let mut bits = vec![false; d * d * d];
-    for &i in &occ.indices {
-        let [x, y, z] = grid.voxel_coords(i as usize);
-        bits[x * d * d + z * d + y] = true;
-    }
-    let o = grid.origin;
-    write!(out, "#binvox 1\ndim {d} {d} {d}\ntranslate {} {} {}\nscale {}\ndata\n", o.x, o.y, o.z, grid.voxel_size * d as Real)?;
-    let mut runs = Vec::new();
-    let mut k = 0;
-    while k < bits.len() {
-        let value = bits[k];
-        let mut count = 1;
-        while count < 255 && k + count < bits.len() && bits[k + count] == value {
-            count += 1;
-        }
-        runs.push(value as u8);
-        runs.push(count as u8);
-        k += count;
-    }
-    out.write_all(&runs)
-}

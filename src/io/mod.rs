@@ -8,7 +8,7 @@ mod ply;
 mod polygon;
 mod sequence;
 
-pub use binvox::{read_binvox, write_binvox};
+pub use binvox::read_binvox;
 pub use gltf::read_gltf;
 pub use obj::read_obj;
 pub use ply::read_ply;
@@ -17,8 +17,9 @@ pub use sequence::{discover_frames, glob_match, is_supported, sequence_name, sor
 
 use crate::error::{Error, Result};
 use crate::model::mesh::TriangleMesh;
-use crate::model::{GridSpec, Occupancy};
-use std::path::Path;
+use crate::model::Frame;
+use crate::model::FrameSource;
+use std::path::{Path, PathBuf};
 
 /// `bytes` without a leading UTF-8 byte-order mark, which some editors write
 /// and which would otherwise glue itself to the first word.
@@ -37,20 +38,12 @@ pub(crate) fn lone_cr_to_lf(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
     std::borrow::Cow::Owned((0..bytes.len()).map(|i| if lone(i) { b'\n' } else { bytes[i] }).collect())
 }
 
-/// What one frame file holds.
-#[derive(Clone, Debug)]
-pub enum FrameData {
-    Mesh(TriangleMesh),
-    /// A `.binvox` frame: voxelisation is skipped.
-    Voxels(GridSpec, Occupancy),
-}
-
 fn extension(path: &Path) -> String {
     path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
 }
 
 /// Reads one frame, choosing the format by extension.
-pub fn read_frame(path: &Path) -> Result<FrameData> {
+pub fn read_frame(path: &Path) -> Result<Frame> {
     let ext = extension(path);
     if !is_supported(path) {
         return Err(Error::UnsupportedFormat { path: path.to_path_buf() });
@@ -62,10 +55,10 @@ pub fn read_frame(path: &Path) -> Result<FrameData> {
     // The parsers are ours or well fuzzed, but a panic on hostile input must
     // still become an error that names the file.
     let parsed = std::panic::catch_unwind(|| match ext.as_str() {
-        "obj" => read_obj(path, &bytes).map(FrameData::Mesh),
-        "ply" => read_ply(path, &bytes).map(FrameData::Mesh),
-        "gltf" | "glb" => read_gltf(path, &bytes).map(FrameData::Mesh),
-        _ => read_binvox(path, &bytes).map(|(g, o)| FrameData::Voxels(g, o)),
+        "obj" => read_obj(path, &bytes).map(Frame::Mesh),
+        "ply" => read_ply(path, &bytes).map(Frame::Mesh),
+        "gltf" | "glb" => read_gltf(path, &bytes).map(Frame::Mesh),
+        _ => read_binvox(path, &bytes).map(|(g, o)| Frame::Voxels(g, o)),
     });
     parsed.unwrap_or_else(|_| Err(Error::parse(path, None, "the reader failed on malformed content")))
 }
@@ -73,7 +66,42 @@ pub fn read_frame(path: &Path) -> Result<FrameData> {
 /// Reads one mesh frame; a voxel file is an error here.
 pub fn read_mesh(path: &Path) -> Result<TriangleMesh> {
     match read_frame(path)? {
-        FrameData::Mesh(m) => Ok(m),
-        FrameData::Voxels(..) => Err(Error::mesh(path, "a voxel grid where a mesh is needed")),
+        Frame::Mesh(m) => Ok(m),
+        Frame::Voxels(..) => Err(Error::mesh(path, "a voxel grid where a mesh is needed")),
+    }
+}
+
+/// A sequence's frame files, read one at a time when a stage asks for a
+/// frame: memory holds only the frames being worked on.
+#[derive(Clone, Debug)]
+pub struct FrameFiles {
+    paths: Vec<PathBuf>,
+}
+
+impl FrameFiles {
+    /// The frames `inputs` name, as [`discover_frames`] finds and orders them.
+    pub fn discover(inputs: &[PathBuf]) -> Result<Self> {
+        Ok(FrameFiles { paths: discover_frames(inputs)? })
+    }
+
+    /// These files, in this order.
+    pub fn new(paths: Vec<PathBuf>) -> Self {
+        FrameFiles { paths }
+    }
+
+    pub fn paths(&self) -> &[PathBuf] {
+        &self.paths
+    }
+}
+
+impl FrameSource for FrameFiles {
+    fn len(&self) -> usize {
+        self.paths.len()
+    }
+    fn name(&self, f: usize) -> String {
+        self.paths[f].display().to_string()
+    }
+    fn frame(&self, f: usize) -> Result<Frame> {
+        read_frame(&self.paths[f])
     }
 }

@@ -140,9 +140,9 @@ fn expand_pattern(pattern: &Path) -> Result<Vec<PathBuf>> {
 /// the frames' common file-name prefix (without extensions), less the digits
 /// where the frame numbers start to differ and trailing separators (`_-. `),
 /// so `walk_0001.obj`, `walk_0002.obj`, … give `walk`; else the first
-/// frame's stem; else [`DEFAULT_NAME`](crate::export::DEFAULT_NAME). Control
+/// frame's stem; else [`DEFAULT_NAME`](crate::model::DEFAULT_NAME). Control
 /// characters become `_`, so the name always passes
-/// [`check_name`](crate::export::check_name).
+/// [`check_name`](crate::model::check_name).
 pub fn sequence_name(inputs: &[PathBuf], frames: &[PathBuf]) -> String {
     let clean = |s: &str| s.trim().chars().map(|c| if c.is_control() { '_' } else { c }).collect::<String>();
     let dir_name = match inputs {
@@ -152,7 +152,7 @@ pub fn sequence_name(inputs: &[PathBuf], frames: &[PathBuf]) -> String {
     };
     let stems: Vec<String> = frames.iter().map(|f| f.file_stem().unwrap_or_default().to_string_lossy().into_owned()).collect();
     let candidates = [dir_name.map(|n| n.to_string_lossy().into_owned()), Some(common_stem(&stems)), stems.first().cloned()];
-    candidates.into_iter().flatten().map(|n| clean(&n)).find(|n| !n.is_empty()).unwrap_or_else(|| crate::export::DEFAULT_NAME.into())
+    candidates.into_iter().flatten().map(|n| clean(&n)).find(|n| !n.is_empty()).unwrap_or_else(|| crate::model::DEFAULT_NAME.into())
 }
 
 /// The common prefix of `stems`, less a trailing run of digits that

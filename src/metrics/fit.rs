@@ -22,11 +22,10 @@
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
-use crate::model::TriangleMesh;
+use crate::model::{FrameSource, TriangleMesh};
 use crate::progress::{Progress, Stage};
 use crate::spatial::surface::SurfaceIndex;
 use rayon::prelude::*;
-use std::path::PathBuf;
 use std::time::Instant;
 
 /// Mean, 95th percentile and maximum of a set of distances.
@@ -188,31 +187,27 @@ impl SequenceFit {
 }
 
 /// Measures every frame of `mesh` against the input frame it stands for,
-/// re-reading `inputs[f]` (the sequence's frame files, e.g.
-/// `VoxelSequence::paths`) one frame at a time so memory holds at most two
-/// input frames, the next one being read while the current one is measured.
+/// reading frame f of `source` one frame at a time so memory holds at most
+/// two input frames, the next one being read while the current one is
+/// measured.
 /// `diagonal` is what the figures are percentages of: the input's
 /// bounding-box diagonal (`VoxelSequence::bounds.diagonal()`).
 ///
 /// Reports `(Stage::Export, frames measured, frames)` to `progress`.
-pub fn fit_to_inputs(mesh: &DynamicMesh, inputs: &[PathBuf], diagonal: Real, progress: Progress) -> Result<SequenceFit> {
-    if mesh.frames.len() != inputs.len() {
+pub fn fit_to_input(mesh: &DynamicMesh, source: &dyn FrameSource, diagonal: Real, progress: Progress) -> Result<SequenceFit> {
+    if mesh.frames.len() != source.len() {
         return Err(Error::InvalidInput(format!(
-            "the dynamic mesh has {} frames but {} input files were given",
+            "the dynamic mesh has {} frames but the input has {}",
             mesh.frames.len(),
-            inputs.len()
+            source.len()
         )));
     }
     if !(diagonal > 0.0 && diagonal.is_finite()) {
         return Err(Error::InvalidInput(format!("cannot measure relative to a bounding-box diagonal of {diagonal}")));
     }
     let start = Instant::now();
-    let read = |f: usize| -> Result<TriangleMesh> {
-        let m = crate::io::read_mesh(&inputs[f])?;
-        m.validate(&inputs[f])?;
-        Ok(m)
-    };
-    let total = inputs.len();
+    let read = |f: usize| source.mesh(f);
+    let total = source.len();
     progress.report(Stage::Export, 0, total);
     let mut frames = Vec::with_capacity(total);
     let mut next = if total > 0 { Some(read(0)) } else { None };

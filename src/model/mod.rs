@@ -2,13 +2,34 @@
 //! frame's occupancy, center trajectories and rigid motions, and the frames
 //! of a sequence as a [`FrameSource`]. Nothing here reads or writes a file.
 
+pub mod frames;
 pub mod grid;
 pub mod mesh;
 pub mod rigid;
 pub(crate) mod rng;
 pub mod trajectories;
 
+pub use frames::{Frame, FrameSource};
 pub use grid::{GridSpec, Occupancy, GRID_MARGIN, MAX_RESOLUTION};
 pub use mesh::{Aabb, TriangleMesh};
 pub use rigid::{fit_rigid, rotation_from_covariance, Rigid, RigidFits};
 pub use trajectories::Trajectories;
+
+use crate::error::{Error, Result};
+
+/// What the writers call the animated object (glTF node, mesh and animation,
+/// OBJ object) when no name is given.
+pub const DEFAULT_NAME: &str = "voltrack";
+
+/// Checks a name for the animated object: something besides white space,
+/// and no control characters (a line break would end an OBJ's `o` line and
+/// start another).
+pub fn check_name(name: &str) -> Result<()> {
+    if name.trim().is_empty() {
+        return Err(Error::InvalidParameter("the name must not be empty".into()));
+    }
+    if name.chars().any(char::is_control) {
+        return Err(Error::InvalidParameter(format!("the name {name:?} holds a control character")));
+    }
+    Ok(())
+}

@@ -105,7 +105,7 @@ impl Fnv {
 pub(super) fn save(ckpt: &Checkpointing, fingerprint: u64, s: &Snapshot) -> Result<()> {
     std::fs::create_dir_all(&ckpt.dir).map_err(|e| Error::io(&ckpt.dir, e))?;
     let traj = s.trajectories;
-    crate::export::write_atomic(&ckpt.path(), |w| {
+    crate::files::write_atomic(&ckpt.path(), |w| {
         w.write_all(MAGIC)?;
         put_u64(w, fingerprint)?;
         for n in [traj.frames, traj.centers, s.frames_done] {

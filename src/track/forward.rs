@@ -91,7 +91,7 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
     if params.centers > n0 {
         return Err(Error::InvalidParameter(format!(
             "{}: only {n0} occupied voxels for {} centers; lower --centers or raise --resolution",
-            seq.paths[0].display(),
+            seq.names[0],
             params.centers
         )));
     }

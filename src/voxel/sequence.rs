@@ -1,13 +1,12 @@
 //! The voxelisation stage: a whole sequence on one grid.
 
 use super::voxelize_detailed;
-use crate::model::{GridSpec, Occupancy, MAX_RESOLUTION};
+use crate::model::{Frame, FrameSource, GridSpec, Occupancy, MAX_RESOLUTION};
 use crate::error::{Error, Result};
-use crate::io::{read_frame, FrameData};
 use crate::model::mesh::{Aabb, TriangleMesh};
 use crate::progress::{Counter, Progress, Stage};
 use rayon::prelude::*;
-use std::path::PathBuf;
+use std::path::Path;
 use std::time::Instant;
 
 /// Options of the voxelisation stage.
@@ -50,7 +49,8 @@ impl Default for VoxelParams {
 pub struct VoxelSequence {
     pub grid: GridSpec,
     pub frames: Vec<Occupancy>,
-    pub paths: Vec<PathBuf>,
+    /// How messages name each frame (its file, for frames read from files).
+    pub names: Vec<String>,
     /// Bounding box of all frames (of the grid, for voxel input).
     pub bounds: Aabb,
     /// The first frame's mesh, kept for the deformation stage (None for voxel input).
@@ -73,9 +73,11 @@ const MAX_UNVOUCHED: f64 = 0.5;
 /// coarse for the other frames that they enclose nothing.
 const MAX_GAP_DIAGONALS: f64 = 10.0;
 
-/// Reads and voxelises every frame on one grid.
-pub fn voxelize_sequence(paths: &[PathBuf], params: &VoxelParams, progress: Progress) -> Result<VoxelSequence> {
+/// Reads and voxelises every frame of `source` on one grid.
+pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progress: Progress) -> Result<VoxelSequence> {
     params.validate()?;
+    let names: Vec<String> = (0..source.len()).map(|f| source.name(f)).collect();
+    let paths: Vec<&Path> = names.iter().map(Path::new).collect();
     if paths.len() < 2 {
         return Err(Error::InvalidInput(match paths.first() {
             Some(p) => format!("{}: a sequence needs at least 2 frames, got only this one", p.display()),
@@ -84,17 +86,17 @@ pub fn voxelize_sequence(paths: &[PathBuf], params: &VoxelParams, progress: Prog
     }
     let start = Instant::now();
     let counter = Counter::new(progress, Stage::Read, paths.len());
-    let mut data: Vec<FrameData> = paths
-        .par_iter()
-        .map(|p| {
-            let d = read_frame(p);
+    let mut data: Vec<Frame> = (0..source.len())
+        .into_par_iter()
+        .map(|f| {
+            let d = source.frame(f);
             counter.tick();
             d
         })
         .collect::<Result<_>>()?;
     let read_seconds = start.elapsed().as_secs_f64();
 
-    let is_mesh = |d: &FrameData| matches!(d, FrameData::Mesh(_));
+    let is_mesh = |d: &Frame| matches!(d, Frame::Mesh(_));
     let meshes = data.iter().filter(|d| is_mesh(d)).count();
     if meshes != 0 && meshes != data.len() {
         let first = |mesh: bool| paths[data.iter().position(|d| is_mesh(d) == mesh).expect("both kinds")].display();
@@ -105,21 +107,21 @@ pub fn voxelize_sequence(paths: &[PathBuf], params: &VoxelParams, progress: Prog
         )));
     }
     if meshes == 0 {
-        return voxel_input(paths, data, read_seconds);
+        return voxel_input(names, data, read_seconds);
     }
     let boxes: Vec<Aabb> = data
         .iter()
         .map(|d| match d {
-            FrameData::Mesh(m) => m.bounding_box(),
-            FrameData::Voxels(..) => unreachable!(),
+            Frame::Mesh(m) => m.bounding_box(),
+            Frame::Voxels(..) => unreachable!(),
         })
         .collect();
-    check_extents(paths, &boxes, params.max_extent_ratio)?;
-    check_placement(paths, &boxes)?;
+    check_extents(&paths, &boxes, params.max_extent_ratio)?;
+    check_placement(&paths, &boxes)?;
     let bounds = boxes.iter().fold(Aabb::empty(), |a, b| a.union(b));
     let grid = GridSpec::for_bounds(&bounds, params.resolution)?;
     if let Some(limit) = params.max_memory.or_else(super::available_memory) {
-        let meshes: Vec<&TriangleMesh> = data.iter().filter_map(|d| if let FrameData::Mesh(m) = d { Some(m) } else { None }).collect();
+        let meshes: Vec<&TriangleMesh> = data.iter().filter_map(|d| if let Frame::Mesh(m) = d { Some(m) } else { None }).collect();
         let estimate = super::MemoryEstimate::of(&meshes, &grid, rayon::current_num_threads());
         log::info!("estimated memory: {:.2} GiB of {:.2} GiB allowed", estimate.bytes / (1u64 << 30) as f64, limit / (1u64 << 30) as f64);
         estimate.check(limit, params.resolution, paths.len())?;
@@ -131,7 +133,7 @@ pub fn voxelize_sequence(paths: &[PathBuf], params: &VoxelParams, progress: Prog
         .par_iter()
         .zip(paths.par_iter())
         .map(|(d, path)| {
-            let FrameData::Mesh(mesh) = d else { unreachable!() };
+            let Frame::Mesh(mesh) = d else { unreachable!() };
             let v = voxelize_detailed(mesh, &grid);
             counter.tick();
             if v.occupancy.is_empty() {
@@ -156,17 +158,18 @@ pub fn voxelize_sequence(paths: &[PathBuf], params: &VoxelParams, progress: Prog
         .collect::<Result<_>>()?;
     let voxelize_seconds = start.elapsed().as_secs_f64();
     let first_mesh = match data.swap_remove(0) {
-        FrameData::Mesh(m) => Some(m),
-        FrameData::Voxels(..) => None,
+        Frame::Mesh(m) => Some(m),
+        Frame::Voxels(..) => None,
     };
-    Ok(VoxelSequence { grid, frames, paths: paths.to_vec(), bounds, first_mesh, read_seconds, voxelize_seconds })
+    Ok(VoxelSequence { grid, frames, names, bounds, first_mesh, read_seconds, voxelize_seconds })
 }
 
-fn voxel_input(paths: &[PathBuf], data: Vec<FrameData>, read_seconds: f64) -> Result<VoxelSequence> {
+fn voxel_input(names: Vec<String>, data: Vec<Frame>, read_seconds: f64) -> Result<VoxelSequence> {
     let mut grid = None;
     let mut frames = Vec::with_capacity(data.len());
-    for (d, path) in data.into_iter().zip(paths) {
-        let FrameData::Voxels(g, occ) = d else { unreachable!() };
+    for (d, name) in data.into_iter().zip(&names) {
+        let path = Path::new(name);
+        let Frame::Voxels(g, occ) = d else { unreachable!() };
         match grid {
             None => grid = Some(g),
             Some(first) if first != g => {
@@ -187,7 +190,7 @@ fn voxel_input(paths: &[PathBuf], data: Vec<FrameData>, read_seconds: f64) -> Re
     Ok(VoxelSequence {
         grid,
         frames,
-        paths: paths.to_vec(),
+        names,
         bounds: grid.bounds(),
         first_mesh: None,
         read_seconds,
@@ -198,7 +201,7 @@ fn voxel_input(paths: &[PathBuf], data: Vec<FrameData>, read_seconds: f64) -> Re
 /// Frames in different units (mm next to m) would share one grid badly: the
 /// frame whose bounding-box diagonal is farthest (as a ratio) from the
 /// median frame's is named when that ratio passes `max_ratio`.
-fn check_extents(paths: &[PathBuf], boxes: &[Aabb], max_ratio: f64) -> Result<()> {
+fn check_extents(paths: &[&Path], boxes: &[Aabb], max_ratio: f64) -> Result<()> {
     let diag: Vec<f64> = boxes.iter().map(Aabb::diagonal).collect();
     if let Some(i) = diag.iter().position(|&d| !(d > 0.0 && d.is_finite())) {
         return Err(Error::mesh(&paths[i], format!("the bounding box's diagonal is {} (all vertices coincide, or overflow)", diag[i])));
@@ -228,7 +231,7 @@ fn check_extents(paths: &[PathBuf], boxes: &[Aabb], max_ratio: f64) -> Result<()
 /// each other are grouped, transitively, so a subject may travel any
 /// distance; with more than one group, the first frame outside the largest
 /// (on a tie, the one holding the earliest frame) is named.
-fn check_placement(paths: &[PathBuf], boxes: &[Aabb]) -> Result<()> {
+fn check_placement(paths: &[&Path], boxes: &[Aabb]) -> Result<()> {
     let mut diag: Vec<f64> = boxes.iter().map(Aabb::diagonal).collect();
     diag.sort_by(f64::total_cmp);
     let reach = MAX_GAP_DIAGONALS * diag[(diag.len() - 1) / 2];

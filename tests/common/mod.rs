@@ -54,7 +54,7 @@ pub fn voxel_sequence(meshes: &[voltrack::TriangleMesh], resolution: usize) -> v
     voltrack::voxel::VoxelSequence {
         frames: meshes.iter().map(|m| voltrack::voxel::voxelize(m, &grid)).collect(),
         grid,
-        paths: (0..meshes.len()).map(|f| format!("frame{f}.obj").into()).collect(),
+        names: (0..meshes.len()).map(|f| format!("frame{f}.obj")).collect(),
         bounds,
         first_mesh: Some(meshes[0].clone()),
         read_seconds: 0.0,

@@ -9,59 +9,24 @@
 //! (qualities, and the fit, which re-reads every input frame), then
 //! [`report_html`] or [`write_report`] renders a [`ReportInput`] borrowing both.
 
-use crate::error::Result;
-use crate::math::Real;
-use crate::metrics::coverage::runs;
-use crate::metrics::{fit_outliers, fit_to_inputs, irregularity_curves_svg, FitOutliers, FrameFit, SequenceFit};
-use crate::params::{ConformParams, CoverageParams, DeformParams, RefineParams, TrackParams};
-use crate::pipeline::{measure, measure_with_counts, Conversion, Quality};
-use crate::plot::{bar_chart, escape, line_plot, significant, Axis, Series};
-use crate::progress::{Progress, Stage};
-use crate::voxel::VoxelParams;
+use super::plot::{bar_chart, escape, irregularity_curves_svg, line_plot, significant, Axis, Series};
 use std::fmt::Write;
-use std::path::Path;
-
-/// What the report shows that a [`Conversion`] does not already hold.
-#[derive(Clone, Debug)]
-pub struct Measurements {
-    /// PCAC, DFU and irregularity of the forward-tracked trajectories.
-    pub tracked: Quality,
-    /// The same after refinement (None when refinement was skipped).
-    pub refined: Option<Quality>,
-    /// The dynamic mesh against every input frame.
-    pub fit: SequenceFit,
-    /// Frames whose fit is far worse than the sequence's usual, at the
-    /// default [`CoverageParams`].
-    pub fit_outliers: FitOutliers,
-}
-
-impl Measurements {
-    /// Measures `conv`: the forward-tracked trajectories from the tracker's
-    /// own cell counts, the refined ones by assigning cells in every frame
-    /// again, and the fit of the dynamic mesh to each input frame, re-read
-    /// from `conv.sequence.paths` one at a time (progress is reported as
-    /// `Stage::Export`, one step per frame).
-    pub fn of(conv: &Conversion, progress: Progress) -> Result<Self> {
-        let tracked = measure_with_counts(&conv.tracked.trajectories, &conv.tracked.cell_counts);
-        let refined = conv.refined.as_ref().map(|r| measure(&r.trajectories, &conv.sequence));
-        let (fit, fit_outliers) = Self::fit_of(conv, progress)?;
-        Ok(Measurements { tracked, refined, fit, fit_outliers })
-    }
-
-    /// The result's fit to every input frame and the frames fitted far worse
-    /// than the rest: the part of [`Measurements::of`] every conversion's
-    /// summary shows, since a lost part often leaves no input volume empty.
-    pub fn fit_of(conv: &Conversion, progress: Progress) -> Result<(SequenceFit, FitOutliers)> {
-        let fit = fit_to_inputs(&conv.mesh, &conv.sequence.paths, conv.sequence.bounds.diagonal(), progress)?;
-        let outliers = fit_outliers(&fit, &CoverageParams::default())?;
-        Ok((fit, outliers))
-    }
-}
+use std::path::{Path, PathBuf};
+use voltrack::error::Result;
+use voltrack::math::Real;
+use voltrack::metrics::coverage::runs;
+use voltrack::metrics::FrameFit;
+use voltrack::params::{ConformParams, DeformParams, RefineParams, TrackParams};
+use voltrack::pipeline::{Conversion, Measurements, Quality};
+use voltrack::progress::Stage;
+use voltrack::voxel::VoxelParams;
 
 /// Everything one report shows, borrowed.
 pub struct ReportInput<'a> {
     pub conversion: &'a Conversion,
     pub measurements: &'a Measurements,
+    /// The input's frame files, in order.
+    pub inputs: &'a [PathBuf],
     /// The parameters the conversion ran with.
     pub voxel: &'a VoxelParams,
     pub track: &'a TrackParams,
@@ -83,13 +48,14 @@ impl<'a> ReportInput<'a> {
     pub fn new(
         conversion: &'a Conversion,
         measurements: &'a Measurements,
+        inputs: &'a [PathBuf],
         voxel: &'a VoxelParams,
         track: &'a TrackParams,
         refine: Option<&'a RefineParams>,
         deform: &'a DeformParams,
         conform: &'a ConformParams,
     ) -> Self {
-        ReportInput { conversion, measurements, voxel, track, refine, deform, conform, seconds: &conversion.seconds, output: None, command: None }
+        ReportInput { conversion, measurements, inputs, voxel, track, refine, deform, conform, seconds: &conversion.seconds, output: None, command: None }
     }
 }
 
@@ -97,7 +63,7 @@ impl<'a> ReportInput<'a> {
 /// leaves no half-written report.
 pub fn write_report(path: &Path, input: &ReportInput) -> Result<()> {
     let html = report_html(input);
-    crate::export::write_atomic(path, |w| std::io::Write::write_all(w, html.as_bytes()))
+    voltrack::files::write_atomic(path, |w| std::io::Write::write_all(w, html.as_bytes()))
 }
 
 /// The report as one self-contained HTML document.
@@ -146,7 +112,7 @@ pub fn report_html(input: &ReportInput) -> String {
 /// What the sequence is called: its folder when all frames share one, else
 /// the first file's name.
 fn sequence_name(input: &ReportInput) -> String {
-    let paths = &input.conversion.sequence.paths;
+    let paths = input.inputs;
     common_folder(paths).map_or_else(|| file_name(&paths[0]), file_name)
 }
 
@@ -214,8 +180,9 @@ fn input_html(input: &ReportInput) -> String {
     let seq = &conv.sequence;
     let g = &seq.grid;
     let code = |s: &str| format!("<code>{}</code>", escape(s));
-    let (first, last) = (&seq.paths[0], &seq.paths[seq.paths.len() - 1]);
-    let files = match common_folder(&seq.paths) {
+    let paths = input.inputs;
+    let (first, last) = (&paths[0], &paths[paths.len() - 1]);
+    let files = match common_folder(paths) {
         Some(dir) => format!("{} &#8212; {} &#8230; {}", code(&format!("{}/", dir.display())), code(&file_name(first)), code(&file_name(last))),
         None => format!("{} &#8230; {}", code(&first.display().to_string()), code(&last.display().to_string())),
     };
@@ -344,7 +311,7 @@ fn fit_html(input: &ReportInput) -> String {
          <th class=\"n group\">mean</th><th class=\"n\">p95</th><th class=\"n\">max</th>\
          <th class=\"n group\">mean</th><th class=\"n\">p95</th><th class=\"n\">max</th></tr>\n",
     );
-    for (f, (x, path)) in frames.iter().zip(&input.conversion.sequence.paths).enumerate() {
+    for (f, (x, path)) in frames.iter().zip(input.inputs).enumerate() {
         let _ = write!(h, "<tr><td>{f}</td><td class=\"file\"><code>{}</code></td>", escape(&file_name(path)));
         for s in [&x.result_to_input, &x.input_to_result, &x.two_sided] {
             let _ = write!(h, "<td class=\"group\">{}</td><td>{}</td><td>{}</td>", significant(s.mean, 3), significant(s.p95, 3), significant(s.max, 3));
@@ -537,7 +504,7 @@ fn tracking_html(input: &ReportInput) -> String {
 }
 
 /// The temporally global optimisation's energy, batch by batch.
-fn energy_html(refined: &crate::refine::RefineResult) -> String {
+fn energy_html(refined: &voltrack::refine::RefineResult) -> String {
     let mut step = 0usize;
     let mut series = Vec::new();
     for (b, history) in refined.batches.iter().enumerate() {
@@ -593,8 +560,8 @@ fn time_html(input: &ReportInput) -> String {
         ),
     ));
     let timings = &conv.tracked.timings;
-    let tracked: Vec<(usize, &crate::track::FrameTiming)> = timings.iter().enumerate().skip(1).collect();
-    let per_frame = |pick: fn(&crate::track::FrameTiming) -> f64| tracked.iter().map(|(f, t)| (*f as Real, pick(t))).collect::<Vec<_>>();
+    let tracked: Vec<(usize, &voltrack::track::FrameTiming)> = timings.iter().enumerate().skip(1).collect();
+    let per_frame = |pick: fn(&voltrack::track::FrameTiming) -> f64| tracked.iter().map(|(f, t)| (*f as Real, pick(t))).collect::<Vec<_>>();
     let series = vec![
         Series::new("total", per_frame(|t| t.total)),
         Series::new("Voronoi assignment", per_frame(|t| t.assign)),
@@ -684,3 +651,7 @@ summary { cursor: pointer; color: #2a4d8f; }
 tr.flagged td { background: #fff4e5; }
 footer { margin-top: 40px; font-size: 13px; color: #5a6374; }
 "#;
+
+#[cfg(test)]
+#[path = "report_tests.rs"]
+mod tests;

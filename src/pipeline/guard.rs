@@ -170,14 +170,14 @@ fn check_file(out: &Planned) -> Result<PathBuf> {
     if path.as_os_str().as_encoded_bytes().ends_with(b"/") {
         return Err(Error::refuse(path, format!("{} ends in '/', which names a folder; give a file name", out.what)));
     }
-    super::check_writable(path).map_err(refused)?;
+    crate::files::check_writable(path).map_err(refused)?;
     let id = identity(path)?;
     match std::fs::metadata(&id) {
         Ok(meta) if meta.is_dir() => return Err(Error::refuse(path, "a directory of this name exists")),
-        Ok(meta) if !meta.is_file() && !super::writes_through(&meta) => {
+        Ok(meta) if !meta.is_file() && !crate::files::writes_through(&meta) => {
             return Err(Error::refuse(path, "not a regular file, a character device or a FIFO; voltrack will not replace it"))
         }
-        Ok(meta) if super::writes_through(&meta) => return Ok(id),
+        Ok(meta) if crate::files::writes_through(&meta) => return Ok(id),
         _ => {}
     }
     probe(id.parent().unwrap_or(Path::new("/")), path)?;
@@ -208,7 +208,7 @@ fn check_dir(out: &Planned) -> Result<PathBuf> {
     if path.exists() && !path.is_dir() {
         return Err(Error::refuse(path, format!("{} must be a folder, and a file of this name exists", out.what)));
     }
-    super::check_dir_creatable(path).map_err(refused)?;
+    crate::files::check_dir_creatable(path).map_err(refused)?;
     let existing = path.ancestors().find(|a| a.as_os_str().is_empty() || a.exists()).unwrap_or(Path::new("."));
     let existing = if existing.as_os_str().is_empty() { Path::new(".") } else { existing };
     probe(existing, path)?;

@@ -1,18 +1,22 @@
 //! The stages strung together, as the commands use them: each function takes
 //! its inputs and options and returns a result the CLI prints or writes.
 
-use crate::deform::{conform_to_inputs, deform, DynamicMesh};
+use crate::deform::{conform, deform, DynamicMesh};
 use crate::error::{Error, Result};
 use crate::math::Real;
 use crate::model::mesh::TriangleMesh;
-use crate::metrics::Coverage;
+use crate::model::FrameSource;
+use crate::metrics::{fit_outliers, fit_to_input, Coverage, FitOutliers, SequenceFit};
 use crate::params::{ConformParams, CoverageParams, DeformParams, RefineParams, TrackParams};
 use crate::progress::{Progress, Stage};
 use crate::refine::{global_affinity, refine, RefineResult, SequenceCells};
 use crate::model::{GridSpec, Trajectories};
 use crate::track::{track_with_checkpoints, Checkpointing, TrackResult};
 use crate::voxel::{voxelize_sequence, VoxelParams, VoxelSequence};
-use std::path::{Path, PathBuf};
+
+pub mod guard;
+pub use guard::OutputPlan;
+use std::path::Path;
 use std::time::Instant;
 
 /// PCAC, DFU and irregularity of one set of trajectories (method.md §6, §8).
@@ -48,12 +52,6 @@ pub fn measure_with_counts(traj: &Trajectories, counts: &[Vec<u32>]) -> Quality 
     Quality { pcac: crate::metrics::pcac(traj), dfu, dfu_per_frame, irregularity: crate::metrics::irregularity(traj) }
 }
 
-/// Reads and voxelises the inputs.
-pub fn load(inputs: &[PathBuf], voxel: &VoxelParams, progress: Progress) -> Result<VoxelSequence> {
-    let paths = crate::io::discover_frames(inputs)?;
-    voxelize_sequence(&paths, voxel, progress)
-}
-
 /// Header attributes recording how trajectories were made.
 pub fn trajectory_attributes(seq: &VoxelSequence, voxel: &VoxelParams, track: &TrackParams, refine: Option<(&RefineParams, &[usize])>) -> Vec<(String, String)> {
     let g = &seq.grid;
@@ -64,7 +62,7 @@ pub fn trajectory_attributes(seq: &VoxelSequence, voxel: &VoxelParams, track: &T
         ("voltrack.grid".into(), json(serde_json::json!({"dims": g.dims, "origin": g.origin.coords.as_slice(), "voxel_size": g.voxel_size}))),
         ("voltrack.frames".into(), seq.frames.len().to_string()),
         ("voltrack.track".into(), serde_json::to_string(track).unwrap_or_default()),
-        ("voltrack.first_input".into(), seq.paths[0].display().to_string()),
+        ("voltrack.first_input".into(), seq.names[0].clone()),
     ];
     if let Some((r, removed)) = refine {
         attrs.extend(refine_attributes(r, removed));
@@ -125,6 +123,44 @@ pub fn check_grid(attrs: &[(String, String)], grid: &GridSpec, traj: &Trajectori
     Ok(())
 }
 
+/// What a [`Conversion`] does not hold yet: the qualities of its
+/// trajectories and the fit of its mesh to the input (what `--report` shows).
+#[derive(Clone, Debug)]
+pub struct Measurements {
+    /// PCAC, DFU and irregularity of the forward-tracked trajectories.
+    pub tracked: Quality,
+    /// The same after refinement (None when refinement was skipped).
+    pub refined: Option<Quality>,
+    /// The dynamic mesh against every input frame.
+    pub fit: SequenceFit,
+    /// Frames whose fit is far worse than the sequence's usual, at the
+    /// default [`CoverageParams`].
+    pub fit_outliers: FitOutliers,
+}
+
+impl Measurements {
+    /// Measures `conv`: the forward-tracked trajectories from the tracker's
+    /// own cell counts, the refined ones by assigning cells in every frame
+    /// again, and the fit of the dynamic mesh to each input frame, read
+    /// again from `source` one at a time (progress is reported as
+    /// `Stage::Export`, one step per frame).
+    pub fn of(conv: &Conversion, source: &dyn FrameSource, progress: Progress) -> Result<Self> {
+        let tracked = measure_with_counts(&conv.tracked.trajectories, &conv.tracked.cell_counts);
+        let refined = conv.refined.as_ref().map(|r| measure(&r.trajectories, &conv.sequence));
+        let (fit, fit_outliers) = Self::fit_of(conv, source, progress)?;
+        Ok(Measurements { tracked, refined, fit, fit_outliers })
+    }
+
+    /// The result's fit to every input frame and the frames fitted far worse
+    /// than the rest: the part of [`Measurements::of`] every conversion's
+    /// summary shows, since a lost part often leaves no input volume empty.
+    pub fn fit_of(conv: &Conversion, source: &dyn FrameSource, progress: Progress) -> Result<(SequenceFit, FitOutliers)> {
+        let fit = fit_to_input(&conv.mesh, source, conv.sequence.bounds.diagonal(), progress)?;
+        let outliers = fit_outliers(&fit, &CoverageParams::default())?;
+        Ok((fit, outliers))
+    }
+}
+
 /// Everything `convert` produces, with its timings.
 pub struct Conversion {
     pub sequence: VoxelSequence,
@@ -132,34 +168,56 @@ pub struct Conversion {
     pub refined: Option<RefineResult>,
     pub mesh: DynamicMesh,
     /// Input volume the final centers' cells do not reach, per frame, at
-    /// the default [`CoverageParams`]: frames where a part was lost.
+    /// [`ConvertOptions::coverage`]: frames where a part was lost.
     pub coverage: Coverage,
     pub seconds: Vec<(Stage, f64)>,
 }
 
-/// Voxelise, track (saving and resuming through `checkpoint` when given),
-/// refine (unless `refine` is None), deform and conform to the input
-/// surfaces (unless `conform_params.iterations` is 0): the whole pipeline up
-/// to export.
-pub fn convert(
-    inputs: &[PathBuf],
-    voxel: &VoxelParams,
-    track_params: &TrackParams,
-    refine_params: Option<&RefineParams>,
-    deform_params: &DeformParams,
-    conform_params: &ConformParams,
-    checkpoint: Option<&Checkpointing>,
-    progress: Progress,
-) -> Result<Conversion> {
-    let sequence = load(inputs, voxel, progress)?;
+/// The options of every stage of [`convert`].
+#[derive(Clone, Debug)]
+pub struct ConvertOptions {
+    pub voxel: VoxelParams,
+    pub track: TrackParams,
+    /// Refinement (method.md §6-§7); None skips it. Default: its defaults.
+    pub refine: Option<RefineParams>,
+    pub deform: DeformParams,
+    /// Fitting every frame to its input; `iterations: 0` skips it.
+    pub conform: ConformParams,
+    /// What counts as a lost part in [`Conversion::coverage`].
+    pub coverage: CoverageParams,
+    /// Saving tracking's state as it goes, and resuming from it. Default None.
+    pub checkpoint: Option<Checkpointing>,
+}
+
+impl Default for ConvertOptions {
+    fn default() -> Self {
+        ConvertOptions {
+            voxel: VoxelParams::default(),
+            track: TrackParams::default(),
+            refine: Some(RefineParams::default()),
+            deform: DeformParams::default(),
+            conform: ConformParams::default(),
+            coverage: CoverageParams::default(),
+            checkpoint: None,
+        }
+    }
+}
+
+/// Voxelise, track (saving and resuming through `options.checkpoint` when
+/// given), refine, deform and conform to the input surfaces: the whole
+/// pipeline up to export, reading the frames of `source` as each stage
+/// needs them.
+pub fn convert(source: &dyn FrameSource, options: &ConvertOptions, progress: Progress) -> Result<Conversion> {
+    let checkpoint = options.checkpoint.as_ref();
+    let sequence = voxelize_sequence(source, &options.voxel, progress)?;
     let first = sequence.first_mesh.clone().ok_or_else(|| {
-        Error::InvalidInput(format!("{}: voxel input has no mesh to deform; convert needs meshes", sequence.paths[0].display()))
+        Error::InvalidInput(format!("{}: voxel input has no mesh to deform; convert needs meshes", sequence.names[0]))
     })?;
     let mut seconds = vec![(Stage::Read, sequence.read_seconds), (Stage::Voxelize, sequence.voxelize_seconds)];
     let clock = Instant::now();
-    let tracked = track_with_checkpoints(&sequence, track_params, checkpoint, progress)?;
+    let tracked = track_with_checkpoints(&sequence, &options.track, checkpoint, progress)?;
     seconds.push((Stage::Track, clock.elapsed().as_secs_f64()));
-    let refined = match refine_params {
+    let refined = match &options.refine {
         Some(p) => Some(refine_tracked(&tracked.trajectories, &sequence, p, checkpoint, progress)?),
         None => None,
     };
@@ -167,16 +225,15 @@ pub fn convert(
         seconds.push((Stage::Refine, r.seconds));
     }
     let traj = refined.as_ref().map_or(&tracked.trajectories, |r| &r.trajectories);
-    let coverage = check_coverage(traj, &sequence, &CoverageParams::default())?;
+    let coverage = check_coverage(traj, &sequence, &options.coverage)?;
     let clock = Instant::now();
     progress.report(Stage::Deform, 0, 1);
-    let mesh = deform_sequence(&first, traj, &sequence, refine_params, deform_params)?;
+    let mesh = deform_sequence(&first, traj, &sequence, options.refine.as_ref(), &options.deform)?;
     progress.report(Stage::Deform, 1, 1);
     seconds.push((Stage::Deform, clock.elapsed().as_secs_f64()));
     let clock = Instant::now();
-    let mesh = conform_to_inputs(mesh, &sequence.paths, &sequence.bounds, conform_params, progress)
-        .map_err(|e| tracking_saved(e, checkpoint, &sequence))?;
-    if conform_params.iterations > 0 {
+    let mesh = conform(mesh, source, &sequence.bounds, &options.conform, progress).map_err(|e| tracking_saved(e, checkpoint, &sequence))?;
+    if options.conform.iterations > 0 {
         seconds.push((Stage::Conform, clock.elapsed().as_secs_f64()));
     }
     Ok(Conversion { sequence, tracked, refined, mesh, coverage, seconds })

@@ -1,73 +1,17 @@
-//! The conversion report: the fit of a dynamic mesh to its input files, and
-//! the HTML document built from a whole conversion of the bending bar.
+//! The HTML report, rendered from a real conversion of the bundled bar.
 
-mod common;
-use common::{assert_well_formed, Scratch};
+use super::*;
+use crate::cli::test_support::{assert_well_formed, Scratch};
 use std::path::{Path, PathBuf};
-use voltrack::deform::DynamicMesh;
-use voltrack::fixtures::{bending_bar_motion, BENDING_BAR_FRAMES};
-use voltrack::math::Real;
-use voltrack::metrics::{fit_to_inputs, DistanceSummary};
+use voltrack::metrics::DistanceSummary;
+use voltrack::fixtures::BENDING_BAR_FRAMES;
 use voltrack::params::{ConformParams, DeformParams, RefineParams, TrackParams};
-use voltrack::report::{report_html, write_report, Measurements, ReportInput};
 use voltrack::voxel::VoxelParams;
-use voltrack::{Aabb, Error, Progress};
+use voltrack::{Error, Progress};
 
 fn fixture_frames() -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/bending_bar");
     (0..BENDING_BAR_FRAMES).map(|f| dir.join(format!("frame_{f}.obj"))).collect()
-}
-
-fn diagonal_of(paths: &[PathBuf]) -> Real {
-    paths.iter().map(|p| voltrack::io::read_mesh(p).unwrap().bounding_box()).fold(Aabb::empty(), |a, b| a.union(&b)).diagonal()
-}
-
-#[test]
-fn fit_of_the_true_motion_is_zero_and_of_a_still_mesh_is_not() {
-    let paths = fixture_frames();
-    let diagonal = diagonal_of(&paths);
-    let base = voltrack::io::read_mesh(&paths[0]).unwrap();
-    // The bar's own motion applied to frame 0: every frame's surface to the
-    // files' f32 precision, though each input frame is meshed differently,
-    // except at the elbow: the motion leaves the ring at the pivot unrotated
-    // and turns the next ring, so the strip between them depends on how far
-    // apart the rings are (14, 16 or 18 quads along the bar; frames 3 and 6
-    // have frame 0's 14).
-    let truth = DynamicMesh {
-        frames: (0..BENDING_BAR_FRAMES).map(|f| base.positions.iter().map(|p| bending_bar_motion(f, p)).collect()).collect(),
-        base: base.clone(),
-    };
-    let fit = fit_to_inputs(&truth, &paths, diagonal, Progress::none()).unwrap();
-    assert_eq!(fit.frames.len(), BENDING_BAR_FRAMES);
-    assert_eq!(fit.diagonal, diagonal);
-    for (f, x) in fit.frames.iter().enumerate() {
-        let same_rings = f % 3 == 0;
-        for s in [x.result_to_input, x.input_to_result] {
-            assert!(s.p95 < 1e-5, "frame {f}: {x:?}");
-            assert!(if same_rings { s.max < 1e-5 } else { s.max < 1.0 }, "frame {f}: {x:?}");
-        }
-        if !same_rings {
-            assert!(x.two_sided.max > 1e-3, "frame {f}: the elbow strip should show: {x:?}");
-        }
-    }
-    // Frame 0 unmoved for every frame: the bent end is off by up to its
-    // sagitta, most in the last frame.
-    let still = DynamicMesh { frames: vec![base.positions.clone(); BENDING_BAR_FRAMES], base };
-    let fit = fit_to_inputs(&still, &paths, diagonal, Progress::none()).unwrap();
-    assert_eq!(fit.frames[0].two_sided, DistanceSummary::default());
-    let last = &fit.frames[BENDING_BAR_FRAMES - 1];
-    assert!(last.result_to_input.max > 5.0 && last.input_to_result.max > 5.0, "{last:?}");
-    assert_eq!(fit.worst_frame(), BENDING_BAR_FRAMES - 1);
-    assert!(fit.frames.windows(2).all(|w| w[0].two_sided.mean < w[1].two_sided.mean), "{:?}", fit.frames);
-
-    // A frame count that does not match, or a missing file, is an error.
-    assert!(matches!(fit_to_inputs(&still, &paths[1..], diagonal, Progress::none()), Err(Error::InvalidInput(_))));
-    let mut missing = paths.clone();
-    missing[3] = PathBuf::from("no_such_frame.obj");
-    match fit_to_inputs(&still, &missing, diagonal, Progress::none()) {
-        Err(e) => assert!(e.to_string().contains("no_such_frame.obj"), "{e}"),
-        Ok(_) => panic!("a missing frame was measured"),
-    }
 }
 
 /// Every text between `<open` and `close`.
@@ -84,12 +28,18 @@ fn report_of_a_conversion() {
     for p in fixture_frames() {
         std::fs::copy(&p, input.join(p.file_name().unwrap())).unwrap();
     }
+    let files = voltrack::io::FrameFiles::discover(std::slice::from_ref(&input)).unwrap();
+    let inputs = files.paths().to_vec();
     let voxel = VoxelParams { resolution: 48, ..Default::default() };
     let track = TrackParams { centers: 150, seed: 3, ..Default::default() };
     let refine = RefineParams { remove: Some(3), batches: 2, ..Default::default() };
     let deform = DeformParams::default();
-    let conv = voltrack::pipeline::convert(std::slice::from_ref(&input), &voxel, &track, Some(&refine), &deform, &Default::default(), None, Progress::none()).unwrap();
-    let measured = Measurements::of(&conv, Progress::none()).unwrap();
+    let conv = voltrack::pipeline::convert(
+        &files,
+        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(refine.clone()), deform: deform.clone(), conform: Default::default(), checkpoint: None, ..Default::default() },
+        Progress::none(),
+    ).unwrap();
+    let measured = Measurements::of(&conv, &files, Progress::none()).unwrap();
 
     // The fit: frame 0 is the input mesh itself; later frames are close (the
     // bar bends by up to 0.84 rad) but not exact.
@@ -115,7 +65,7 @@ fn report_of_a_conversion() {
         seconds: &seconds,
         output: Some(&glb),
         command: Some(&command),
-        ..ReportInput::new(&conv, &measured, &voxel, &track, Some(&refine), &deform, &conform)
+        ..ReportInput::new(&conv, &measured, &inputs, &voxel, &track, Some(&refine), &deform, &conform)
     };
     let html = report_html(&report);
     assert!(html.starts_with("<!DOCTYPE html>"));
@@ -188,7 +138,7 @@ fn report_of_a_conversion() {
         "150 tracked, 147 after removing 3 irregular".to_string(),
         "48 voxels along the longest side".to_string(),
         format!("voltrack {}", env!("CARGO_PKG_VERSION")),
-        voltrack::plot::significant(summary.mean, 3),
+        super::super::plot::significant(summary.mean, 3),
     ] {
         assert!(html.contains(&number), "{number} missing");
     }
@@ -213,10 +163,14 @@ fn report_of_a_conversion() {
     assert!(dir.files().iter().all(|f| !f.contains("partial")), "{:?}", dir.files());
 
     // Without refinement: no refinement section, one curve per quality plot.
-    let conv = voltrack::pipeline::convert(&[input], &voxel, &track, None, &deform, &Default::default(), None, Progress::none()).unwrap();
-    let measured = Measurements::of(&conv, Progress::none()).unwrap();
+    let conv = voltrack::pipeline::convert(
+        &files,
+        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: None, deform: deform.clone(), conform: Default::default(), checkpoint: None, ..Default::default() },
+        Progress::none(),
+    ).unwrap();
+    let measured = Measurements::of(&conv, &files, Progress::none()).unwrap();
     assert!(measured.refined.is_none());
-    let html = report_html(&ReportInput::new(&conv, &measured, &voxel, &track, None, &deform, &Default::default()));
+    let html = report_html(&ReportInput::new(&conv, &measured, &inputs, &voxel, &track, None, &deform, &Default::default()));
     assert_well_formed(&html);
     let svgs = between(&html, "<svg", "</svg>");
     assert_eq!(svgs.len(), 8);

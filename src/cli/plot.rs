@@ -2,7 +2,7 @@
 //! curve, per-frame measures). No fonts or scripts beyond what every browser
 //! has, so a plot can be opened directly or inlined in an HTML report.
 
-use crate::math::Real;
+use voltrack::math::Real;
 use std::fmt::Write;
 
 /// One named polyline.
@@ -340,3 +340,32 @@ fn svg_start(height: Real, title: &str) -> String {
     let _ = writeln!(svg, r#"<text x="{}" y="22" text-anchor="middle" font-size="15">{}</text>"#, WIDTH / 2.0, escape(title));
     svg
 }
+
+/// The irregularity curve (I_i sorted in decreasing order, log scale) as a
+/// standalone SVG, optionally against other curves (label, values) for
+/// comparison; a better result's curve falls faster.
+pub fn irregularity_curve_svg(irregularity: &[Real]) -> String {
+    irregularity_curves_svg(&[("centers", irregularity)])
+}
+
+/// Several irregularity curves in one plot, e.g. before and after refinement.
+pub fn irregularity_curves_svg(curves: &[(&str, &[Real])]) -> String {
+    let series: Vec<Series> = curves
+        .iter()
+        .map(|(label, values)| {
+            let mut v: Vec<Real> = values.iter().copied().filter(|x| x.is_finite()).collect();
+            v.sort_by(|a, b| b.total_cmp(a));
+            Series::new(*label, v.iter().enumerate().map(|(r, &x)| (r as Real, x)).collect())
+        })
+        .collect();
+    line_plot(
+        "Irregularity curve",
+        &Axis::linear("rank (most irregular first)").integer(),
+        &Axis::log("I_i (squared length, log scale)"),
+        &series,
+    )
+}
+
+#[cfg(test)]
+#[path = "plot_tests.rs"]
+mod tests;
