@@ -190,7 +190,7 @@ impl RigidFits {
 type WeightedList<'a> = (&'a [u32], &'a [Real]);
 
 /// Σ w_k · table[points[k]] over two lists: most of the rigid fits' time,
-/// which is a third of the tracking time on crane_tvm.
+/// which is a large share of the tracking time.
 ///
 /// Each of the 24 sums adds its terms one by one in list order, whatever the
 /// path, so results are bit-identical: the lists are interleaved, not split

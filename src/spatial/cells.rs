@@ -19,16 +19,13 @@
 //!   r_K shrinks by that much. The fastest few (centers thrown out of the
 //!   volume move far) are measured against every list instead, and a list
 //!   they enter is dropped. (Counting the largest move of all in the shrink
-//!   instead: 909,000 list builds and 203 million voxel searches on
-//!   crane_tvm's first 16 frames at R = 256, N = 1000, against 336,000 and
-//!   126 million.)
+//!   instead would let those few centers shrink every list's reach, so lists
+//!   would be rebuilt, and voxels searched, far more often.)
 //! - Local decay of the lower bound: Hamerly lowers every voxel's lower
 //!   bound by the largest move of any center, so one fast center makes every
 //!   voxel look again. With o's list in hand, a voxel of o needs only two
 //!   terms: the centers in the list moved at most their own largest move, and
 //!   every center outside it is at least r_K(o) - |v - o| away anyway.
-//!   (On crane_tvm's first 16 frames at R = 256, N = 1000: 202 million
-//!   voxel searches instead of 302.)
 //! Ties are broken by the lower center index, so the result does not depend
 //! on the number of threads. The shortcuts are tested against a linear scan.
 
@@ -104,9 +101,9 @@ impl Loosening {
 }
 
 /// [`Loosening`] in f32, rounded so that the bounds stay valid, for the
-/// pass over every voxel. (The same pass in f64, with its conversions and
-/// branches, made tracking crane_tvm's first 16 frames at R = 256, N = 1000
-/// take 29 s of CPU instead of 22.)
+/// pass over every voxel: the bounds are stored in f32, and the same pass in
+/// f64 spends its time converting them and branching, a cost paid for every
+/// voxel in every iteration.
 #[derive(Clone, Copy, Debug)]
 struct Loosening32 {
     moved: f32,
@@ -166,8 +163,8 @@ impl Loosening32 {
 ///
 /// The list is extended to the `CANDIDATES_FAR` nearest: the first K serve
 /// nearly every search, and the rest, with their own reach, settle most of
-/// those the first K cannot without the k-d tree (a tenth of all searches
-/// on crane_tvm, each costing as much as ten list searches).
+/// those the first K cannot without the k-d tree, whose query costs many
+/// list searches.
 struct Candidates {
     list: Box<[u32]>,
     /// The first `near` of `list` are the K nearest, with reach `reach`;
@@ -255,8 +252,8 @@ impl CenterIndex {
             .enumerate()
             .map(|(o, ((slot, &travel), &own_move))| {
                 // Rebuilt (on demand) once a tenth of its reach is used up: a
-                // shrunk reach sends more voxels to the slow k-d tree path
-                // (at half, assignment on crane took twice as long).
+                // shrunk reach certifies fewer voxels and sends them to the
+                // slow k-d tree path, which costs more than an early rebuild.
                 let kept = slot
                     .get()
                     .map(|c| (c, c.shrink(travel, travel_cap)))
@@ -498,8 +495,8 @@ pub struct Assignment {
     /// bounds themselves are rounded outwards).
     eps: Real,
     /// Counts and sums of the cells as last returned, kept up to date from
-    /// the voxels that change owner (a few hundred of ~300 000 per
-    /// iteration once the centers settle) instead of summed afresh.
+    /// the voxels that change owner (a tiny share per iteration once the
+    /// centers settle) instead of summed afresh.
     sums: Option<CellStats>,
 }
 
@@ -527,7 +524,8 @@ impl Assignment {
     ///
     /// Two passes per chunk of voxels: a branch-free one loosens every
     /// voxel's bounds in f32 and lists those whose bounds no longer prove
-    /// the owner (one in seven on crane_tvm), then those are measured.
+    /// the owner (a minority once the centers settle), then those are
+    /// measured.
     pub fn update(&mut self, index: &CenterIndex, moved: &[Real], with_moments: bool) -> CellStats {
         let loosening = index.loosening(moved);
         let loosening32: Vec<Loosening32> = loosening.iter().map(Loosening32::from).collect();

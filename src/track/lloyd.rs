@@ -13,9 +13,8 @@ use crate::model::GridSpec;
 ///
 /// Why converge rather than stop at the reference's 100 steps: an unconverged
 /// frame 0 keeps relaxing during tracking (each tracked frame moves centers
-/// halfway to their centroids), which shows as drift from the true motion. On
-/// pentagonal_prism at R = 256 with 200 centers, 100 steps left centers up to
-/// 5.7 voxels off the prism's rigid motion; converged, 1.3.
+/// halfway to their centroids), which shows as drift from the true motion,
+/// plainest on a rigid body, whose centers should not drift at all.
 pub fn seed_centers(grid: &GridSpec, voxels: &[u32], n: usize, seed: u64, iterations: usize, omega: Real, threshold: Real) -> (Vec<Point3>, usize) {
     assert!(n >= 1 && n <= voxels.len());
     // Partial Fisher-Yates over the voxel list.
