@@ -28,18 +28,15 @@ pub struct TrackParams {
     pub affinity: AffinityKind,
     /// ρ_p: distance at which the positional affinity is 0.5; > 0. Default
     /// None: [`RHO_P_SPACINGS`] = 1.5 typical center spacings in frame 0,
-    /// (occupied volume / N)^(1/3), which on a ~1.8 m human at N = 1000 is
-    /// about 0.033 of the longest side. The paper's 0.125 m is 0.07 there,
-    /// about 3 spacings: a center's rigid fit then reaches across joints,
-    /// so the torso's centers turn with the swinging legs, and nothing pulls
-    /// them back because a torso's volume barely changes when it spins
-    /// about its own axis. At 1.8 spacings the centers' mean error against
-    /// the ground truth fell by about 40 % on walker and crane_tvm; at 1.5
-    /// it falls further (see [`RHO_P_SPACINGS`]). Why
-    /// spacings and not a fixed fraction: with 200 centers in the prism,
-    /// 0.035 is only 0.39 spacings, and the fits, left with hardly a
-    /// neighbour each, let centers stray 6 voxels. `Some(ρ)`: ρ relative
-    /// (or absolute, see `absolute_units`), e.g. 0.07 for the paper's value.
+    /// (occupied volume / N)^(1/3). `Some(ρ)`: ρ relative (or absolute, see
+    /// `absolute_units`), e.g. 0.07 for the paper's 0.125 m.
+    /// Why smaller than the paper's: on a human at N = 1000 the paper's value
+    /// spans several spacings, so a center's rigid fit reaches across joints:
+    /// the torso's centers turn with the swinging legs, and nothing pulls
+    /// them back because a torso's volume barely changes when it spins about
+    /// its own axis. Why spacings and not a fixed fraction: a fixed length is
+    /// a fraction of a spacing when few centers fill a small volume, and fits
+    /// left with hardly a neighbour each let centers stray.
     pub rho_p: Option<Real>,
     /// ρ_m: motion dissimilarity at which the motion affinity is 0.5.
     /// Default 0.07 (relative; the paper's 0.125 m); in [`LENGTH`].
@@ -59,9 +56,9 @@ pub struct TrackParams {
     /// Convergence: stop when no center moves farther than this in one
     /// iteration. Default 5.6e-5 (relative; the reference's 1e-4 m); in [`LENGTH`].
     /// The iterations stop short of where they lead, on the side of the
-    /// guess: on pent_tvm (a prism spinning 7.35° a frame) the centers lag
-    /// the spin by 0.3–1.3° at the default and by at most 0.55° at 1e-5,
-    /// which takes 1.5–1.7 times the tracking time.
+    /// guess, so the centers of a body that keeps turning lag its turn a
+    /// little; a smaller threshold (1e-5 for a rigid body) narrows the lag
+    /// at the cost of more iterations per frame.
     pub threshold: Real,
     /// Iteration limit per frame. Default 1000; 1 ..= [`MAX_ITERATIONS`].
     pub max_iterations: usize,
@@ -70,16 +67,13 @@ pub struct TrackParams {
     /// frame is also tracked from c^{f-1} + k (c^{f-1} − c^{f-2}), and the
     /// run that ends with the lower energy E = Es + β Eu (method.md §3) is
     /// kept. Limbs that swing and turn back within a few frames defeat the
-    /// constant-velocity guess: on crane_tvm (every 3rd frame of a fast
-    /// capture) it sends a hand that has just stopped at the hip into the
-    /// hip, its centers stay there, and a forearm follows them. The damped
-    /// guess alone loses the feet instead, which lift off at constant
-    /// velocity. Keeping the better of the two loses neither: on crane (seed
-    /// 0, ρ_p then 1.8 spacings) the centers' mean error against the ground
-    /// truth fell from 1.95 to 1.32 % of the diagonal, and `convert`'s
-    /// correspondence error from 1.22 to 0.80 %. It doubles the tracking work (the two runs share the cores);
-    /// None tracks from the paper's guess alone. Default Some(0.25), the best
-    /// of 0, 0.25 and 0.5 there; in [0, 1).
+    /// constant-velocity guess, all the more when frames are far apart in
+    /// time: it sends a hand that has just stopped at the hip into the hip,
+    /// its centers stay there, and a forearm follows them. A damped guess
+    /// alone loses limbs that start moving at constant velocity instead (feet
+    /// lifting off). Keeping the better of the two loses neither. It doubles
+    /// the tracking work (the two runs share the cores); None tracks from the
+    /// paper's guess alone. Default Some(0.25); in [0, 1).
     pub damped_guess: Option<Real>,
     /// Most Lloyd iterations placing the centers in frame 0; they stop earlier
     /// once no center moves farther than `threshold`. Default 1000 (the
@@ -155,18 +149,12 @@ impl TrackParams {
 }
 
 /// ρ_p's default, in typical center spacings (see [`TrackParams::rho_p`]).
-/// Chosen from walker and crane_tvm at N = 1000, seeds 0-2. Their centers'
-/// error against the ground truth is lowest at about 1.5 spacings. From the
-/// constant-velocity guess alone crane lost track there with some seeds
-/// (4.3 % of the diagonal at 1.6 with seed 2, 3.5 % at 1.36 with seed 1,
-/// against 2.9 % at the paper's ρ_p), so the default was 1.8, where all three
-/// stayed within 1.73-1.85 %. With the damped guess as well
-/// ([`TrackParams::damped_guess`]) no seed loses track at 1.5, and the
-/// centers are closer to the truth than at 1.8. Measured against the local
-/// rigid motion of the 12 nearest ground-truth vertices (a different measure
-/// from the one above), crane's centers are off by 1.10 % at 1.5 (seed 0;
-/// 1.01-1.08 % for seeds 0-2 at 1.55), 1.32-1.61 % at 1.8 and 3.10 % at the
-/// paper's ρ_p; walker's by 0.62 % at 1.5 and 1.32 % at the paper's.
+/// Fewer, and a center's fit has too few neighbours to hold it to its part;
+/// more, and fits reach across joints. Chosen where the centers' error
+/// against ground truth was lowest, with both guesses
+/// ([`TrackParams::damped_guess`]): small values ask more of the guess, and
+/// the constant-velocity guess alone loses fast limbs there with some seeds
+/// (it needed about 1.8). The figures are in `docs/measurements.md`.
 pub const RHO_P_SPACINGS: Real = 1.5;
 
 /// σ such that exp(-σ ρ²) = 0.5.
@@ -281,8 +269,7 @@ pub struct DeformParams {
     /// neighbours (half its own, half their mean), keeping the
     /// `2 × neighbors` largest. Without it the center set switches between
     /// adjacent vertices where the ω filter cuts, and triangles across the
-    /// cut fold: on crane_tvm 10 rounds take the worst frame's inverted
-    /// area from 3.95 to 3.13 %. Default 10; 0 = off; at most [`MAX_ROUNDS`].
+    /// cut fold. Default 10; 0 = off; at most [`MAX_ROUNDS`].
     pub smoothing: usize,
     /// Blending. Default dual quaternions.
     pub blending: Blending,
@@ -324,12 +311,9 @@ fn length_scale(absolute_units: bool, bounds: &crate::model::mesh::Aabb) -> Real
 /// Why: a volume tracker barely sees the skin slide over a joint or a body
 /// spin about its own axis, and blending leaves folds where bound centers
 /// disagree. Keeping the mesh's edges as in frame 0 while it lies on the
-/// input surface corrects both. At the defaults it takes the correspondence
-/// error (evaluate.py, % of the diagonal) from 1.11 to 0.77 on crane_tvm and
-/// from 0.78 to 0.37 on walker, and the worst frame's inverted area from
-/// 1.86 to 1.27 % and from 0.92 to 0.31 %. On pent_tvm (a rigid prism,
-/// re-meshed per frame) the vertices keep to the rigid motion within 0.35
-/// voxels on average (0.73 without this stage).
+/// input surface corrects both: the vertices follow the surface's true
+/// motion more closely and fewer triangles fold, and a rigid body re-meshed
+/// per frame keeps closer to its rigid motion.
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct ConformParams {
     /// Rounds of (rotations, matching the input's vertices, solve) per
@@ -354,12 +338,11 @@ pub struct ConformParams {
     /// vertex pulls and the normal of every input triangle at that vertex,
     /// so a surface is never pulled onto the back of another one it
     /// touches, and a vertex whose triangles turn across a crease they cut
-    /// (36–45° off the sides at a prism's edges) pulls only mesh triangles
-    /// facing close to all of them. Default 0.7
-    /// (46°); in [-1, 1]. On crane_tvm 0.6 fits a little closer (fidelity
-    /// 0.091 against 0.094 % of the diagonal, correspondence 0.766 against
-    /// 0.771); on pent_tvm 0.7 strays less from the rigid motion (at most
-    /// 1.9 voxels against 2.1).
+    /// pulls only mesh triangles facing close to all of them. Default 0.7
+    /// (46°); in [-1, 1]. Lower lets more input vertices pull, which fits a
+    /// smoothly deforming body a little closer; higher keeps the vertices
+    /// beside a crease from pulling the sides, which keeps a rigid body
+    /// truer.
     pub min_normal_cosine: Real,
     /// Lengths in the input's units instead of fractions of the longest side.
     pub absolute_units: bool,
