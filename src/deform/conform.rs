@@ -14,14 +14,11 @@
 //! samples of the surface, but the triangles between them cut across every
 //! crease wherever that frame's meshing put them. Pulling the mesh's
 //! vertices onto the input's triangles made them follow each frame's own
-//! cuts: on pent_tvm (a rigid prism re-meshed per frame, its edges cut by
-//! 3.5–8.3 voxels) vertices strayed up to 4.4 voxels from the rigid motion.
+//! cuts, so even a rigid body re-meshed per frame came out wobbling.
 //! Pulling the mesh through the input's vertices does not see the cuts
 //! (`tests/deform.rs` checks this on a re-meshed tube); the vertices beside
 //! a cut, whose triangles face both the side and the cut, pull only mesh
-//! triangles facing close to both. On pent_tvm that brings the vertices to
-//! 0.35 voxels from the rigid motion on average, at most 1.9 (0.81 and 4.4
-//! before).
+//! triangles facing close to both.
 //!
 //! Energy per frame, with X the frame-0 positions, y the unknowns, R_i a
 //! rotation per vertex, q_j an input vertex, s_j(y) = Σ_k b_jk y_k the
@@ -56,9 +53,9 @@ const ANCHOR: Real = 1e-3;
 const FIRST_SEARCHES: usize = 3;
 /// After those, every this many rounds search again; in between, each input
 /// vertex keeps its triangle and barycentric coordinates, which move with
-/// the mesh. On crane_tvm (`deform_from` example) searching every round
-/// took the stage 16.0 s instead of 7.0, for a correspondence error of
-/// 0.752 against 0.771 % and a worst inverted area of 1.37 against 1.27 %.
+/// the mesh. The later rounds move the mesh little, so a match found a few
+/// rounds before is still close to the nearest: searching every round costs
+/// far more time for hardly any change in the fit.
 const SEARCH_EVERY: usize = 4;
 /// Conjugate-gradient iterations per solve; the solve is warm-started from
 /// the last round, so it rarely needs many.
@@ -135,9 +132,8 @@ fn edges(vertices: usize, triangles: &[[u32; 3]]) -> Edges {
 /// The unit normals of the triangles around every vertex of a mesh, zero
 /// for a degenerate one: that faces no way, so (for a positive least
 /// cosine) its vertices pull nothing. Re-meshing leaves such slivers along
-/// creases (pent_tvm has them), where a vertex's place is least certain;
-/// on pent_tvm leaving them out took the largest distance from the rigid
-/// motion from 1.9 to 2.6 voxels.
+/// creases, where a vertex's place is least certain: its vertices are
+/// better left out than pulling one of the sides.
 type Fans = PerVertex<Vector3>;
 
 fn fans(mesh: &TriangleMesh) -> Fans {
@@ -355,8 +351,8 @@ const ROTATION_STEPS: usize = 3;
 
 /// Moves `q` towards the rotation of A's polar decomposition (Müller et al.
 /// 2016, "A robust method to extract the rotational part of deformations"):
-/// from the last round's rotation a few steps suffice, where an SVD per
-/// vertex per round took a fifth of the stage's time.
+/// from the last round's rotation a few steps suffice, far cheaper than an
+/// SVD per vertex per round.
 fn refine_rotation(a: &Matrix3, q: &mut UnitQuaternion) {
     for _ in 0..ROTATION_STEPS {
         let r = q.to_rotation_matrix().into_inner();
