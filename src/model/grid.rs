@@ -85,7 +85,7 @@ impl GridSpec {
 }
 
 /// One frame's occupied voxels as sorted linear indices into its [`GridSpec`]:
-/// 4 bytes per occupied voxel, about 1 MB for a human at resolution 256.
+/// 4 bytes per occupied voxel.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Occupancy {
     pub indices: Vec<u32>,

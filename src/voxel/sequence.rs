@@ -61,9 +61,9 @@ pub struct VoxelSequence {
 }
 
 /// Largest share of a frame's occupied voxels that no axis vouches for (see
-/// [`super::Voxelization::unvouched`]): below a few percent on captures with
-/// holes, about 20 % on an open cup seen at an angle, about 90 % or more on
-/// an open sheet.
+/// [`super::Voxelization::unvouched`]): a capture with holes, or even an open
+/// cup seen at an angle, stays well below half; an open sheet, which
+/// encloses nothing, is far above it.
 const MAX_UNVOUCHED: f64 = 0.5;
 
 /// Largest gap, in median bounding-box diagonals, that joins a frame to the

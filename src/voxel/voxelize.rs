@@ -10,9 +10,9 @@
 //! - single-axis parity (the authors' reference) leaks a streak along the whole
 //!   column behind every hole, and flips overlapping loose pieces to outside;
 //! - the generalised winding number is the most robust, but costs
-//!   O(voxels × triangles) (or a far-field tree and its tuning); on the shipped
-//!   captures the vote agrees with it to within a fraction of a percent (see
-//!   the `gwn_agreement` benchmark) at a small cost per frame.
+//!   O(voxels × triangles) (or a far-field tree and its tuning); the vote
+//!   costs little per frame and agrees with it on all but a small share of
+//!   the voxels (the `gwn_agreement` example counts them on a capture).
 //!
 //! Closed meshes are classified exactly: columns are sampled with a
 //! rasteriser's top-left rule on exactly antisymmetric edge functions, so a ray
@@ -36,7 +36,7 @@ pub struct Voxelization {
     pub occupancy: Occupancy,
     /// Occupied voxels that no axis vouches for: the column along every axis
     /// went through a hole, so only the fallback (the majority of all three
-    /// axes' guesses) put them inside. A few percent on a capture with holes;
+    /// axes' guesses) put them inside. A small share on a capture with holes;
     /// nearly all of them for an open sheet, which encloses nothing.
     pub unvouched: usize,
 }
