@@ -11,8 +11,8 @@
 //!   large triangle;
 //! - distances are exact (nearest point on the nearest triangle); evaluate.py
 //!   takes the nearest of ~200 000 surface samples and so reads slightly high,
-//!   by up to about the samples' spacing (for walker's frame 0, identical to
-//!   the input, it reports a mean of 0.06 % instead of 0);
+//!   by up to about the samples' spacing (even for a frame identical to the
+//!   input, where this reports 0);
 //! - the maximum is over vertices, the 95th percentile is the weighted lower
 //!   quantile (no interpolation between samples);
 //! - it measures the mesh before export: a compact basis' reconstruction
