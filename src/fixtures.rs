@@ -318,8 +318,8 @@ pub mod swinging {
 
 /// Frame `f` of the swinging-leg sequence (see [`swinging`]): body, still
 /// leg and swinging leg as three overlapping closed capsules, tessellated
-/// differently every frame (no correspondence between frames). Small: at
-/// `-r 48 -n 150` it converts in seconds.
+/// differently every frame (no correspondence between frames). Small
+/// enough for a test to convert (`tests/thin_parts.rs`, at `-r 48 -n 150`).
 pub fn swinging_leg(f: usize) -> TriangleMesh {
     use swinging::*;
     let (seg, rings) = (12 + (f % 3) as u32 * 2, 8 + (f % 2) as u32 * 2);
