@@ -78,7 +78,7 @@ pub struct TrackParams {
     /// Most Lloyd iterations placing the centers in frame 0; they stop earlier
     /// once no center moves farther than `threshold`. Default 1000 (the
     /// reference runs 100, which leaves frame 0 unconverged: see
-    /// [`crate::track::lloyd::seed_centers`]); 1 ..= [`MAX_ITERATIONS`].
+    /// `track::lloyd::seed_centers`); 1 ..= [`MAX_ITERATIONS`].
     pub lloyd_iterations: usize,
     /// Over-relaxation of those Lloyd iterations (c += ω (x̄ - c)).
     /// Default 1.8; in (0, 2).
@@ -370,7 +370,7 @@ impl ConformParams {
     }
 }
 
-/// Warning of parts the tracker lost ([`crate::metrics::coverage`]; not in
+/// Warning of parts the tracker lost (`metrics::coverage`; not in
 /// the paper): frames with input volume no tracked cell reaches, or whose
 /// fit to the input is far worse than the sequence's usual.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -386,7 +386,7 @@ pub struct CoverageParams {
     /// its occupied volume. Default 0.002; in (0, 1].
     pub min_share: Real,
     /// A frame's fit to the input (the 95th percentile of its two-sided
-    /// distance, [`crate::metrics::FrameFit::two_sided`]) is flagged when it
+    /// distance, `metrics::FrameFit::two_sided`) is flagged when it
     /// is more than this many times the sequence's usual fit, the lower
     /// quartile over the frames after the first (the quartile, not the
     /// median: a lost part often stays lost to the end, so the bad frames

@@ -546,10 +546,22 @@ mod tests {
     use super::*;
     use crate::math::Rotation3;
 
+    /// The vertices of a torus (radii 1 and 0.3, 24 × 12 of them).
+    fn torus() -> Vec<Point3> {
+        let tau = 2.0 * std::f64::consts::PI;
+        (0..24)
+            .flat_map(|i| (0..12).map(move |j| (tau * i as Real / 24.0, tau * j as Real / 12.0)))
+            .map(|(u, v)| {
+                let r = 1.0 + 0.3 * v.cos();
+                Point3::new(r * u.cos(), r * u.sin(), 0.3 * v.sin())
+            })
+            .collect()
+    }
+
     /// A torus turned, bent and crossed by travelling waves and a chirp: a
     /// spectrum that decays without a sharp cut, like a capture's.
     fn sequence(frames: usize) -> Vec<Vec<Point3>> {
-        let base = crate::fixtures::torus(Point3::origin(), 1.0, 0.3, 24, 12);
+        let base = torus();
         let motion = |f: usize, p: &Point3| {
             let t = f as Real;
             let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.6 * (0.013 * t).sin());
@@ -558,7 +570,7 @@ mod tests {
             let chirp = 0.004 * (p.y * (1.0 + 0.002 * t) * 4.0 + 0.05 * t).sin();
             turn * p + Vector3::new(chirp, 0.0, wave + bend)
         };
-        (0..frames).map(|f| base.positions.iter().map(|p| motion(f, p)).collect()).collect()
+        (0..frames).map(|f| base.iter().map(|p| motion(f, p)).collect()).collect()
     }
 
     /// The exact decomposition, as the Gram matrix's eigenvectors gave it
@@ -632,11 +644,11 @@ mod tests {
     fn the_sketch_finds_the_rank_of_low_rank_motion() {
         // A translation back and forth (rank 1) plus a turn about z (rank 2
         // more): three components, the rest noise.
-        let base = crate::fixtures::torus(Point3::origin(), 1.0, 0.3, 24, 12);
+        let base = torus();
         let frames: Vec<Vec<Point3>> = (0..300)
             .map(|f| {
                 let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.01 * f as Real);
-                base.positions.iter().map(|p| turn * p + Vector3::new(1.0, 2.0, -0.5) * (0.7 * f as Real).sin()).collect()
+                base.iter().map(|p| turn * p + Vector3::new(1.0, 2.0, -0.5) * (0.7 * f as Real).sin()).collect()
             })
             .collect();
         let pca = Pca::new(&frames, 8 + OVERSAMPLING, &mut no_passes()).unwrap();

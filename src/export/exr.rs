@@ -10,14 +10,12 @@
 use crate::files::write_atomic;
 use crate::error::{Error, Result};
 use crate::math::Point3;
-use crate::model::Trajectories;
+use crate::model::{Trajectories, METADATA_ATTRIBUTE};
 use exr::meta::attribute::{AttributeValue, Text};
 use exr::prelude::*;
 use std::io::Write as _;
 use std::path::Path;
 
-/// Name of the attribute holding voltrack's metadata as a JSON object.
-pub const METADATA_ATTRIBUTE: &str = "voltrack";
 
 /// Writes `traj` (width = centers, height = frames) with `attributes` (and
 /// the tool version) in the header.

@@ -39,7 +39,7 @@ pub fn read_trajectories_exr(path: &Path) -> Result<(Trajectories, Vec<(String, 
     let mut attributes = Vec::new();
     let meta = layer.attributes.other.iter().chain(&image.attributes.other);
     for (name, value) in meta {
-        if name.to_string() != crate::export::exr::METADATA_ATTRIBUTE {
+        if name.to_string() != crate::model::METADATA_ATTRIBUTE {
             continue;
         }
         let AttributeValue::Text(text) = value else { continue };

@@ -17,6 +17,11 @@ pub use trajectories::Trajectories;
 
 use crate::error::{Error, Result};
 
+/// Name of the OpenEXR attribute holding voltrack's metadata (how
+/// trajectories were made) as a JSON object: written by `export::exr`, read
+/// by `io::exr`.
+pub const METADATA_ATTRIBUTE: &str = "voltrack";
+
 /// What the writers call the animated object (glTF node, mesh and animation,
 /// OBJ object) when no name is given.
 pub const DEFAULT_NAME: &str = "voltrack";

@@ -49,7 +49,7 @@ pub fn refine(traj: &Trajectories, seq: &VoxelSequence, params: &RefineParams, p
     for b in 0..params.batches {
         // Spread the remainder over the first batches.
         let n_rem = total / params.batches + usize::from(b < total % params.batches);
-        let irregularity = crate::metrics::irregularity(&current);
+        let irregularity = irregular::irregularity(&current);
         let worst = most_irregular(&irregularity, n_rem);
         removed.extend(worst.iter().map(|&i| kept[i]));
         current = current.without(&worst);

@@ -9,7 +9,7 @@
 //! resuming a different run.
 
 use super::affinity::{Affinity, Neighbor};
-use super::forward::FrameTiming;
+use super::FrameTiming;
 use crate::model::Trajectories;
 use crate::error::{Error, Result};
 use crate::math::Point3;
@@ -195,7 +195,7 @@ pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, seq: &VoxelSequence, 
         return Err(Error::parse(&path, None, "trailing bytes after the tracker state"));
     }
     let scale = params.length_scale(&seq.bounds);
-    let affinity = Affinity::restore(params.affinity, super::forward::rho_p(params, seq, scale), params.rho_m * scale, params.alpha, params.mu, lists, iir);
+    let affinity = Affinity::restore(params.affinity, super::rho_p(params, seq, scale), params.rho_m * scale, params.alpha, params.mu, lists, iir);
     Ok(Restored { frames_done, trajectories, cell_counts, timings, affinity, owners })
 }
 

@@ -15,23 +15,9 @@ use crate::math::{Point3, Real};
 use crate::params::TrackParams;
 use crate::progress::{Progress, Stage};
 use crate::voxel::VoxelSequence;
+use super::FrameTiming;
 use std::time::Instant;
 
-/// Where the time of one frame went, in seconds. With a damped guess the
-/// parts add up both runs, which run side by side: they can exceed `total`.
-#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
-pub struct FrameTiming {
-    pub total: f64,
-    pub assign: f64,
-    pub fit: f64,
-    pub affinity: f64,
-    /// Iterations of the run that was kept.
-    pub iterations: usize,
-    /// Iterations of the run from the other guess, dropped (0 with one guess).
-    pub dropped_iterations: usize,
-    /// The run from the damped guess ended with the lower energy and was kept.
-    pub damped_guess_kept: bool,
-}
 
 impl FrameTiming {
     /// Adds the parts of the dropped run of the same frame.
@@ -127,7 +113,7 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
             traj.frame_mut(0).copy_from_slice(&centers0);
             let mut owners = vec![NO_OWNER; voxels0.len()];
             let stats0 = assign(grid, voxels0, &CenterIndex::new(&centers0), &mut owners, false);
-            let reach = rho_p(params, seq, scale);
+            let reach = super::rho_p(params, seq, scale);
             let affinity = Affinity::initial(&centers0, params.affinity, reach, params.rho_m * scale, params.alpha, params.mu);
             let timing = FrameTiming { total: start.elapsed().as_secs_f64(), iterations: lloyd_steps, ..Default::default() };
             log::info!("frame 0: {} centers placed; ρ_p {reach:.4}, {:.1} neighbours each", params.centers, affinity.mean_neighbors());
@@ -271,12 +257,6 @@ impl<'a> Tracker<'a> {
         self.prev_voxels = voxels;
         Some(FrameResult { centers: cur, counts: stats.count, timing: t, energy })
     }
-}
-
-/// ρ_p in the input's units (see [`TrackParams::rho_p`]), from frame 0's
-/// occupied volume.
-pub(super) fn rho_p(params: &TrackParams, seq: &VoxelSequence, scale: Real) -> Real {
-    params.rho_p_in_units(scale, seq.frames[0].indices.len() as Real * seq.grid.voxel_size.powi(3))
 }
 
 /// E = Es + β Eu = ½ Σ ‖c_i − p_i‖² + β ½ Σ ‖c_i − x̄_i‖² (method.md §3);

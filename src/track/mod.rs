@@ -9,4 +9,26 @@ mod forward;
 pub mod lloyd;
 
 pub use checkpoint::Checkpointing;
-pub use forward::{cell_moments, predict, track, track_with_checkpoints, FrameTiming, TrackResult};
+pub use forward::{cell_moments, predict, track, track_with_checkpoints, TrackResult};
+
+/// Where the time of one frame went, in seconds. With a damped guess the
+/// parts add up both runs, which run side by side: they can exceed `total`.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct FrameTiming {
+    pub total: f64,
+    pub assign: f64,
+    pub fit: f64,
+    pub affinity: f64,
+    /// Iterations of the run that was kept.
+    pub iterations: usize,
+    /// Iterations of the run from the other guess, dropped (0 with one guess).
+    pub dropped_iterations: usize,
+    /// The run from the damped guess ended with the lower energy and was kept.
+    pub damped_guess_kept: bool,
+}
+
+/// ρ_p in the input's units (see [`crate::params::TrackParams::rho_p`]), from frame 0's
+/// occupied volume.
+fn rho_p(params: &crate::params::TrackParams, seq: &crate::voxel::VoxelSequence, scale: crate::math::Real) -> crate::math::Real {
+    params.rho_p_in_units(scale, seq.frames[0].indices.len() as crate::math::Real * seq.grid.voxel_size.powi(3))
+}
