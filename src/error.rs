@@ -36,7 +36,7 @@ pub enum Error {
     /// Stopped on request (Ctrl-C). `saved` names the checkpoint file and the
     /// frames it holds when tracking state was saved.
     #[error("interrupted{}", saved.as_ref().map(|(p, k)| format!(
-        "; the first {k} tracked frames are saved in {}: run the same command with --resume to continue", p.display())).unwrap_or_default())]
+        "; the first {k} tracked frames are saved in {}: resume from it to continue", p.display())).unwrap_or_default())]
     Interrupted { saved: Option<(PathBuf, usize)> },
 }
 

@@ -100,7 +100,7 @@ pub fn center_motions(traj: &Trajectories, omega: &SparseAffinity) -> Vec<Vec<Ri
 /// The dynamic mesh: `mesh` (frame 0 as loaded) moved by the trajectories.
 pub fn deform(mesh: &TriangleMesh, traj: &Trajectories, omega: &SparseAffinity, params: &DeformParams) -> Result<DynamicMesh> {
     if params.neighbors == 0 {
-        return Err(Error::InvalidParameter("--bind-neighbors must be at least 1".into()));
+        return Err(Error::InvalidParameter("the number of centers each vertex follows must be at least 1".into()));
     }
     if traj.centers == 0 || omega.lists.len() != traj.centers {
         return Err(Error::InvalidInput("no centers to deform the mesh with".into()));

@@ -97,7 +97,7 @@ pub fn resolution_of(attrs: &[(String, String)], path: &Path) -> Result<usize> {
         .iter()
         .find(|(k, _)| k == "voltrack.resolution")
         .and_then(|(_, v)| v.parse().ok())
-        .ok_or_else(|| Error::parse(path, None, "no voltrack.resolution attribute: not written by voltrack track; pass --resolution"))
+        .ok_or_else(|| Error::parse(path, None, "no voltrack.resolution attribute: not written by voltrack track; give the resolution it was tracked at"))
 }
 
 /// Checks that re-voxelised input lies on the grid the trajectories were made on.

@@ -76,7 +76,7 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
     let n0 = seq.frames[0].len();
     if params.centers > n0 {
         return Err(Error::InvalidParameter(format!(
-            "{}: only {n0} occupied voxels for {} centers; lower --centers or raise --resolution",
+            "{}: only {n0} occupied voxels for {} centers; lower the number of centers or raise the resolution",
             seq.names[0],
             params.centers
         )));

@@ -139,7 +139,7 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
             if v.occupancy.is_empty() {
                 return Err(Error::mesh(
                     path,
-                    "encloses no voxel at this resolution (an open sheet, or too thin); raise --resolution or close the surface",
+                    "encloses no voxel at this resolution (an open sheet, or too thin); raise the resolution or close the surface",
                 ));
             }
             if v.unvouched as f64 > MAX_UNVOUCHED * v.occupancy.len() as f64 {
