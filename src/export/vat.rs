@@ -83,7 +83,7 @@ impl VatOptions {
             Ok(_) => Ok(()),
             Err(_) => Err(Error::InvalidParameter(format!(
                 "{frames} frames need a vertex-animation texture at least {frames} rows high, more than the largest height allowed, {} \
-                 (its largest height); convert fewer frames",
+                 (--vat-max-height); convert fewer frames",
                 self.max_height
             ))),
         }
@@ -110,7 +110,7 @@ impl VatOptions {
             return Err(Error::InvalidParameter(format!(
                 "{vertices} vertices in rows of {width} take {rows_per_frame} rows per frame, {rows} rows for {frames} frames{padded}: \
                  more than the largest vertex-animation texture height allowed, {}; allow wider rows (--vat-max-width) or a higher \
-                 texture (its largest height), or convert fewer frames",
+                 texture (--vat-max-height), or convert fewer frames",
                 self.max_height
             )));
         }
