@@ -222,7 +222,7 @@ fn correspondence(inputs: &[PathBuf], frames: &[Vec<Point3>], gt: &GroundTruth) 
 /// of the distance, as a fraction of `diag`. On all of walker at the
 /// defaults it gives 0.685 % where the README quotes 0.62 %: the README's
 /// figure came from a measure or a version not recorded.
-fn centers_error(traj: &voltrack::track::Trajectories, gt: &GroundTruth, diag: Real) -> Real {
+fn centers_error(traj: &voltrack::model::Trajectories, gt: &GroundTruth, diag: Real) -> Real {
     let gt0 = &gt.traj[0];
     let k = traj.frames.min(gt.traj.len());
     let mut sum = 0.0;
@@ -232,7 +232,7 @@ fn centers_error(traj: &voltrack::track::Trajectories, gt: &GroundTruth, diag: R
         near.select_nth_unstable_by(11, |a, b| a.0.total_cmp(&b.0));
         let near: Vec<usize> = near[..12].iter().map(|&(_, j)| j).collect();
         for f in 0..k {
-            let m = voltrack::track::fit_rigid(gt0, &gt.traj[f], near.iter().map(|&j| (j, 1.0)));
+            let m = voltrack::model::fit_rigid(gt0, &gt.traj[f], near.iter().map(|&j| (j, 1.0)));
             sum += (traj.get(f, i) - m.apply(&c0)).norm();
         }
     }
@@ -259,7 +259,11 @@ fn convert_and_measure(data: &Path, name: &str, frames: usize, r: usize, n: usiz
     let clock = Instant::now();
     let voxel = VoxelParams { resolution: r, ..Default::default() };
     let track = TrackParams { centers: n, ..Default::default() };
-    let conv = voltrack::pipeline::convert(&inputs, &voxel, &track, Some(&RefineParams::default()), &DeformParams::default(), &ConformParams::default(), None, Default::default()).unwrap();
+    let conv = voltrack::pipeline::convert(
+        &voltrack::io::FrameFiles::discover(&inputs).unwrap(),
+        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: ConformParams::default(), checkpoint: None, ..Default::default() },
+        Default::default(),
+    ).unwrap();
     let seconds = clock.elapsed().as_secs_f64();
     let mesh = correspondence(&inputs, &conv.mesh.frames, &gt);
     let centers = centers_error(&conv.tracked.trajectories, &gt, mesh.diag);
@@ -286,13 +290,17 @@ fn convert_and_measure(data: &Path, name: &str, frames: usize, r: usize, n: usiz
 fn pent_tvm_distance_from_rigid(data: &Path, frames: usize, r: usize, n: usize) -> (Real, Real) {
     let prism = voltrack::io::discover_frames(&[data.join("pentagonal_prism")]).unwrap();
     let truth: Vec<Vec<Point3>> = prism.iter().take(frames).map(|p| voltrack::io::read_mesh(p).unwrap().positions).collect();
-    let motions: Vec<voltrack::track::Rigid> = truth.iter().map(|f| voltrack::track::fit_rigid(&truth[0], f, (0..f.len()).map(|i| (i, 1.0)))).collect();
+    let motions: Vec<voltrack::model::Rigid> = truth.iter().map(|f| voltrack::model::fit_rigid(&truth[0], f, (0..f.len()).map(|i| (i, 1.0)))).collect();
     let inputs: Vec<PathBuf> = voltrack::io::discover_frames(&[data.join("pent_tvm")]).unwrap().into_iter().take(frames).collect();
     assert_eq!((inputs.len(), truth.len()), (frames, frames), "pent_tvm and pentagonal_prism: fewer frames than asked for");
     let clock = Instant::now();
     let voxel = VoxelParams { resolution: r, ..Default::default() };
     let track = TrackParams { centers: n, ..Default::default() };
-    let conv = voltrack::pipeline::convert(&inputs, &voxel, &track, Some(&RefineParams::default()), &DeformParams::default(), &ConformParams::default(), None, Default::default()).unwrap();
+    let conv = voltrack::pipeline::convert(
+        &voltrack::io::FrameFiles::discover(&inputs).unwrap(),
+        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: ConformParams::default(), checkpoint: None, ..Default::default() },
+        Default::default(),
+    ).unwrap();
     let seconds = clock.elapsed().as_secs_f64();
     let voxel_size = conv.sequence.grid.voxel_size;
     let base = &conv.mesh.frames[0];
