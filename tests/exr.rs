@@ -8,6 +8,7 @@ use voltrack::deform::DynamicMesh;
 use voltrack::export::exr::write_trajectories_exr;
 use voltrack::export::vat::{write_vat, VatOptions};
 use voltrack::io::exr::read_trajectories_exr;
+use voltrack::model::TrajectoryMetadata;
 use voltrack::math::{Point3, Real};
 use voltrack::model::Trajectories;
 
@@ -62,18 +63,16 @@ fn write_vat_exr(path: &Path, mesh: &DynamicMesh) -> voltrack::Result<()> {
     write_vat(path, mesh, &VatOptions::default()).map(drop)
 }
 
-fn attributes() -> Vec<(String, String)> {
-    vec![
-        ("voltrack.resolution".into(), "256".into()),
-        ("voltrack.first_input".into(), "/données/Tänzer ü/φrame_0 😀.obj".into()),
-        ("voltrack.track".into(), r#"{"centers":13,"rho_p":0.07,"affinity":"max","nested":{"list":[1,2,3],"name":"ß"}}"#.into()),
-        ("voltrack.note".into(), "quotes \" and back\\slash\nand a second line".into()),
-        ("voltrack.removed".into(), "[4,9,17]".into()),
-    ]
-}
-
-fn value<'a>(meta: &'a [(String, String)], key: &str) -> Option<&'a str> {
-    meta.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str())
+fn metadata() -> TrajectoryMetadata {
+    TrajectoryMetadata {
+        resolution: Some(256),
+        voxel_size: Some(0.0071234567890123),
+        first_input: Some("/données/Tänzer ü/φrame_0 😀.obj".into()),
+        track: Some(serde_json::json!({"centers":13,"rho_p":0.07,"affinity":"max","nested":{"list":[1,2,3],"name":"ß"}})),
+        removed: Some(vec![4, 9, 17]),
+        other: [("voltrack.note".to_string(), serde_json::json!("quotes \" and back\\slash\nand a second line"))].into(),
+        ..Default::default()
+    }
 }
 
 #[test]
@@ -82,7 +81,7 @@ fn trajectories_round_trip_exactly_after_f32_rounding() {
     for (frames, centers) in [(1, 1), (7, 13), (40, 3), (2, 600)] {
         let path = dir.join(&format!("c_{frames}_{centers}.exr"));
         let t = trajectories(frames, centers);
-        write_trajectories_exr(&path, &t, &attributes()).unwrap();
+        write_trajectories_exr(&path, &t, &metadata()).unwrap();
         let (back, meta) = read_trajectories_exr(&path).unwrap();
         assert_eq!((back.frames, back.centers, back.positions.len()), (frames, centers, frames * centers));
         for f in 0..frames {
@@ -93,38 +92,42 @@ fn trajectories_round_trip_exactly_after_f32_rounding() {
                 }
             }
         }
-        assert_eq!(value(&meta, "voltrack.resolution"), Some("256"));
-        assert_eq!(value(&meta, "version"), Some(env!("CARGO_PKG_VERSION")));
+        assert_eq!(meta.resolution, Some(256));
+        assert_eq!(meta.version.as_deref(), Some(env!("CARGO_PKG_VERSION")));
     }
 }
 
 #[test]
-fn attributes_round_trip() {
+fn metadata_round_trips() {
     let dir = Scratch::new("exr", "attributes");
     let path = dir.join("c.exr");
-    write_trajectories_exr(&path, &trajectories(3, 4), &attributes()).unwrap();
+    write_trajectories_exr(&path, &trajectories(3, 4), &metadata()).unwrap();
     let (_, meta) = read_trajectories_exr(&path).unwrap();
-    // Non-ASCII text (Latin-1 and beyond, including outside the BMP) survives
-    // EXR's Latin-1 text attributes.
-    assert_eq!(value(&meta, "voltrack.first_input"), Some("/données/Tänzer ü/φrame_0 😀.obj"));
-    assert_eq!(value(&meta, "voltrack.note"), Some("quotes \" and back\\slash\nand a second line"));
-    // JSON values come back as equivalent JSON.
-    for key in ["voltrack.track", "voltrack.removed"] {
-        let written: serde_json::Value = serde_json::from_str(value(&attributes(), key).unwrap()).unwrap();
-        let read: serde_json::Value = serde_json::from_str(value(&meta, key).unwrap()).unwrap();
-        assert_eq!(read, written, "{key}");
-    }
-    // Every attribute written is read, plus the version, and nothing else.
-    let mut keys: Vec<&str> = meta.iter().map(|(k, _)| k.as_str()).collect();
-    keys.sort();
-    let mut want: Vec<String> = attributes().into_iter().map(|(k, _)| k).chain(["version".to_string()]).collect();
-    want.sort();
-    assert_eq!(keys, want);
-    // No attributes at all is fine too.
+    // Every field comes back as written, non-ASCII text (Latin-1 and beyond,
+    // including outside the BMP) through EXR's Latin-1 text attributes, the
+    // voxel size to the last digit, unknown keys kept; plus the version.
+    assert_eq!(meta, TrajectoryMetadata { version: Some(env!("CARGO_PKG_VERSION").into()), ..metadata() });
+    // No metadata at all is fine too.
     let bare = dir.join("bare.exr");
-    write_trajectories_exr(&bare, &trajectories(2, 2), &[]).unwrap();
+    write_trajectories_exr(&bare, &trajectories(2, 2), &Default::default()).unwrap();
     let (_, meta) = read_trajectories_exr(&bare).unwrap();
-    assert_eq!(meta, vec![("version".to_string(), env!("CARGO_PKG_VERSION").to_string())]);
+    assert_eq!(meta, TrajectoryMetadata { version: Some(env!("CARGO_PKG_VERSION").into()), ..Default::default() });
+}
+
+/// The attribute's text is what the first versions wrote (numbers as text,
+/// parameters and lists as JSON), so files stay readable both ways.
+#[test]
+fn metadata_keeps_its_format_on_disk() {
+    let text = serde_json::to_string(&metadata()).unwrap();
+    assert!(text.contains(r#""voltrack.resolution":"256""#), "{text}");
+    assert!(text.contains(r#""voltrack.voxel_size":"7.1234567890123e-3""#), "{text}");
+    assert!(text.contains(r#""voltrack.removed":[4,9,17]"#), "{text}");
+    let old = r#"{"version":"0.1.0","voltrack.frames":"8","voltrack.grid":{"dims":[5,6,7],"origin":[0.5,1.0,-2.0],"voxel_size":0.25},"voltrack.resolution":"64","voltrack.track":{"absolute_units":true},"voltrack.voxel_size":"2.5e-1"}"#;
+    let meta: TrajectoryMetadata = serde_json::from_str(old).unwrap();
+    assert_eq!((meta.frames, meta.resolution, meta.voxel_size), (Some(8), Some(64), Some(0.25)));
+    assert_eq!(meta.grid.unwrap().dims, [5, 6, 7]);
+    assert!(meta.absolute_units());
+    assert!(serde_json::from_str::<TrajectoryMetadata>(r#"{"voltrack.resolution":"many"}"#).is_err());
 }
 
 #[test]
@@ -139,7 +142,7 @@ fn output_is_byte_identical_across_runs_and_thread_counts() {
         let exr = dir.join(&format!("{name}/c.exr"));
         let vat = dir.join(&format!("{name}/vat.exr"));
         pool.install(|| {
-            write_trajectories_exr(&exr, &t, &attributes()).unwrap();
+            write_trajectories_exr(&exr, &t, &metadata()).unwrap();
             write_vat_exr(&vat, &frames).unwrap();
         });
         let json = std::fs::read(vat.with_extension("json")).unwrap();
@@ -166,7 +169,7 @@ fn unreadable_files_give_errors_that_name_them() {
         ("magic_only.exr", vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0]),
         ("truncated.exr", {
             let good = dir.join("good.exr");
-            write_trajectories_exr(&good, &trajectories(9, 40), &attributes()).unwrap();
+            write_trajectories_exr(&good, &trajectories(9, 40), &metadata()).unwrap();
             let bytes = std::fs::read(&good).unwrap();
             bytes[..bytes.len() / 2].to_vec()
         }),
@@ -218,7 +221,7 @@ fn vertex_animation_texture_with_json_sidecar() {
         assert_eq!(max[k], hi, "axis {k}");
     }
     // The same description is in the EXR header.
-    let vat: serde_json::Value = serde_json::from_str(value(&meta, "vat").unwrap()).unwrap();
+    let vat = meta.other["vat"].clone();
     assert_eq!(vat, info);
 
     // Frames of different lengths, no vertices, or a name that would collide
@@ -241,19 +244,19 @@ fn failed_writes_leave_nothing_behind() {
     let frames = animated(&t);
     // Into a directory that does not exist.
     let nowhere = dir.join("no/such/dir/c.exr");
-    let err = write_trajectories_exr(&nowhere, &t, &[]).unwrap_err().to_string();
+    let err = write_trajectories_exr(&nowhere, &t, &Default::default()).unwrap_err().to_string();
     assert!(err.contains("c.exr"), "{err}");
     assert!(write_vat_exr(&dir.join("missing/anim.exr"), &frames).is_err());
     // Onto an existing directory: the temporary file is written, the rename fails.
     let occupied = dir.join("occupied.exr");
     std::fs::create_dir_all(occupied.join("inside")).unwrap();
-    assert!(write_trajectories_exr(&occupied, &t, &[]).is_err());
+    assert!(write_trajectories_exr(&occupied, &t, &Default::default()).is_err());
     // Nothing to write: 0 centers or 0 frames.
-    assert!(write_trajectories_exr(&dir.join("empty.exr"), &Trajectories::new(3, 0), &[]).is_err());
-    assert!(write_trajectories_exr(&dir.join("empty.exr"), &Trajectories::new(0, 3), &[]).is_err());
+    assert!(write_trajectories_exr(&dir.join("empty.exr"), &Trajectories::new(3, 0), &Default::default()).is_err());
+    assert!(write_trajectories_exr(&dir.join("empty.exr"), &Trajectories::new(0, 3), &Default::default()).is_err());
     // Below the parent of `nowhere`: a file where a directory should be.
     std::fs::write(dir.join("plain"), b"x").unwrap();
-    assert!(write_trajectories_exr(&dir.join("plain/c.exr"), &t, &[]).is_err());
+    assert!(write_trajectories_exr(&dir.join("plain/c.exr"), &t, &Default::default()).is_err());
     let left = files_under(&dir.0);
     assert!(left.iter().all(|n| !n.contains(".partial")), "{left:?}");
     // (The empty directory `occupied.exr/inside` holds no file.)
@@ -261,19 +264,19 @@ fn failed_writes_leave_nothing_behind() {
     // An existing file is replaced whole by a successful write.
     let target = dir.join("replace.exr");
     std::fs::write(&target, vec![0u8; 1 << 16]).unwrap();
-    write_trajectories_exr(&target, &t, &[]).unwrap();
+    write_trajectories_exr(&target, &t, &Default::default()).unwrap();
     assert_eq!(read_trajectories_exr(&target).unwrap().0.frames, 4);
 }
 
 #[test]
-fn numeric_attribute_values_round_trip_as_written() {
+fn numbers_round_trip_to_the_last_digit() {
     let dir = Scratch::new("exr", "numeric");
     let path = dir.join("c.exr");
-    let attrs: Vec<(String, String)> =
-        [("voltrack.voxel_size", "3e30"), ("voltrack.scale", "1e3"), ("voltrack.small", "5.6e-5")].iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
-    write_trajectories_exr(&path, &trajectories(2, 3), &attrs).unwrap();
-    let (_, meta) = read_trajectories_exr(&path).unwrap();
-    for (k, v) in &attrs {
-        assert_eq!(value(&meta, k), Some(v.as_str()), "{k}");
+    for voxel_size in [3e30, 1e3, 5.6e-5, 0.1 + 0.2, f64::MIN_POSITIVE] {
+        let meta = TrajectoryMetadata { voxel_size: Some(voxel_size), resolution: Some(1596), frames: Some(9000), ..Default::default() };
+        write_trajectories_exr(&path, &trajectories(2, 3), &meta).unwrap();
+        let (_, back) = read_trajectories_exr(&path).unwrap();
+        assert_eq!(back.voxel_size.map(f64::to_bits), Some(voxel_size.to_bits()));
+        assert_eq!((back.resolution, back.frames), (Some(1596), Some(9000)));
     }
 }

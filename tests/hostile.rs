@@ -638,7 +638,7 @@ fn exr_trajectories_truncated_or_mangled() {
     let dir = Scratch::new("hostile", "exr");
     let traj = voltrack::model::Trajectories::from_frames(vec![vec![Point3::new(1.0, 2.0, 3.0); 5]; 3]);
     let path = dir.join("c.exr");
-    voltrack::export::exr::write_trajectories_exr(&path, &traj, &[]).unwrap();
+    voltrack::export::exr::write_trajectories_exr(&path, &traj, &Default::default()).unwrap();
     let bytes = std::fs::read(&path).unwrap();
     let bad = dir.join("bad.exr");
     let mut rng = Rng(42);

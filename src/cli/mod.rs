@@ -181,8 +181,8 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
         }
         None => (tracked.trajectories.clone(), None, None),
     };
-    let attrs = pipeline::trajectory_attributes(&seq, &voxel, &params, refine_params.as_ref().zip(refined.as_ref()).map(|(p, r)| (p, r.removed.as_slice())));
-    voltrack::export::exr::write_trajectories_exr(&output, &traj, &attrs)?;
+    let meta = pipeline::trajectory_metadata(&seq, &voxel, &params, refine_params.as_ref().zip(refined.as_ref()).map(|(p, r)| (p, r.removed.as_slice())));
+    voltrack::export::exr::write_trajectories_exr(&output, &traj, &meta)?;
     bars.finish();
     let after = refined.as_ref().map(|_| pipeline::measure(&traj, &seq));
     let coverage = pipeline::check_coverage(&traj, &seq, &CoverageParams::default())?;
@@ -256,7 +256,7 @@ fn lost_part_warnings(coverage: &Coverage, fit: Option<&FitOutliers>) -> Vec<Str
     out
 }
 
-type Tracked = (voltrack::model::Trajectories, Vec<(String, String)>);
+type Tracked = (voltrack::model::Trajectories, voltrack::model::TrajectoryMetadata);
 
 /// Reads trajectories written by `voltrack track`.
 fn read_tracked(centers: &Path) -> Result<Tracked> {
@@ -265,11 +265,11 @@ fn read_tracked(centers: &Path) -> Result<Tracked> {
 
 /// Re-voxelises the input of trajectories at their stored resolution.
 fn load_tracked_input(centers: &Path, tracked: &Tracked, input: &[PathBuf], bars: &bars::Bars) -> Result<voltrack::voxel::VoxelSequence> {
-    let (traj, attrs) = tracked;
-    let resolution = pipeline::resolution_of(attrs, centers)?;
+    let (traj, meta) = tracked;
+    let resolution = pipeline::resolution_of(meta, centers)?;
     let voxel = voltrack::voxel::VoxelParams { resolution, ..Default::default() };
     let (_, seq) = load(input, &voxel, bars)?;
-    pipeline::check_grid(attrs, &seq.grid, traj, &seq, centers)?;
+    pipeline::check_grid(meta, &seq.grid, traj, &seq, centers)?;
     Ok(seq)
 }
 
@@ -281,18 +281,18 @@ fn plan_reading(inputs: &[PathBuf]) -> Result<voltrack::pipeline::OutputPlan> {
 
 fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: RefineArgs, json: bool) -> Result<()> {
     let tracked = read_tracked(&centers)?;
-    let params = args.params(pipeline::absolute_units_of(&tracked.1));
+    let params = args.params(tracked.1.absolute_units());
     params.validate(tracked.0.centers)?;
     plan_reading(&input)?.reading_file(&centers).file(&output, "the output").check()?;
     let bars = bars::Bars::new();
     let seq = load_tracked_input(&centers, &tracked, &input, &bars)?;
-    let (traj, attrs) = tracked;
+    let (traj, meta) = tracked;
     let before = pipeline::measure(&traj, &seq);
     let res = voltrack::refine::refine(&traj, &seq, &params, bars.progress())?;
     let after = pipeline::measure(&res.trajectories, &seq);
-    let mut out_attrs = attrs;
-    out_attrs.extend(pipeline::refine_attributes(&params, &res.removed));
-    voltrack::export::exr::write_trajectories_exr(&output, &res.trajectories, &out_attrs)?;
+    let mut meta = meta;
+    pipeline::record_refinement(&mut meta, &params, &res.removed);
+    voltrack::export::exr::write_trajectories_exr(&output, &res.trajectories, &meta)?;
     bars.finish();
     if json {
         return print_json(&serde_json::json!({
@@ -444,8 +444,8 @@ fn convert(args: ConvertArgs) -> Result<()> {
         OutputFormat::Exr => {
             let traj = conv.refined.as_ref().map_or(&conv.tracked.trajectories, |r| &r.trajectories);
             let removed = conv.refined.as_ref().map(|r| r.removed.clone()).unwrap_or_default();
-            let attrs = pipeline::trajectory_attributes(&conv.sequence, &voxel, &track, refine.as_ref().map(|r| (r, removed.as_slice())));
-            voltrack::export::exr::write_trajectories_exr(out, traj, &attrs)?;
+            let meta = pipeline::trajectory_metadata(&conv.sequence, &voxel, &track, refine.as_ref().map(|r| (r, removed.as_slice())));
+            voltrack::export::exr::write_trajectories_exr(out, traj, &meta)?;
             vec![out.clone()]
         }
         OutputFormat::Vat => {

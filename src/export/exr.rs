@@ -10,18 +10,22 @@
 use crate::files::write_atomic;
 use crate::error::{Error, Result};
 use crate::math::Point3;
-use crate::model::{Trajectories, METADATA_ATTRIBUTE};
+use crate::model::{Trajectories, TrajectoryMetadata, METADATA_ATTRIBUTE};
 use exr::meta::attribute::{AttributeValue, Text};
 use exr::prelude::*;
 use std::io::Write as _;
 use std::path::Path;
 
 
-/// Writes `traj` (width = centers, height = frames) with `attributes` (and
-/// the tool version) in the header.
-pub fn write_trajectories_exr(path: &Path, traj: &Trajectories, attributes: &[(String, String)]) -> Result<()> {
+/// Writes `traj` (width = centers, height = frames) with `metadata` (its
+/// version set to this tool's) in the header.
+pub fn write_trajectories_exr(path: &Path, traj: &Trajectories, metadata: &TrajectoryMetadata) -> Result<()> {
     let pixel = |x: usize, y: usize| traj.get(y, x);
-    let bytes = encode_points_exr(path, "trajectories", traj.centers, traj.frames, pixel, attributes)?;
+    let meta = match serde_json::to_value(metadata).map_err(|e| Error::write(path, e))? {
+        serde_json::Value::Object(map) => map,
+        _ => unreachable!("a struct serialises to an object"),
+    };
+    let bytes = encode_points_exr(path, "trajectories", traj.centers, traj.frames, pixel, meta)?;
     write_atomic(path, |w| w.write_all(&bytes))
 }
 
@@ -32,7 +36,7 @@ pub(super) fn encode_points_exr(
     width: usize,
     height: usize,
     pixel: impl Fn(usize, usize) -> Point3 + Sync,
-    attributes: &[(String, String)],
+    mut meta: serde_json::Map<String, serde_json::Value>,
 ) -> Result<Vec<u8>> {
     if width == 0 || height == 0 {
         return Err(Error::InvalidInput(format!("nothing to write to {}: {width} × {height} points", path.display())));
@@ -40,16 +44,8 @@ pub(super) fn encode_points_exr(
     if width >= i32::MAX as usize / 2 || height >= i32::MAX as usize / 2 {
         return Err(Error::InvalidInput(format!("{width} × {height} is beyond what OpenEXR can store")));
     }
-    let mut meta = serde_json::Map::new();
-    for (k, v) in attributes {
-        // JSON objects and lists stay structured; everything else is kept as
-        // written (numbers re-printed by serde_json could change their text).
-        let structured = v.starts_with('{') || v.starts_with('[');
-        let value = structured.then(|| serde_json::from_str(v).ok()).flatten().unwrap_or_else(|| serde_json::Value::String(v.clone()));
-        meta.insert(k.clone(), value);
-    }
-    // Last, so attributes carried over from an older file (`voltrack refine`
-    // passes its input's on) never claim that file's version.
+    // Metadata carried over from an older file (`voltrack refine` passes its
+    // input's on) never claims that file's version.
     meta.insert("version".into(), env!("CARGO_PKG_VERSION").into());
     let json = ascii_json(&serde_json::Value::Object(meta).to_string());
     let mut layer_attributes = LayerAttributes::named(name);

@@ -243,10 +243,10 @@ pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Resul
         bounds_min: [bounds.min.x, bounds.min.y, bounds.min.z],
         bounds_max: [bounds.max.x, bounds.max.y, bounds.max.z],
     };
-    let json = serde_json::to_string(&info).map_err(|e| Error::write(&sidecar, e))?;
-    let attrs = vec![("vat".to_string(), json)];
+    let mut attrs = serde_json::Map::new();
+    attrs.insert("vat".into(), serde_json::to_value(&info).map_err(|e| Error::write(&sidecar, e))?);
     let pixel = |x: usize, y: usize| layout.vertex_at(x, y).map_or_else(Point3::origin, |(v, f)| frames[f][v]);
-    let texture = encode_points_exr(path, "vertex animation", layout.width, layout.height, pixel, &attrs)?;
+    let texture = encode_points_exr(path, "vertex animation", layout.width, layout.height, pixel, attrs)?;
     let glb = mesh_bytes(mesh, &layout, options, &info.texture, &file_name(&sidecar))?;
     let text = serde_json::to_string_pretty(&info).map_err(|e| Error::write(&sidecar, e))?;
     let bytes = [texture.len() as u64, glb.len() as u64, text.len() as u64];

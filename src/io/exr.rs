@@ -2,15 +2,15 @@
 
 use crate::error::{Error, Result};
 use crate::math::Point3;
-use crate::model::Trajectories;
+use crate::model::{Trajectories, TrajectoryMetadata, METADATA_ATTRIBUTE};
 use exr::meta::attribute::AttributeValue;
 use exr::prelude::*;
 use std::path::Path;
 
 /// Reads trajectories written by `voltrack track` (or any RGB float EXR:
 /// width = centers, height = frames) and the metadata of its `voltrack`
-/// attribute as (key, value) pairs, JSON values as JSON text.
-pub fn read_trajectories_exr(path: &Path) -> Result<(Trajectories, Vec<(String, String)>)> {
+/// attribute (empty when it has none).
+pub fn read_trajectories_exr(path: &Path) -> Result<(Trajectories, TrajectoryMetadata)> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let image = read()
         .no_deep_data()
@@ -36,24 +36,15 @@ pub fn read_trajectories_exr(path: &Path) -> Result<(Trajectories, Vec<(String, 
         return Err(Error::parse(path, None, format!("center {} of frame {} is not finite", i % width, i / width)));
     }
     let traj = Trajectories { frames: height, centers: width, positions: positions.clone() };
-    let mut attributes = Vec::new();
+    let mut metadata = TrajectoryMetadata::default();
     let meta = layer.attributes.other.iter().chain(&image.attributes.other);
     for (name, value) in meta {
-        if name.to_string() != crate::model::METADATA_ATTRIBUTE {
+        if name.to_string() != METADATA_ATTRIBUTE {
             continue;
         }
         let AttributeValue::Text(text) = value else { continue };
-        let json: serde_json::Value = serde_json::from_str(&text.to_string())
-            .map_err(|e| Error::parse(path, None, format!("the voltrack attribute is not JSON: {e}")))?;
-        if let serde_json::Value::Object(map) = json {
-            for (k, v) in map {
-                let v = match v {
-                    serde_json::Value::String(s) => s,
-                    other => other.to_string(),
-                };
-                attributes.push((k, v));
-            }
-        }
+        metadata = serde_json::from_str(&text.to_string())
+            .map_err(|e| Error::parse(path, None, format!("the voltrack attribute is not voltrack's metadata: {e}")))?;
     }
-    Ok((traj, attributes))
+    Ok((traj, metadata))
 }

@@ -4,6 +4,7 @@
 
 pub mod frames;
 pub mod grid;
+pub mod metadata;
 pub mod mesh;
 pub mod rigid;
 pub(crate) mod rng;
@@ -12,15 +13,13 @@ pub mod trajectories;
 pub use frames::{Frame, FrameSource};
 pub use grid::{GridSpec, Occupancy, GRID_MARGIN, MAX_RESOLUTION};
 pub use mesh::{Aabb, TriangleMesh};
+pub use metadata::{TrajectoryMetadata, METADATA_ATTRIBUTE};
 pub use rigid::{fit_rigid, rotation_from_covariance, Rigid, RigidFits};
 pub use trajectories::Trajectories;
 
 use crate::error::{Error, Result};
 
-/// Name of the OpenEXR attribute holding voltrack's metadata (how
-/// trajectories were made) as a JSON object: written by `export::exr`, read
-/// by `io::exr`.
-pub const METADATA_ATTRIBUTE: &str = "voltrack";
+
 
 /// What the writers call the animated object (glTF node, mesh and animation,
 /// OBJ object) when no name is given.

@@ -10,7 +10,8 @@ use crate::metrics::{fit_outliers, fit_to_input, Coverage, FitOutliers, Sequence
 use crate::params::{ConformParams, CoverageParams, DeformParams, RefineParams, TrackParams};
 use crate::progress::{Progress, Stage};
 use crate::refine::{global_affinity, refine, RefineResult, SequenceCells};
-use crate::model::{GridSpec, Trajectories};
+use crate::model::metadata::GridRecord;
+use crate::model::{GridSpec, TrajectoryMetadata, Trajectories};
 use crate::track::{track_with_checkpoints, Checkpointing, TrackResult};
 use crate::voxel::{voxelize_sequence, VoxelParams, VoxelSequence};
 
@@ -52,56 +53,38 @@ pub fn measure_with_counts(traj: &Trajectories, counts: &[Vec<u32>]) -> Quality 
     Quality { pcac: crate::metrics::pcac(traj), dfu, dfu_per_frame, irregularity: crate::metrics::irregularity(traj) }
 }
 
-/// Header attributes recording how trajectories were made.
-pub fn trajectory_attributes(seq: &VoxelSequence, voxel: &VoxelParams, track: &TrackParams, refine: Option<(&RefineParams, &[usize])>) -> Vec<(String, String)> {
-    let g = &seq.grid;
-    let json = |v: serde_json::Value| v.to_string();
-    let mut attrs = vec![
-        ("voltrack.resolution".into(), voxel.resolution.to_string()),
-        ("voltrack.voxel_size".into(), format!("{:e}", g.voxel_size)),
-        ("voltrack.grid".into(), json(serde_json::json!({"dims": g.dims, "origin": g.origin.coords.as_slice(), "voxel_size": g.voxel_size}))),
-        ("voltrack.frames".into(), seq.frames.len().to_string()),
-        ("voltrack.track".into(), serde_json::to_string(track).unwrap_or_default()),
-        ("voltrack.first_input".into(), seq.names[0].clone()),
-    ];
+/// The metadata recording how trajectories were made, for their EXR file.
+pub fn trajectory_metadata(seq: &VoxelSequence, voxel: &VoxelParams, track: &TrackParams, refine: Option<(&RefineParams, &[usize])>) -> TrajectoryMetadata {
+    let mut meta = TrajectoryMetadata {
+        resolution: Some(voxel.resolution),
+        voxel_size: Some(seq.grid.voxel_size),
+        grid: Some(GridRecord::from(&seq.grid)),
+        frames: Some(seq.frames.len()),
+        track: serde_json::to_value(track).ok(),
+        first_input: Some(seq.names[0].clone()),
+        ..Default::default()
+    };
     if let Some((r, removed)) = refine {
-        attrs.extend(refine_attributes(r, removed));
+        record_refinement(&mut meta, r, removed);
     }
-    attrs
+    meta
 }
 
-/// Header attributes recording a refinement: its parameters and the original
-/// indices of the removed centers.
-pub fn refine_attributes(params: &RefineParams, removed: &[usize]) -> [(String, String); 2] {
-    [
-        ("voltrack.refine".into(), serde_json::to_string(params).unwrap_or_default()),
-        ("voltrack.removed".into(), serde_json::json!(removed).to_string()),
-    ]
+/// Records a refinement in `meta`: its parameters and the original indices
+/// of the removed centers (replacing an earlier refinement's).
+pub fn record_refinement(meta: &mut TrajectoryMetadata, params: &RefineParams, removed: &[usize]) {
+    meta.refine = serde_json::to_value(params).ok();
+    meta.removed = Some(removed.to_vec());
 }
 
-/// Whether trajectories were tracked with lengths in the input's units, from
-/// their `voltrack.track` attribute (false when absent): refining them later
-/// takes its lengths the same way.
-pub fn absolute_units_of(attrs: &[(String, String)]) -> bool {
-    attrs
-        .iter()
-        .find(|(k, _)| k == "voltrack.track")
-        .and_then(|(_, v)| serde_json::from_str::<serde_json::Value>(v).ok())
-        .and_then(|track| track.get("absolute_units")?.as_bool())
-        .unwrap_or(false)
-}
-
-/// The resolution trajectories were tracked at, from their attributes.
-pub fn resolution_of(attrs: &[(String, String)], path: &Path) -> Result<usize> {
-    attrs
-        .iter()
-        .find(|(k, _)| k == "voltrack.resolution")
-        .and_then(|(_, v)| v.parse().ok())
+/// The resolution trajectories were tracked at, from their metadata.
+pub fn resolution_of(meta: &TrajectoryMetadata, path: &Path) -> Result<usize> {
+    meta.resolution
         .ok_or_else(|| Error::parse(path, None, "no voltrack.resolution attribute: not written by voltrack track; give the resolution it was tracked at"))
 }
 
 /// Checks that re-voxelised input lies on the grid the trajectories were made on.
-pub fn check_grid(attrs: &[(String, String)], grid: &GridSpec, traj: &Trajectories, seq: &VoxelSequence, path: &Path) -> Result<()> {
+pub fn check_grid(meta: &TrajectoryMetadata, grid: &GridSpec, traj: &Trajectories, seq: &VoxelSequence, path: &Path) -> Result<()> {
     if traj.frames != seq.frames.len() {
         return Err(Error::InvalidInput(format!(
             "{} has {} frames but the input has {}",
@@ -110,8 +93,7 @@ pub fn check_grid(attrs: &[(String, String)], grid: &GridSpec, traj: &Trajectori
             seq.frames.len()
         )));
     }
-    if let Some((_, v)) = attrs.iter().find(|(k, _)| k == "voltrack.voxel_size") {
-        let stored: Real = v.parse().unwrap_or(Real::NAN);
+    if let Some(stored) = meta.voxel_size {
         if (stored - grid.voxel_size).abs() > 1e-9 * grid.voxel_size.max(stored.abs()) {
             return Err(Error::InvalidInput(format!(
                 "{} was tracked on voxels of {stored}, the input gives {}: not the same input or resolution",
