@@ -123,7 +123,7 @@ pub fn write_atomic_all(files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
 /// Checks, before any work, that `path` names a file in an existing
 /// directory and is not itself a directory; returns the directory and the
 /// file name.
-pub fn check_writable(path: &Path) -> Result<(&Path, &std::ffi::OsStr)> {
+pub(crate) fn check_writable(path: &Path) -> Result<(&Path, &std::ffi::OsStr)> {
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
@@ -141,7 +141,7 @@ pub fn check_writable(path: &Path) -> Result<(&Path, &std::ffi::OsStr)> {
 
 /// [`write_atomic_all`] for files in `dir`, which is created if needed; on
 /// failure neither the files nor a directory this call created are left.
-pub fn write_atomic_into(dir: &Path, files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
+pub(crate) fn write_atomic_into(dir: &Path, files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
     // The directories this call creates, innermost first.
     let created: Vec<&Path> = dir.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).collect();
     std::fs::create_dir_all(dir).map_err(|e| Error::write(dir, e))?;
@@ -151,7 +151,7 @@ pub fn write_atomic_into(dir: &Path, files: Vec<(&Path, Fill<'_>)>) -> Result<()
 /// Fails unless `dir` is a directory or can be made one: no file has its
 /// name and its nearest existing ancestor is a directory. For checking an
 /// output directory before a long run, as [`check_writable`] does for files.
-pub fn check_dir_creatable(dir: &Path) -> Result<()> {
+pub(crate) fn check_dir_creatable(dir: &Path) -> Result<()> {
     if dir.exists() && !dir.is_dir() {
         return Err(Error::write(dir, "a file of this name exists"));
     }

@@ -140,7 +140,7 @@ impl TrackParams {
 
     /// ρ_p in the input's units, for a frame 0 occupying `volume` (in the
     /// input's units cubed) and lengths scaled by `scale`.
-    pub fn rho_p_in_units(&self, scale: Real, volume: Real) -> Real {
+    pub(crate) fn rho_p_in_units(&self, scale: Real, volume: Real) -> Real {
         match self.rho_p {
             Some(rho) => rho * scale,
             None => RHO_P_SPACINGS * (volume / self.centers.max(1) as Real).cbrt(),
@@ -215,7 +215,7 @@ impl Default for RefineParams {
 
 impl RefineParams {
     /// Centers removed in all for `n` centers.
-    pub fn total_removed(&self, n: usize) -> usize {
+    pub(crate) fn total_removed(&self, n: usize) -> usize {
         self.remove.unwrap_or((n / 100).max(1))
     }
 

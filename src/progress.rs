@@ -64,7 +64,7 @@ impl<'a> Progress<'a> {
 }
 
 /// Counts completed items across rayon threads and reports each one.
-pub struct Counter<'a> {
+pub(crate) struct Counter<'a> {
     progress: Progress<'a>,
     stage: Stage,
     total: usize,

@@ -123,8 +123,8 @@ fn absolute_units_reach_every_stage_with_lengths() {
         ok(&dir, &args);
         ok(&dir, &["refine", "c.exr", "--input", &input, "-o", "r.exr"]);
         let (_, attrs) = voltrack::io::exr::read_trajectories_exr(&dir.join("r.exr")).unwrap();
-        let refine = &attrs.iter().find(|(k, _)| k == "voltrack.refine").expect("refine attribute").1;
-        assert!(refine.contains(&format!("\"absolute_units\":{absolute}")), "{refine}");
+        let refine = attrs.refine.expect("refine attribute");
+        assert_eq!(refine["absolute_units"], serde_json::json!(absolute), "{refine}");
     }
 }
 
@@ -259,12 +259,12 @@ fn convert_to_trajectories_exr() {
     let (traj, attrs) = voltrack::io::exr::read_trajectories_exr(&dir.join("c.exr")).unwrap();
     assert_eq!(traj.frames, FRAMES);
     // Refinement removes at least one of the 120 centers and records which.
-    let removed: Vec<usize> = serde_json::from_str(&attrs.iter().find(|(k, _)| k == "voltrack.removed").expect("voltrack.removed").1).unwrap();
+    let removed: Vec<usize> = attrs.removed.expect("voltrack.removed");
     assert!(!removed.is_empty() && removed.iter().all(|&i| i < 120));
     assert_eq!(traj.centers, 120 - removed.len());
     let (unrefined, attrs) = voltrack::io::exr::read_trajectories_exr(&dir.join("c.data")).unwrap();
     assert_eq!((unrefined.frames, unrefined.centers), (FRAMES, 120));
-    assert!(attrs.iter().any(|(k, v)| k == "voltrack.resolution" && v == "48"));
+    assert_eq!(attrs.resolution, Some(48));
 }
 
 #[test]
@@ -368,7 +368,7 @@ fn track_metrics_and_refine() {
     }
     let (traj, attrs) = voltrack::io::exr::read_trajectories_exr(&dir.join("r.exr")).unwrap();
     assert_eq!((traj.frames, traj.centers), (FRAMES, 117));
-    let stored: Vec<usize> = serde_json::from_str(&attrs.iter().find(|(k, _)| k == "voltrack.removed").unwrap().1).unwrap();
+    let stored: Vec<usize> = attrs.removed.unwrap();
     assert_eq!(stored, removed);
     // The refined file is measurable in turn.
     let again = json(&ok(&dir, &["metrics", "r.exr", "--input", &input, "--json"]));

@@ -85,7 +85,7 @@ fn typical_spacing(tree: &ImmutableKdTree<Real, 3>, points: &[[Real; 3]]) -> Rea
 /// Why anchor: the plain fit carries the neighbours' weighted centroid, not
 /// the center, so wherever a neighbourhood bends (a limb at a joint) vertices
 /// near the center would miss its tracked position by the bend's sagitta.
-pub fn center_motions(traj: &Trajectories, omega: &SparseAffinity) -> Vec<Vec<Rigid>> {
+pub(crate) fn center_motions(traj: &Trajectories, omega: &SparseAffinity) -> Vec<Vec<Rigid>> {
     (0..traj.frames)
         .map(|f| {
             let mut motions = omega.fit_frames(traj, 0, f);
@@ -119,7 +119,7 @@ pub fn deform(mesh: &TriangleMesh, traj: &Trajectories, omega: &SparseAffinity, 
 }
 
 /// Every vertex moved by the blend of its centers' motions.
-pub fn move_vertices(positions: &[Point3], bindings: &[Binding], motions: &[Rigid], blending: Blending) -> Vec<Point3> {
+pub(crate) fn move_vertices(positions: &[Point3], bindings: &[Binding], motions: &[Rigid], blending: Blending) -> Vec<Point3> {
     positions
         .par_iter()
         .zip(bindings)

@@ -141,7 +141,7 @@ impl MorphBasis {
     /// `vectors(g)` (g ≥ 1) must return `vertices` entries; it is called once
     /// per frame, a few frames at a time in parallel. Reports the frames done
     /// under [`Stage::Export`] and stops between blocks when asked to.
-    pub fn combine<V>(&self, frames: usize, vertices: usize, vectors: V, progress: Progress) -> Result<Vec<Vec<[f32; 3]>>>
+    pub(crate) fn combine<V>(&self, frames: usize, vertices: usize, vectors: V, progress: Progress) -> Result<Vec<Vec<[f32; 3]>>>
     where
         V: Fn(usize) -> Vec<Vector3> + Sync,
     {

@@ -17,7 +17,7 @@ pub fn write_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3]
 /// importer names the object), with one normal per vertex (`vn`, referenced
 /// by the vertex's own index) when `normals` is given, so importers shade it
 /// smooth. The name should pass [`check_name`](crate::model::check_name).
-pub fn write_named_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3], name: &str, normals: Option<&[Vector3]>) -> std::io::Result<()> {
+pub(crate) fn write_named_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3], name: &str, normals: Option<&[Vector3]>) -> std::io::Result<()> {
     write_object(out, mesh, positions, Some(name), normals)
 }
 

@@ -12,8 +12,9 @@ pub use binvox::read_binvox;
 pub use gltf::read_gltf;
 pub use obj::read_obj;
 pub use ply::read_ply;
-pub use polygon::triangulate_polygon;
-pub use sequence::{discover_frames, glob_match, is_supported, sequence_name, sort_natural, would_discover, EXTENSIONS};
+pub(crate) use polygon::triangulate_polygon;
+pub use sequence::{discover_frames, sequence_name};
+pub(crate) use sequence::{is_supported, would_discover};
 
 use crate::error::{Error, Result};
 use crate::model::mesh::TriangleMesh;

@@ -17,7 +17,7 @@ const MAX_TESTS: u64 = 1 << 26;
 /// on one line or one point) is fanned, its triangles being degenerate
 /// whatever the choice. A polygon that is not simple gets triangles anyway,
 /// from the corners left when no ear remains.
-pub fn triangulate_polygon(positions: &[Point3], corners: &[u32], out: &mut Vec<[u32; 3]>) {
+pub(crate) fn triangulate_polygon(positions: &[Point3], corners: &[u32], out: &mut Vec<[u32; 3]>) {
     let n = corners.len();
     if n < 3 {
         return;

@@ -4,9 +4,9 @@ use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
 
 /// File extensions voltrack reads, lower case.
-pub const EXTENSIONS: [&str; 5] = ["obj", "ply", "gltf", "glb", "binvox"];
+pub(crate) const EXTENSIONS: [&str; 5] = ["obj", "ply", "gltf", "glb", "binvox"];
 
-pub fn is_supported(path: &Path) -> bool {
+pub(crate) fn is_supported(path: &Path) -> bool {
     path.extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
@@ -55,7 +55,7 @@ pub fn discover_frames(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
 /// Whether [`discover_frames`] on `input` (a directory or a pattern) would
 /// take `file` (a resolved path, existing or not) as a frame: so that an
 /// output is never written where the next run on the same input reads it.
-pub fn would_discover(input: &Path, file: &Path) -> bool {
+pub(crate) fn would_discover(input: &Path, file: &Path) -> bool {
     let (Some(parent), Some(name)) = (file.parent(), file.file_name().and_then(|n| n.to_str())) else {
         return false;
     };
@@ -188,7 +188,7 @@ fn list_dir(dir: &Path, files: bool, keep: impl Fn(&str) -> bool) -> Result<Vec<
 }
 
 /// `*` matches any run of characters, `?` any one character.
-pub fn glob_match(pattern: &str, name: &str) -> bool {
+pub(crate) fn glob_match(pattern: &str, name: &str) -> bool {
     let (p, n): (Vec<char>, Vec<char>) = (pattern.chars().collect(), name.chars().collect());
     let (mut pi, mut ni, mut star, mut mark) = (0, 0, None, 0);
     while ni < n.len() {
@@ -212,7 +212,7 @@ pub fn glob_match(pattern: &str, name: &str) -> bool {
 
 /// Sorts by path, component by component, with digit runs compared as
 /// numbers (of any length).
-pub fn sort_natural(paths: &mut [PathBuf]) {
+pub(crate) fn sort_natural(paths: &mut [PathBuf]) {
     paths.sort_by_cached_key(|p| p.components().map(|c| natural_key(&c.as_os_str().to_string_lossy())).collect::<Vec<_>>());
 }
 

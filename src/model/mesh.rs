@@ -63,7 +63,7 @@ impl Aabb {
 /// Per vertex, the first vertex at exactly the same position: copies a loader
 /// made along UV or normal seams map to one vertex, so the seam can be
 /// treated as the surface it is.
-pub fn weld_by_position(positions: &[Point3]) -> Vec<u32> {
+pub(crate) fn weld_by_position(positions: &[Point3]) -> Vec<u32> {
     let mut first = std::collections::HashMap::new();
     // `+ 0.0` turns −0 into +0, so both weld.
     (0..positions.len() as u32).map(|v| *first.entry(positions[v as usize].coords.map(|c| (c + 0.0).to_bits())).or_insert(v)).collect()
@@ -135,7 +135,7 @@ impl TriangleMesh {
 }
 
 /// The MIME type of an image glTF can embed (PNG or JPEG), from its first bytes.
-pub fn image_mime(bytes: &[u8]) -> Option<&'static str> {
+pub(crate) fn image_mime(bytes: &[u8]) -> Option<&'static str> {
     if bytes.starts_with(b"\x89PNG") {
         Some("image/png")
     } else if bytes.starts_with(&[0xFF, 0xD8]) {
@@ -146,7 +146,7 @@ pub fn image_mime(bytes: &[u8]) -> Option<&'static str> {
 }
 
 /// [`image_mime`] of the file at `path` (None when unreadable).
-pub fn embeddable_image(path: &Path) -> Option<&'static str> {
+pub(crate) fn embeddable_image(path: &Path) -> Option<&'static str> {
     let mut head = [0u8; 4];
     let n = std::io::Read::read(&mut std::fs::File::open(path).ok()?, &mut head).ok()?;
     image_mime(&head[..n])

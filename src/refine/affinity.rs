@@ -32,7 +32,7 @@ impl SparseAffinity {
     }
 
     /// Rigid motions of every center from frame `from` to frame `to`.
-    pub fn fit_frames(&self, traj: &Trajectories, from: usize, to: usize) -> Vec<Rigid> {
+    pub(crate) fn fit_frames(&self, traj: &Trajectories, from: usize, to: usize) -> Vec<Rigid> {
         let (a, b) = (traj.frame(from), traj.frame(to));
         (0..traj.centers).into_par_iter().map(|i| fit_rigid(a, b, self.pairs(i))).collect()
     }
@@ -41,7 +41,7 @@ impl SparseAffinity {
 /// ω_max(i, j) = exp(-σ_gp max_f ||c_i^f - c_j^f||²), pruned at μ. The
 /// maximum is at least the frame-0 distance, so a radius query in frame 0
 /// finds every candidate.
-pub fn max_distance_affinity(traj: &Trajectories, rho_gp: Real, mu: Real) -> SparseAffinity {
+pub(crate) fn max_distance_affinity(traj: &Trajectories, rho_gp: Real, mu: Real) -> SparseAffinity {
     let sigma = sigma_for(rho_gp);
     let lists = within_reach(traj.frame(0), sigma, mu)
         .into_par_iter()

@@ -629,7 +629,7 @@ fn cell_stats(coords: &[[u16; 3]], owners: &[u32], n: usize, with_moments: bool)
 
 /// Carries owners from one frame's voxels to the next's: voxels present in
 /// both keep their owner as a hint (both lists are sorted).
-pub fn carry_owners(prev_voxels: &[u32], prev_owners: &[u32], voxels: &[u32]) -> Vec<u32> {
+pub(crate) fn carry_owners(prev_voxels: &[u32], prev_owners: &[u32], voxels: &[u32]) -> Vec<u32> {
     let mut out = vec![NO_OWNER; voxels.len()];
     let mut j = 0;
     let mut last = NO_OWNER;

@@ -113,7 +113,7 @@ impl SurfaceIndex {
     }
 
     /// Squared distance from `p` to the surface (infinite without triangles).
-    pub fn distance_squared(&self, p: &Point3) -> Real {
+    pub(crate) fn distance_squared(&self, p: &Point3) -> Real {
         self.nearest_triangle(p, Real::INFINITY).map_or(Real::INFINITY, |(_, d)| d)
     }
 

@@ -136,7 +136,7 @@ impl Affinity {
 /// For each center, every center (itself included, ascending) whose Gaussian
 /// weight exp(-σ d²) at their distance in `centers` is at least μ: the only
 /// candidates of a weight that is that Gaussian times factors <= 1.
-pub fn within_reach(centers: &[Point3], sigma: Real, mu: Real) -> Vec<Vec<u32>> {
+pub(crate) fn within_reach(centers: &[Point3], sigma: Real, mu: Real) -> Vec<Vec<u32>> {
     let radius2 = -mu.ln() / sigma;
     let points: Vec<[Real; 3]> = centers.iter().map(|p| [p.x, p.y, p.z]).collect();
     let tree = ImmutableKdTree::<Real, 3>::new_from_slice(&points).expect("finite centers");

@@ -273,6 +273,6 @@ pub fn predict(motions: &[Rigid], prev: &[Point3]) -> Vec<Point3> {
 }
 
 /// Every cell's moments (None for empty cells).
-pub fn cell_moments(stats: &CellStats, grid: &GridSpec) -> Vec<Option<CellMoments>> {
+pub(crate) fn cell_moments(stats: &CellStats, grid: &GridSpec) -> Vec<Option<CellMoments>> {
     (0..stats.count.len()).map(|i| stats.moments(i, grid)).collect()
 }

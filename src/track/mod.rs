@@ -9,7 +9,8 @@ mod forward;
 pub mod lloyd;
 
 pub use checkpoint::Checkpointing;
-pub use forward::{cell_moments, predict, track, track_with_checkpoints, TrackResult};
+pub(crate) use forward::cell_moments;
+pub use forward::{predict, track, track_with_checkpoints, TrackResult};
 
 /// Where the time of one frame went, in seconds. With a damped guess the
 /// parts add up both runs, which run side by side: they can exceed `total`.

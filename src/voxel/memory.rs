@@ -55,7 +55,7 @@ impl MemoryEstimate {
 
 /// Memory the process can still get now, if known (Linux): the system's
 /// available memory, or less under an address-space limit (`ulimit -v`).
-pub fn available_memory() -> Option<f64> {
+pub(crate) fn available_memory() -> Option<f64> {
     let kib = |text: &str, key: &str| -> Option<f64> {
         let line = text.lines().find(|l| l.starts_with(key))?;
         Some(line.split_whitespace().nth(1)?.parse::<f64>().ok()? * 1024.0)

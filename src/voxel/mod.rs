@@ -4,8 +4,10 @@ mod memory;
 mod voxelize;
 mod winding;
 
-pub use voxelize::{voxelize, voxelize_detailed, Voxelization};
-pub use memory::{available_memory, MemoryEstimate};
+pub use voxelize::voxelize;
+pub(crate) use voxelize::voxelize_detailed;
+pub use memory::MemoryEstimate;
+pub(crate) use memory::available_memory;
 pub use winding::winding_number;
 mod sequence;
 pub use sequence::{voxelize_sequence, VoxelParams, VoxelSequence};

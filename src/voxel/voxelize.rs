@@ -32,7 +32,7 @@ pub fn voxelize(mesh: &TriangleMesh, grid: &GridSpec) -> Occupancy {
 
 /// [`voxelize`]'s result with how sure it is.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct Voxelization {
+pub(crate) struct Voxelization {
     pub occupancy: Occupancy,
     /// Occupied voxels that no axis vouches for: the column along every axis
     /// went through a hole, so only the fallback (the majority of all three
@@ -42,7 +42,7 @@ pub struct Voxelization {
 }
 
 /// [`voxelize`], also counting the occupied voxels no axis vouches for.
-pub fn voxelize_detailed(mesh: &TriangleMesh, grid: &GridSpec) -> Voxelization {
+pub(crate) fn voxelize_detailed(mesh: &TriangleMesh, grid: &GridSpec) -> Voxelization {
     let verts: Vec<[Real; 3]> = mesh.positions.iter().map(|p| grid.to_grid(p).into()).collect();
     // Sub-box of voxels whose centers can be inside: [lo, hi).
     let mut lo = [usize::MAX; 3];
