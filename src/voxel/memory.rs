@@ -4,12 +4,20 @@
 
 use crate::model::GridSpec;
 use crate::error::{Error, Result};
-use crate::model::mesh::TriangleMesh;
+use crate::model::mesh::{Aabb, TriangleMesh};
 
 /// Bytes held per occupied voxel of every frame through the run: its index
 /// (4), and the refinement's per-frame assignment of it to a cell (owner and
 /// two distance bounds, 12), with room for the tracker's working copy.
 const BYTES_PER_VOXEL: f64 = 24.0;
+
+/// What the memory estimate needs of a frame's mesh.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameExtent {
+    pub bounds: Aabb,
+    /// The enclosed volume (absolute signed volume).
+    pub volume: f64,
+}
 
 /// The estimate for one sequence on one grid.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -23,13 +31,19 @@ impl MemoryEstimate {
     /// signed volume, bounded by its own box of voxels); voxelising holds
     /// one byte per voxel of a frame's box on each of `threads` threads.
     pub fn of(meshes: &[&TriangleMesh], grid: &GridSpec, threads: usize) -> Self {
+        let extents: Vec<FrameExtent> = meshes.iter().map(|m| FrameExtent { bounds: m.bounding_box(), volume: m.signed_volume().abs() }).collect();
+        Self::of_frames(&extents, grid, threads)
+    }
+
+    /// [`MemoryEstimate::of`] from what it needs of each mesh.
+    pub fn of_frames(frames: &[FrameExtent], grid: &GridSpec, threads: usize) -> Self {
         let voxel = grid.voxel_size.powi(3);
         let mut held = 0.0;
         let mut largest_box: f64 = 0.0;
-        for m in meshes {
-            let b = m.bounding_box();
+        for frame in frames {
+            let b = &frame.bounds;
             let cells: f64 = (0..3).map(|k| (b.extent()[k] / grid.voxel_size).ceil() + 2.0).product();
-            held += (m.signed_volume().abs() / voxel).min(cells) * BYTES_PER_VOXEL;
+            held += (frame.volume / voxel).min(cells) * BYTES_PER_VOXEL;
             largest_box = largest_box.max(cells);
         }
         MemoryEstimate { bytes: held + largest_box * threads.max(1) as f64 }

@@ -6,7 +6,7 @@ mod winding;
 
 pub use voxelize::voxelize;
 pub(crate) use voxelize::voxelize_detailed;
-pub use memory::MemoryEstimate;
+pub use memory::{FrameExtent, MemoryEstimate};
 pub(crate) use memory::available_memory;
 pub use winding::winding_number;
 mod sequence;

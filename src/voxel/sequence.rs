@@ -1,6 +1,6 @@
 //! The voxelisation stage: a whole sequence on one grid.
 
-use super::voxelize_detailed;
+use super::{voxelize_detailed, FrameExtent};
 use crate::model::{Frame, FrameSource, GridSpec, Occupancy, MAX_RESOLUTION};
 use crate::error::{Error, Result};
 use crate::model::mesh::{Aabb, TriangleMesh};
@@ -84,22 +84,32 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
             None => "a sequence needs at least 2 frames, got none".into(),
         }));
     }
+    // Two passes over the frames, so that memory never holds them all: the
+    // first reads each frame for its bounding box (the common grid needs
+    // every frame's), the second reads it again and voxelises it. Frame 0's
+    // mesh is kept for the deformation stage; voxel frames are kept as read.
     let start = Instant::now();
     let counter = Counter::new(progress, Stage::Read, paths.len());
-    let mut data: Vec<Frame> = (0..source.len())
+    let mut summaries: Vec<Summary> = (0..source.len())
         .into_par_iter()
         .map(|f| {
-            let d = source.frame(f);
+            let frame = source.frame(f)?;
             counter.tick();
-            d
+            Ok(match frame {
+                Frame::Mesh(m) => Summary::Mesh {
+                    extent: FrameExtent { bounds: m.bounding_box(), volume: m.signed_volume().abs() },
+                    mesh: (f == 0).then_some(m),
+                },
+                Frame::Voxels(g, o) => Summary::Voxels(g, o),
+            })
         })
         .collect::<Result<_>>()?;
     let read_seconds = start.elapsed().as_secs_f64();
 
-    let is_mesh = |d: &Frame| matches!(d, Frame::Mesh(_));
-    let meshes = data.iter().filter(|d| is_mesh(d)).count();
-    if meshes != 0 && meshes != data.len() {
-        let first = |mesh: bool| paths[data.iter().position(|d| is_mesh(d) == mesh).expect("both kinds")].display();
+    let is_mesh = |d: &Summary| matches!(d, Summary::Mesh { .. });
+    let meshes = summaries.iter().filter(|d| is_mesh(d)).count();
+    if meshes != 0 && meshes != summaries.len() {
+        let first = |mesh: bool| paths[summaries.iter().position(|d| is_mesh(d) == mesh).expect("both kinds")].display();
         return Err(Error::InvalidInput(format!(
             "the sequence mixes meshes ({} …) and voxel grids ({} …): give one kind",
             first(true),
@@ -107,33 +117,48 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
         )));
     }
     if meshes == 0 {
-        return voxel_input(names, data, read_seconds);
+        let data = summaries.into_iter().map(|d| match d {
+            Summary::Voxels(g, o) => (g, o),
+            Summary::Mesh { .. } => unreachable!(),
+        });
+        return voxel_input(names, data.collect(), read_seconds);
     }
-    let boxes: Vec<Aabb> = data
+    let extents: Vec<FrameExtent> = summaries
         .iter()
         .map(|d| match d {
-            Frame::Mesh(m) => m.bounding_box(),
-            Frame::Voxels(..) => unreachable!(),
+            Summary::Mesh { extent, .. } => *extent,
+            Summary::Voxels(..) => unreachable!(),
         })
         .collect();
+    let boxes: Vec<Aabb> = extents.iter().map(|e| e.bounds).collect();
     check_extents(&paths, &boxes, params.max_extent_ratio)?;
     check_placement(&paths, &boxes)?;
     let bounds = boxes.iter().fold(Aabb::empty(), |a, b| a.union(b));
     let grid = GridSpec::for_bounds(&bounds, params.resolution)?;
     if let Some(limit) = params.max_memory.or_else(super::available_memory) {
-        let meshes: Vec<&TriangleMesh> = data.iter().filter_map(|d| if let Frame::Mesh(m) = d { Some(m) } else { None }).collect();
-        let estimate = super::MemoryEstimate::of(&meshes, &grid, rayon::current_num_threads());
+        let estimate = super::MemoryEstimate::of_frames(&extents, &grid, rayon::current_num_threads());
         log::info!("estimated memory: {:.2} GiB of {:.2} GiB allowed", estimate.bytes / (1u64 << 30) as f64, limit / (1u64 << 30) as f64);
         estimate.check(limit, params.resolution, paths.len())?;
     }
+    let Summary::Mesh { mesh: Some(first_mesh), .. } = summaries.swap_remove(0) else { unreachable!("frame 0 is a mesh, kept") };
+    drop(summaries);
 
     let start = Instant::now();
     let counter = Counter::new(progress, Stage::Voxelize, paths.len());
-    let frames: Vec<Occupancy> = data
-        .par_iter()
-        .zip(paths.par_iter())
-        .map(|(d, path)| {
-            let Frame::Mesh(mesh) = d else { unreachable!() };
+    let frames: Vec<Occupancy> = (0..source.len())
+        .into_par_iter()
+        .map(|f| {
+            let path = paths[f];
+            let read;
+            let mesh = if f == 0 {
+                &first_mesh
+            } else {
+                read = match source.frame(f)? {
+                    Frame::Mesh(m) => m,
+                    Frame::Voxels(..) => return Err(Error::mesh(path, "was a mesh when first read, a voxel grid now")),
+                };
+                &read
+            };
             let v = voxelize_detailed(mesh, &grid);
             counter.tick();
             if v.occupancy.is_empty() {
@@ -157,19 +182,21 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
         })
         .collect::<Result<_>>()?;
     let voxelize_seconds = start.elapsed().as_secs_f64();
-    let first_mesh = match data.swap_remove(0) {
-        Frame::Mesh(m) => Some(m),
-        Frame::Voxels(..) => None,
-    };
-    Ok(VoxelSequence { grid, frames, names, bounds, first_mesh, read_seconds, voxelize_seconds })
+    Ok(VoxelSequence { grid, frames, names, bounds, first_mesh: Some(first_mesh), read_seconds, voxelize_seconds })
 }
 
-fn voxel_input(names: Vec<String>, data: Vec<Frame>, read_seconds: f64) -> Result<VoxelSequence> {
+/// What the first pass keeps of a frame.
+enum Summary {
+    Mesh { extent: FrameExtent, mesh: Option<TriangleMesh> },
+    Voxels(GridSpec, Occupancy),
+}
+
+fn voxel_input(names: Vec<String>, data: Vec<(GridSpec, Occupancy)>, read_seconds: f64) -> Result<VoxelSequence> {
     let mut grid = None;
     let mut frames = Vec::with_capacity(data.len());
     for (d, name) in data.into_iter().zip(&names) {
         let path = Path::new(name);
-        let Frame::Voxels(g, occ) = d else { unreachable!() };
+        let (g, occ) = d;
         match grid {
             None => grid = Some(g),
             Some(first) if first != g => {
