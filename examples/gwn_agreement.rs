@@ -25,7 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mesh = voltrack::io::read_mesh(&paths[frame])?;
     let grid = &seq.grid;
     let occupied = voxelize(&mesh, grid);
-    assert_eq!(occupied.indices, seq.frames[frame].indices, "frame voxelised alone differs from the sequence");
+    assert_eq!(occupied.indices, seq.frames[frame].indices(), "frame voxelised alone differs from the sequence");
 
     // Triangles as flat coordinate arrays: the inner loop is all that matters.
     let tris: Vec<[[Real; 3]; 3]> = mesh.triangles.iter().map(|t| t.map(|i| mesh.positions[i as usize].coords.into())).collect();

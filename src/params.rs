@@ -416,6 +416,13 @@ impl CoverageParams {
     }
 }
 
+/// Frames whose Voronoi cell assignments the global optimisation keeps
+/// between its steps (`refine::SequenceCells`): every frame of a sequence
+/// this short, a fixed number of a longer one, whose other frames are
+/// assigned afresh at each step, so that memory does not grow with the
+/// sequence.
+pub const KEPT_CELL_FRAMES: usize = 64;
+
 /// Largest number of centers: far more than any capture needs, small enough
 /// that per-center tables stay addressable.
 pub const MAX_CENTERS: usize = 1_000_000;

@@ -59,7 +59,7 @@ fn final_trajectories(conv: &Conversion) -> &Trajectories {
 fn swinging_sequence(resolution: usize, centers: usize) -> (VoxelSequence, Vec<voltrack::math::Point3>) {
     let meshes: Vec<_> = (0..SWINGING_LEG_FRAMES).map(swinging_leg).collect();
     let seq = common::voxel_sequence(&meshes, resolution);
-    let (placed, _) = voltrack::track::lloyd::seed_centers(&seq.grid, &seq.frames[0].indices, centers, 0, 1000, 1.8, 1e-6);
+    let (placed, _) = voltrack::track::lloyd::seed_centers(&seq.grid, &seq.frames[0].indices(), centers, 0, 1000, 1.8, 1e-6);
     (seq, placed)
 }
 

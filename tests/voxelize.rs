@@ -157,3 +157,34 @@ fn sequence_grid_spans_all_frames_with_a_margin() {
     assert!((g.voxel_size - 4.0 / 64.0).abs() < 1e-12);
     assert!(voxelize(&a, &g).len() == voxelize(&b, &g).len());
 }
+
+/// A sequence keeps each frame as runs of consecutive voxels: expanding them
+/// gives back exactly the voxels voxelisation found, for solid, hollow and
+/// scattered frames alike.
+#[test]
+fn occupancy_runs_give_back_the_voxels() {
+    use voltrack::math::Point3;
+    use voltrack::model::{Occupancy, OccupancyRuns};
+    let grid = GridSpec::for_bounds(&voltrack::Aabb { min: Point3::new(-1.0, -1.0, -1.0), max: Point3::new(1.0, 1.0, 1.0) }, 32).unwrap();
+    let torus = voltrack::fixtures::torus(Point3::origin(), 0.6, 0.25, 32, 16);
+    let mut state = 0x9e37_79b9_u64;
+    let scattered: Vec<u32> = (0..grid.len() as u32)
+        .filter(|_| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % 3 == 0
+        })
+        .collect();
+    let cases = [voxelize(&torus, &grid), Occupancy { indices: scattered }, Occupancy::default(), Occupancy { indices: vec![0, 1, 2, grid.len() as u32 - 1] }];
+    for occ in cases {
+        let runs = OccupancyRuns::from(&occ);
+        assert_eq!(runs.len(), occ.len());
+        assert_eq!(runs.indices(), occ.indices);
+        assert_eq!(runs.expand(), occ);
+        assert!(runs.runs() <= occ.len());
+    }
+    // A solid's rows are long: far fewer runs than voxels.
+    let solid = OccupancyRuns::from(voxelize(&voltrack::fixtures::cube(Point3::origin(), 1.0), &grid));
+    assert!(solid.runs() * 8 <= solid.len(), "{} runs for {} voxels", solid.runs(), solid.len());
+}

@@ -173,22 +173,18 @@ pub fn conform(mesh: DynamicMesh, source: &dyn FrameSource, bounds: &Aabb, param
     let topology = Topology::new(&mesh.base);
     let max_distance = params.length_scale(bounds) * params.max_distance;
     let counter = Counter::new(progress, Stage::Conform, source.len().saturating_sub(1));
-    let fitted: Vec<Vec<Point3>> = (1..source.len())
-        .into_par_iter()
-        .map(|f| {
-            if progress.cancelled() {
-                return Err(Error::Interrupted { saved: None });
-            }
-            let input = source.mesh(f)?;
-            let frame = fit_frame(&mesh.base, &topology, &mesh.frames[f], &input, max_distance, params, &|| progress.cancelled())
-                .ok_or(Error::Interrupted { saved: None })?;
-            counter.tick();
-            Ok(frame)
-        })
-        .collect::<Result<_>>()?;
+    // Each frame is replaced where it lies, so memory holds the sequence once.
     let DynamicMesh { base, mut frames } = mesh;
-    frames.truncate(1);
-    frames.extend(fitted);
+    frames[1..].par_iter_mut().enumerate().try_for_each(|(k, frame)| {
+        let f = k + 1;
+        if progress.cancelled() {
+            return Err(Error::Interrupted { saved: None });
+        }
+        let input = source.mesh(f)?;
+        *frame = fit_frame(&base, &topology, frame, &input, max_distance, params, &|| progress.cancelled()).ok_or(Error::Interrupted { saved: None })?;
+        counter.tick();
+        Ok(())
+    })?;
     Ok(DynamicMesh { base, frames })
 }
 

@@ -54,7 +54,7 @@ pub fn write_binvox_frames(seq: &crate::voxel::VoxelSequence, dir: &Path) -> Res
         .frames
         .iter()
         .zip(&outputs)
-        .map(|(occ, out)| (out.as_path(), Box::new(move |w: &mut BufWriter<std::fs::File>| write_binvox(w, &seq.grid, occ)) as Fill))
+        .map(|(occ, out)| (out.as_path(), Box::new(move |w: &mut BufWriter<std::fs::File>| write_binvox(w, &seq.grid, &occ.expand())) as Fill))
         .collect();
     write_atomic_into(dir, files)?;
     Ok(outputs)

@@ -100,7 +100,7 @@ pub fn coverage(traj: &Trajectories, seq: &VoxelSequence, params: &CoverageParam
     }
     let grid = &seq.grid;
     let n = traj.centers;
-    let first = &seq.frames[0].indices;
+    let first = &seq.frames[0].indices();
     let cell_voxels = first.len() as Real / n.max(1) as Real;
     // Each cell's frame-0 reach; a cell empty in frame 0 (a center the
     // refinement moved off the volume) takes the typical cell radius.
@@ -119,7 +119,7 @@ pub fn coverage(traj: &Trajectories, seq: &VoxelSequence, params: &CoverageParam
     let frames: Vec<FrameCoverage> = (0..traj.frames)
         .into_par_iter()
         .map(|f| {
-            let voxels = &seq.frames[f].indices;
+            let voxels = &seq.frames[f].indices();
             // Frame 0's owners are a good start for any frame's search.
             let hints = if f == 0 { owners0.clone() } else { carry_owners(first, &owners0, voxels) };
             let (owners, dist) = if f == 0 { (owners0.clone(), dist0.clone()) } else { nearest(grid, voxels, traj.frame(f), hints) };

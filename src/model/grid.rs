@@ -110,3 +110,63 @@ impl Occupancy {
         self.indices.iter().map(move |&i| grid.voxel_center(i as usize))
     }
 }
+
+/// One frame's occupied voxels as runs of consecutive linear indices, each
+/// `[first, length]`: the voxels of a solid lie in long rows along x, so a
+/// frame takes a small share of [`Occupancy`]'s 4 bytes per voxel. A
+/// sequence keeps every frame this way and expands one when a stage works
+/// on it.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct OccupancyRuns {
+    runs: Vec<[u32; 2]>,
+    count: usize,
+}
+
+impl OccupancyRuns {
+    /// Occupied voxels.
+    pub fn len(&self) -> usize {
+        self.count
+    }
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+    /// Runs stored (8 bytes each).
+    pub fn runs(&self) -> usize {
+        self.runs.len()
+    }
+    /// The occupied voxels' linear indices, ascending.
+    pub fn iter(&self) -> impl Iterator<Item = u32> + '_ {
+        self.runs.iter().flat_map(|&[first, len]| first..first + len)
+    }
+    /// The occupied voxels' linear indices, ascending, as one list.
+    pub fn indices(&self) -> Vec<u32> {
+        let mut out = Vec::with_capacity(self.count);
+        out.extend(self.iter());
+        out
+    }
+    /// The frame as an [`Occupancy`].
+    pub fn expand(&self) -> Occupancy {
+        Occupancy { indices: self.indices() }
+    }
+}
+
+impl From<&Occupancy> for OccupancyRuns {
+    /// `occ`'s indices must ascend, as every [`Occupancy`]'s do.
+    fn from(occ: &Occupancy) -> Self {
+        let mut runs: Vec<[u32; 2]> = Vec::new();
+        for &i in &occ.indices {
+            match runs.last_mut() {
+                Some([first, len]) if *first + *len == i => *len += 1,
+                _ => runs.push([i, 1]),
+            }
+        }
+        runs.shrink_to_fit();
+        OccupancyRuns { runs, count: occ.indices.len() }
+    }
+}
+
+impl From<Occupancy> for OccupancyRuns {
+    fn from(occ: Occupancy) -> Self {
+        OccupancyRuns::from(&occ)
+    }
+}

@@ -11,7 +11,7 @@ pub(crate) mod rng;
 pub mod trajectories;
 
 pub use frames::{Frame, FrameSource};
-pub use grid::{GridSpec, Occupancy, GRID_MARGIN, MAX_RESOLUTION};
+pub use grid::{GridSpec, Occupancy, OccupancyRuns, GRID_MARGIN, MAX_RESOLUTION};
 pub use mesh::{Aabb, TriangleMesh};
 pub use metadata::{TrajectoryMetadata, METADATA_ATTRIBUTE};
 pub use rigid::{fit_rigid, rotation_from_covariance, Rigid, RigidFits};

@@ -11,13 +11,11 @@
 
 use crate::math::{Point3, Real};
 use crate::model::Trajectories;
+use crate::params::KEPT_CELL_FRAMES;
 use crate::spatial::cells::{Assignment, CellStats, CenterIndex, NO_OWNER};
 use crate::voxel::VoxelSequence;
 use rayon::prelude::*;
 
-/// Frames whose assignments are kept between updates by default: every
-/// frame of a short sequence, a fixed number of a long one.
-pub const CACHED_FRAMES: usize = 64;
 
 pub struct SequenceCells<'a> {
     seq: &'a VoxelSequence,
@@ -29,9 +27,9 @@ pub struct SequenceCells<'a> {
 }
 
 impl<'a> SequenceCells<'a> {
-    /// Keeps the assignments of the first [`CACHED_FRAMES`] frames.
+    /// Keeps the assignments of the first [`KEPT_CELL_FRAMES`] frames.
     pub fn new(seq: &'a VoxelSequence) -> Self {
-        Self::with_cache(seq, CACHED_FRAMES)
+        Self::with_cache(seq, KEPT_CELL_FRAMES)
     }
 
     /// Keeps the assignments of the first `cached_frames` frames (0: none).
@@ -48,7 +46,7 @@ impl<'a> SequenceCells<'a> {
     /// Each frame's cell sums for the centers in `traj` (frames in parallel).
     pub fn update(&mut self, traj: &Trajectories, with_moments: bool) -> Vec<CellStats> {
         let seq = self.seq;
-        let fresh = |f: usize| Assignment::new(&seq.grid, &seq.frames[f].indices, vec![NO_OWNER; seq.frames[f].len()]);
+        let fresh = |f: usize| Assignment::new(&seq.grid, &seq.frames[f].indices(), vec![NO_OWNER; seq.frames[f].len()]);
         let mut stats: Vec<CellStats> = self
             .frames
             .par_iter_mut()

@@ -83,8 +83,8 @@ pub(super) fn fingerprint(seq: &VoxelSequence, params: &TrackParams) -> u64 {
         h.bytes(&c.to_bits().to_le_bytes());
     }
     for frame in &seq.frames {
-        h.bytes(&(frame.indices.len() as u64).to_le_bytes());
-        for &v in &frame.indices {
+        h.bytes(&(frame.len() as u64).to_le_bytes());
+        for v in frame.iter() {
             h.bytes(&v.to_le_bytes());
         }
     }

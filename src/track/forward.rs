@@ -58,7 +58,8 @@ struct Tracker<'a> {
     threshold2: Real,
     affinity: Affinity,
     owners: Vec<u32>,
-    prev_voxels: &'a [u32],
+    /// The previous frame's voxels, shared by the runs from both guesses.
+    prev_voxels: std::sync::Arc<[u32]>,
 }
 
 /// Tracks `params.centers` centers through every frame of `seq`.
@@ -106,7 +107,7 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
         }
         None => {
             let start = Instant::now();
-            let voxels0 = &seq.frames[0].indices;
+            let voxels0 = &seq.frames[0].indices();
             let (centers0, lloyd_steps) =
                 seed_centers(grid, voxels0, params.centers, params.seed, params.lloyd_iterations, params.over_relaxation, params.threshold * scale);
             let mut traj = Trajectories::new(frames, params.centers);
@@ -128,7 +129,7 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
         threshold2: (params.threshold * scale).powi(2),
         affinity,
         owners,
-        prev_voxels: &seq.frames[first - 1].indices,
+        prev_voxels: seq.frames[first - 1].indices().into(),
     };
     // Frames held by the checkpoint file.
     let mut saved = if resume.is_some() { first } else { 0 };
@@ -142,7 +143,8 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
     };
     for f in first..frames {
         let start = Instant::now();
-        let (prev, voxels) = (traj.frame(f - 1), &seq.frames[f].indices);
+        let voxels: std::sync::Arc<[u32]> = seq.frames[f].indices().into();
+        let (prev, voxels) = (traj.frame(f - 1), &voxels);
         let extrapolate = |k: Real| -> Vec<Point3> { prev.iter().zip(traj.frame(f - 2)).map(|(a, b)| a + (a - b) * k).collect() };
         let kept = match params.damped_guess.filter(|_| f >= 2) {
             None => {
@@ -195,10 +197,10 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
 impl<'a> Tracker<'a> {
     /// One frame from the guess `cur`. None when `progress` asks to stop; the
     /// state is then left as it was. The caller times the whole frame.
-    fn track_frame(&mut self, prev: &[Point3], mut cur: Vec<Point3>, voxels: &'a [u32], progress: Progress) -> Option<FrameResult> {
+    fn track_frame(&mut self, prev: &[Point3], mut cur: Vec<Point3>, voxels: &std::sync::Arc<[u32]>, progress: Progress) -> Option<FrameResult> {
         let mut t = FrameTiming::default();
         let beta = self.params.beta;
-        let mut cells = Assignment::new(self.grid, voxels, carry_owners(self.prev_voxels, &self.owners, voxels));
+        let mut cells = Assignment::new(self.grid, voxels, carry_owners(&self.prev_voxels, &self.owners, voxels));
         let mut moved: Vec<Real> = Vec::new();
         // The weights and frame f-1 are fixed for the whole frame.
         let clock = Instant::now();
@@ -254,7 +256,7 @@ impl<'a> Tracker<'a> {
         self.affinity.update(&cur, &motions, &cell_moments(&stats, self.grid));
         t.affinity += clock.elapsed().as_secs_f64();
         self.owners = cells.owners;
-        self.prev_voxels = voxels;
+        self.prev_voxels = voxels.clone();
         Some(FrameResult { centers: cur, counts: stats.count, timing: t, energy })
     }
 }

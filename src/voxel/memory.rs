@@ -6,10 +6,16 @@ use crate::model::GridSpec;
 use crate::error::{Error, Result};
 use crate::model::mesh::{Aabb, TriangleMesh};
 
-/// Bytes held per occupied voxel of every frame through the run: its index
-/// (4), and the refinement's per-frame assignment of it to a cell (owner and
-/// two distance bounds, 12), with room for the tracker's working copy.
-const BYTES_PER_VOXEL: f64 = 24.0;
+/// Bytes held per occupied voxel of every frame through the run: its share
+/// of the frame's runs ([`crate::model::OccupancyRuns`], 8 bytes a run;
+/// a run holds many voxels in a solid, one in the worst case of scattered
+/// voxels, so this is generous for captures).
+const BYTES_PER_VOXEL: f64 = 2.0;
+
+/// Bytes per occupied voxel of a frame whose cell assignment the global
+/// optimisation keeps (owner, distance bounds and coordinates, 18), with
+/// room for the tracker's working copy.
+const BYTES_PER_KEPT_VOXEL: f64 = 24.0;
 
 /// What the memory estimate needs of a frame's mesh.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -40,12 +46,18 @@ impl MemoryEstimate {
         let voxel = grid.voxel_size.powi(3);
         let mut held = 0.0;
         let mut largest_box: f64 = 0.0;
+        let mut voxels = Vec::with_capacity(frames.len());
         for frame in frames {
             let b = &frame.bounds;
             let cells: f64 = (0..3).map(|k| (b.extent()[k] / grid.voxel_size).ceil() + 2.0).product();
-            held += (frame.volume / voxel).min(cells) * BYTES_PER_VOXEL;
+            let occupied = (frame.volume / voxel).min(cells);
+            held += occupied * BYTES_PER_VOXEL;
+            voxels.push(occupied);
             largest_box = largest_box.max(cells);
         }
+        // The frames with the most voxels stand for those whose assignments are kept.
+        voxels.sort_by(|a, b| b.total_cmp(a));
+        held += voxels.iter().take(crate::params::KEPT_CELL_FRAMES).sum::<f64>() * BYTES_PER_KEPT_VOXEL;
         MemoryEstimate { bytes: held + largest_box * threads.max(1) as f64 }
     }
 

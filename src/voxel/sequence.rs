@@ -1,7 +1,7 @@
 //! The voxelisation stage: a whole sequence on one grid.
 
 use super::{voxelize_detailed, FrameExtent};
-use crate::model::{Frame, FrameSource, GridSpec, Occupancy, MAX_RESOLUTION};
+use crate::model::{Frame, FrameSource, GridSpec, Occupancy, OccupancyRuns, MAX_RESOLUTION};
 use crate::error::{Error, Result};
 use crate::model::mesh::{Aabb, TriangleMesh};
 use crate::progress::{Counter, Progress, Stage};
@@ -48,7 +48,9 @@ impl Default for VoxelParams {
 #[derive(Clone, Debug)]
 pub struct VoxelSequence {
     pub grid: GridSpec,
-    pub frames: Vec<Occupancy>,
+    /// Every frame's occupied voxels, compact (expand one with
+    /// [`OccupancyRuns::indices`]).
+    pub frames: Vec<OccupancyRuns>,
     /// How messages name each frame (its file, for frames read from files).
     pub names: Vec<String>,
     /// Bounding box of all frames (of the grid, for voxel input).
@@ -145,7 +147,7 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
 
     let start = Instant::now();
     let counter = Counter::new(progress, Stage::Voxelize, paths.len());
-    let frames: Vec<Occupancy> = (0..source.len())
+    let frames: Vec<OccupancyRuns> = (0..source.len())
         .into_par_iter()
         .map(|f| {
             let path = paths[f];
@@ -178,10 +180,12 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
                     ),
                 ));
             }
-            Ok(v.occupancy)
+            Ok(OccupancyRuns::from(v.occupancy))
         })
         .collect::<Result<_>>()?;
     let voxelize_seconds = start.elapsed().as_secs_f64();
+    let (voxels, runs) = frames.iter().fold((0, 0), |(v, r), f| (v + f.len(), r + f.runs()));
+    log::info!("{voxels} occupied voxels in {runs} runs ({:.1} MiB kept)", (8 * runs) as f64 / (1u64 << 20) as f64);
     Ok(VoxelSequence { grid, frames, names, bounds, first_mesh: Some(first_mesh), read_seconds, voxelize_seconds })
 }
 
@@ -211,7 +215,7 @@ fn voxel_input(names: Vec<String>, data: Vec<(GridSpec, Occupancy)>, read_second
         if occ.is_empty() {
             return Err(Error::mesh(path, "no occupied voxel"));
         }
-        frames.push(occ);
+        frames.push(OccupancyRuns::from(occ));
     }
     let grid = grid.expect("at least two frames");
     Ok(VoxelSequence {

@@ -52,7 +52,7 @@ pub fn voxel_sequence(meshes: &[voltrack::TriangleMesh], resolution: usize) -> v
     let bounds = meshes.iter().map(|m| m.bounding_box()).reduce(|a, b| a.union(&b)).unwrap();
     let grid = voltrack::model::GridSpec::for_bounds(&bounds, resolution).unwrap();
     voltrack::voxel::VoxelSequence {
-        frames: meshes.iter().map(|m| voltrack::voxel::voxelize(m, &grid)).collect(),
+        frames: meshes.iter().map(|m| voltrack::voxel::voxelize(m, &grid).into()).collect(),
         grid,
         names: (0..meshes.len()).map(|f| format!("frame{f}.obj")).collect(),
         bounds,
