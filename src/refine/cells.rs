@@ -24,6 +24,11 @@ pub struct SequenceCells<'a> {
     frames: Vec<Option<Assignment>>,
     /// Center positions each kept assignment was last computed for.
     last: Vec<Vec<Point3>>,
+    /// The center index of each kept assignment, carried from update to
+    /// update: its candidate lists and bounds outlive small moves, and
+    /// rebuilding them for every frame at every evaluation was most of the
+    /// refinement's time.
+    indices: Vec<Option<CenterIndex>>,
 }
 
 impl<'a> SequenceCells<'a> {
@@ -35,7 +40,7 @@ impl<'a> SequenceCells<'a> {
     /// Keeps the assignments of the first `cached_frames` frames (0: none).
     pub fn with_cache(seq: &'a VoxelSequence, cached_frames: usize) -> Self {
         let kept = cached_frames.min(seq.frames.len());
-        SequenceCells { seq, frames: (0..kept).map(|_| None).collect(), last: vec![Vec::new(); kept] }
+        SequenceCells { seq, frames: (0..kept).map(|_| None).collect(), last: vec![Vec::new(); kept], indices: (0..kept).map(|_| None).collect() }
     }
 
     /// How many frames keep their assignment between updates.
@@ -51,16 +56,23 @@ impl<'a> SequenceCells<'a> {
             .frames
             .par_iter_mut()
             .zip(self.last.par_iter_mut())
+            .zip(self.indices.par_iter_mut())
             .enumerate()
-            .map(|(f, (cells, last))| {
+            .map(|(f, ((cells, last), index))| {
                 let now = traj.frame(f);
                 // A change in the number of centers invalidates the bounds.
                 if cells.is_none() || last.len() != now.len() {
                     *cells = Some(fresh(f));
                     last.clear();
+                    *index = None;
                 }
                 let moved: Vec<Real> = last.iter().zip(now).map(|(a, b)| (a - b).norm()).collect();
-                let stats = cells.as_mut().expect("just made").update(&CenterIndex::new(now), &moved, with_moments);
+                let moved_index = match index.take() {
+                    Some(carried) => carried.moved_to(now, &moved),
+                    None => CenterIndex::new(now),
+                };
+                let stats = cells.as_mut().expect("just made").update(&moved_index, &moved, with_moments);
+                *index = Some(moved_index);
                 *last = now.to_vec();
                 stats
             })
