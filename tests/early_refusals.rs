@@ -66,6 +66,7 @@ fn parameters_that_used_to_fail_late_or_panic_are_refused_before_reading() {
         (&["--bind-neighbors", "0"], &["centers each vertex follows"]),
         (&["--batches", "0"], &["batches"]),
         (&["--lloyd-iterations", "0"], &["Lloyd iterations"]),
+        (&["--tracking-over-relaxation", "2"], &["tracking over-relaxation"]),
         (&["--rho-gp", "inf"], &["rho_gp"]),
         (&["--remove", "18446744073709551615"], &["cannot remove"]),
         (&["--conform-iterations", "18446744073709551615"], &["conform iterations"]),

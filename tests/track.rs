@@ -321,6 +321,30 @@ fn centers_follow_a_rigid_motion() {
 }
 
 #[test]
+fn over_relaxed_tracking_stops_where_the_papers_iteration_does_in_fewer_steps() {
+    let mesh = voltrack::fixtures::merge(&[
+        voltrack::fixtures::cube(Point3::new(0.0, 0.0, 0.0), 1.0),
+        voltrack::fixtures::cube(Point3::new(0.0, 0.0, 0.9), 0.6),
+    ]);
+    let seq = rigid_sequence(&mesh, &screw(8), 96);
+    let run = |omega: Real| track(&seq, &TrackParams { centers: 60, tracking_over_relaxation: omega, ..Default::default() }, Default::default()).unwrap();
+    let (paper, relaxed) = (run(1.0), run(1.5));
+    let iterations = |r: &voltrack::track::TrackResult| r.timings[1..].iter().map(|t| t.iterations + t.dropped_iterations).sum::<usize>();
+    assert!(
+        iterations(&relaxed) < iterations(&paper),
+        "over-relaxed: {} iterations, the paper's: {}",
+        iterations(&relaxed),
+        iterations(&paper)
+    );
+    for f in 0..seq.frames.len() {
+        let d: Vec<Real> = (0..60).map(|i| (paper.trajectories.get(f, i) - relaxed.trajectories.get(f, i)).norm() / seq.grid.voxel_size).collect();
+        let mean = d.iter().sum::<Real>() / d.len() as Real;
+        let max = d.iter().copied().fold(0.0, Real::max);
+        assert!(mean < 0.5 && max < 2.0, "frame {f}: the two differ by {mean:.2} voxels on average, {max:.2} at most");
+    }
+}
+
+#[test]
 fn tracking_is_deterministic_whatever_the_thread_count() {
     let mesh = voltrack::fixtures::torus(Point3::origin(), 1.0, 0.4, 24, 12);
     let seq = rigid_sequence(&mesh, &screw(4), 40);

@@ -81,6 +81,9 @@ pub struct TrackArgs {
     /// Track every frame from the paper's constant-velocity guess alone: half the tracking work, but fast limbs that turn back get lost
     #[arg(long, conflicts_with = "damped_guess")]
     pub single_guess: bool,
+    /// Over-relaxation of the tracking iterations: each step goes ω times the way to the paper's update; 1 is the paper's (range: 0 < ω < 2)
+    #[arg(long, value_name = "ω", default_value_t = TrackParams::default().tracking_over_relaxation)]
+    pub tracking_over_relaxation: f64,
     /// Lloyd iterations placing the centers in frame 0 (range: 1..=100000)
     #[arg(long, default_value_t = TrackParams::default().lloyd_iterations)]
     pub lloyd_iterations: usize,
@@ -128,6 +131,7 @@ impl TrackArgs {
             threshold: self.threshold,
             max_iterations: self.max_iterations,
             damped_guess: (!self.single_guess).then_some(self.damped_guess),
+            tracking_over_relaxation: self.tracking_over_relaxation,
             lloyd_iterations: self.lloyd_iterations,
             over_relaxation: self.over_relaxation,
             absolute_units: self.absolute_units,

@@ -58,7 +58,7 @@ struct Tracker<'a> {
     threshold2: Real,
     affinity: Affinity,
     owners: Vec<u32>,
-    /// The previous frame's voxels, shared by the runs from both guesses.
+    /// The previous frame's voxels.
     prev_voxels: std::sync::Arc<[u32]>,
 }
 
@@ -146,34 +146,18 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
         let voxels: std::sync::Arc<[u32]> = seq.frames[f].indices().into();
         let (prev, voxels) = (traj.frame(f - 1), &voxels);
         let extrapolate = |k: Real| -> Vec<Point3> { prev.iter().zip(traj.frame(f - 2)).map(|(a, b)| a + (a - b) * k).collect() };
+        let fits = tracker.fits(prev);
         let kept = match params.damped_guess.filter(|_| f >= 2) {
             None => {
                 let guess = if f == 1 { prev.to_vec() } else { extrapolate(1.0) };
-                tracker.track_frame(prev, guess, voxels, progress)
+                tracker.track_frame(prev, guess, &fits, voxels, progress)
             }
-            Some(k) => {
-                // Both runs at once: each is parallel inside, but not evenly.
-                // On copies, so that an interrupted frame leaves the state as it was.
-                let (mut full, mut damped) = (tracker.clone(), tracker.clone());
-                let (a, b) = rayon::join(
-                    || full.track_frame(prev, extrapolate(1.0), voxels, progress),
-                    || damped.track_frame(prev, extrapolate(k), voxels, progress),
-                );
-                match (a, b) {
-                    (Some(a), Some(b)) => {
-                        log::debug!("frame {f}: energy {:.4e} from the constant-velocity guess, {:.4e} from the damped one", a.energy, b.energy);
-                        let damped_kept = b.energy < a.energy;
-                        let (mut kept, dropped, state) = if damped_kept { (b, a, damped) } else { (a, b, full) };
-                        tracker = state;
-                        kept.timing.add_dropped(&dropped.timing);
-                        kept.timing.damped_guess_kept = damped_kept;
-                        Some(kept)
-                    }
-                    _ => None,
-                }
-            }
+            Some(k) => tracker.track_frame_from_two_guesses(prev, [extrapolate(1.0), extrapolate(k)], &fits, voxels, progress).map(|(kept, damped_kept)| {
+                log::debug!("frame {f}: {} guess kept", if damped_kept { "damped" } else { "constant-velocity" });
+                kept
+            }),
         };
-        let Some(FrameResult { centers, counts, mut timing, .. }) = kept else {
+        let Some(FrameResult { centers, counts, mut timing, energy }) = kept else {
             // Frame f was abandoned; the state is still that after frame f - 1.
             if saved < f {
                 save(&tracker, &traj, &cell_counts, &timings)?;
@@ -183,7 +167,7 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
         timing.total = start.elapsed().as_secs_f64();
         traj.frame_mut(f).copy_from_slice(&centers);
         cell_counts.push(counts);
-        log::debug!("frame {f}: {} iterations, {:.3} s", timing.iterations, timing.total);
+        log::debug!("frame {f}: {} iterations, energy {energy:.4e}, {:.3} s", timing.iterations, timing.total);
         timings.push(timing);
         progress.report(Stage::Track, f + 1, frames);
         if checkpoint.is_some_and(|c| (f + 1) % c.every == 0 || f + 1 == frames) {
@@ -194,70 +178,138 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
     Ok(TrackResult { trajectories: traj, cell_counts, timings, scale })
 }
 
-impl<'a> Tracker<'a> {
-    /// One frame from the guess `cur`. None when `progress` asks to stop; the
-    /// state is then left as it was. The caller times the whole frame.
-    fn track_frame(&mut self, prev: &[Point3], mut cur: Vec<Point3>, voxels: &std::sync::Arc<[u32]>, progress: Progress) -> Option<FrameResult> {
-        let mut t = FrameTiming::default();
-        let beta = self.params.beta;
-        let mut cells = Assignment::new(self.grid, voxels, carry_owners(&self.prev_voxels, &self.owners, voxels));
-        let mut moved: Vec<Real> = Vec::new();
-        // The weights and frame f-1 are fixed for the whole frame.
-        let clock = Instant::now();
-        let fits = RigidFits::new(prev, prev.len(), |i| self.affinity.pairs(i));
-        t.fit += clock.elapsed().as_secs_f64();
+/// One run of a frame's iterations from one guess.
+struct Run {
+    cur: Vec<Point3>,
+    cells: Assignment,
+    /// How far each center moved in the last iteration (empty before the first).
+    moved: Vec<Real>,
+    index: CenterIndex,
+    timing: FrameTiming,
+    /// E at the positions before the last iteration (infinite before the first).
+    energy: Real,
+    converged: bool,
+}
 
+impl<'a> Tracker<'a> {
+    /// The rigid fits from frame f-1: its centers and the weights are fixed for the whole frame.
+    fn fits(&self, prev: &[Point3]) -> RigidFits {
+        RigidFits::new(prev, prev.len(), |i| self.affinity.pairs(i))
+    }
+
+    /// Presmoothing from the guess `cur`, and the cells carried over from frame f-1.
+    fn start(&self, prev: &[Point3], mut cur: Vec<Point3>, fits: &RigidFits, voxels: &[u32]) -> Run {
+        let mut timing = FrameTiming::default();
+        let cells = Assignment::new(self.grid, voxels, carry_owners(&self.prev_voxels, &self.owners, voxels));
+        let clock = Instant::now();
         for _ in 0..self.params.presmooth_steps {
-            let clock = Instant::now();
-            let motions = fits.fit(&cur);
-            cur = predict(&motions, prev);
-            t.fit += clock.elapsed().as_secs_f64();
+            cur = predict(&fits.fit(&cur), prev);
         }
-        let mut index = CenterIndex::new(&cur);
-        for _ in 0..self.params.max_iterations {
+        timing.fit += clock.elapsed().as_secs_f64();
+        let index = CenterIndex::new(&cur);
+        Run { cur, cells, moved: Vec::new(), index, timing, energy: Real::INFINITY, converged: false }
+    }
+
+    /// Iterates `run` until it converges or reaches the iteration limit.
+    /// None when `progress` asks to stop.
+    fn iterate(&self, run: &mut Run, prev: &[Point3], fits: &RigidFits, progress: Progress) -> Option<()> {
+        let limit = self.params.max_iterations;
+        let (beta, omega) = (self.params.beta, self.params.tracking_over_relaxation);
+        let Run { cur, cells, moved, index, timing: t, energy, converged } = run;
+        while !*converged && t.iterations < limit {
             if progress.cancelled() {
                 return None;
             }
             t.iterations += 1;
             let clock = Instant::now();
             if !moved.is_empty() {
-                index = index.moved_to(&cur, &moved);
+                *index = std::mem::replace(index, CenterIndex::new(&[])).moved_to(cur, moved);
             }
-            let stats = cells.update(&index, &moved, false);
+            let stats = cells.update(index, moved, false);
             t.assign += clock.elapsed().as_secs_f64();
             let clock = Instant::now();
-            let motions = fits.fit(&cur);
+            let motions = fits.fit(cur);
             t.fit += clock.elapsed().as_secs_f64();
             moved.clear();
+            // The residual G(c) − c of the paper's update G(c) = (p + β x̄) / (1 + β)
+            // decides convergence whatever the step taken along it.
+            let (mut residual_most, mut smooth, mut data): (Real, Real, Real) = (0.0, 0.0, 0.0);
             for (i, c) in cur.iter_mut().enumerate() {
                 let p = motions[i].apply(&prev[i]);
-                let x = stats.centroid(i, self.grid).unwrap_or(p);
-                let next = Point3::from((p.coords + x.coords * beta) / (1.0 + beta));
-                moved.push((next - *c).norm());
-                *c = next;
+                let x = stats.centroid(i, self.grid);
+                smooth += (*c - p).norm_squared();
+                data += x.map_or(0.0, |x| (*c - x).norm_squared());
+                let x = x.unwrap_or(p);
+                let residual = Point3::from((p.coords + x.coords * beta) / (1.0 + beta)) - *c;
+                residual_most = residual_most.max(residual.norm());
+                let step = residual * omega;
+                moved.push(step.norm());
+                *c += step;
             }
-            let moved_most = moved.iter().copied().fold(0.0, Real::max);
+            *energy = 0.5 * (smooth + beta * data);
             if t.iterations % 100 == 0 {
                 let over = moved.iter().filter(|&&m| m * m >= self.threshold2).count();
-                let over10 = moved.iter().filter(|&&m| m * m >= 100.0 * self.threshold2).count();
-                log::debug!("iteration {}: {over} centers move more than the threshold, {over10} more than 10x, largest {moved_most:.2e}", t.iterations);
+                log::debug!("iteration {}: {over} centers move more than the threshold, largest residual {residual_most:.2e}", t.iterations);
             }
-            if moved_most * moved_most < self.threshold2 {
-                break;
-            }
+            *converged = residual_most * residual_most < self.threshold2;
         }
-        // The frame's motions and cells at the final positions feed the affinity.
+        Some(())
+    }
+
+    /// The frame's cells and motions at the final positions; they feed the
+    /// affinity, which is updated, and the tracker moves on to this frame.
+    fn finish(&mut self, run: Run, prev: &[Point3], fits: &RigidFits, voxels: &std::sync::Arc<[u32]>) -> FrameResult {
+        let Run { cur, mut cells, moved, index, mut timing, .. } = run;
         let clock = Instant::now();
         let stats = cells.update(&index.moved_to(&cur, &moved), &moved, true);
-        t.assign += clock.elapsed().as_secs_f64();
+        timing.assign += clock.elapsed().as_secs_f64();
         let clock = Instant::now();
         let motions = fits.fit(&cur);
-        let energy = energy(&cur, &predict(&motions, prev), &stats, self.grid, beta);
+        let energy = energy(&cur, &predict(&motions, prev), &stats, self.grid, self.params.beta);
         self.affinity.update(&cur, &motions, &cell_moments(&stats, self.grid));
-        t.affinity += clock.elapsed().as_secs_f64();
+        timing.affinity += clock.elapsed().as_secs_f64();
         self.owners = cells.owners;
         self.prev_voxels = voxels.clone();
-        Some(FrameResult { centers: cur, counts: stats.count, timing: t, energy })
+        FrameResult { centers: cur, counts: stats.count, timing, energy }
+    }
+
+    /// One frame from the guess `guess`. None when `progress` asks to stop;
+    /// the state is then left as it was. The caller times the whole frame.
+    fn track_frame(&mut self, prev: &[Point3], guess: Vec<Point3>, fits: &RigidFits, voxels: &std::sync::Arc<[u32]>, progress: Progress) -> Option<FrameResult> {
+        let mut run = self.start(prev, guess, fits, voxels);
+        self.iterate(&mut run, prev, fits, progress)?;
+        Some(self.finish(run, prev, fits, voxels))
+    }
+
+    /// One frame from two guesses, run side by side to convergence; the one
+    /// with the higher energy is dropped. Returns the result and whether the
+    /// second guess was kept.
+    ///
+    /// Why not decide earlier: on crane_tvm the order of the two runs'
+    /// energies after 5 to 40 iterations matched the final order in about
+    /// half the frames, no better than chance (docs/measurements.md).
+    fn track_frame_from_two_guesses(
+        &mut self,
+        prev: &[Point3],
+        [first, second]: [Vec<Point3>; 2],
+        fits: &RigidFits,
+        voxels: &std::sync::Arc<[u32]>,
+        progress: Progress,
+    ) -> Option<(FrameResult, bool)> {
+        let this = &*self;
+        let run = |guess: Vec<Point3>| {
+            let mut run = this.start(prev, guess, fits, voxels);
+            this.iterate(&mut run, prev, fits, progress).map(|_| run)
+        };
+        // Each run is parallel inside, but not evenly: running both at once fills the cores.
+        let (a, b) = rayon::join(|| run(first), || run(second));
+        let (a, b) = (a?, b?);
+        let second_kept = b.energy < a.energy;
+        let (kept, dropped) = if second_kept { (b, a) } else { (a, b) };
+        let mut result = self.finish(kept, prev, fits, voxels);
+        result.timing.add_dropped(&dropped.timing);
+        result.timing.damped_guess_kept = second_kept;
+        Some((result, second_kept))
     }
 }
 
