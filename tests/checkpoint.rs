@@ -158,8 +158,9 @@ fn resuming_with_another_checkpoint_interval_gives_the_same_result() {
 /// Resuming refuses, with an error that names the checkpoint file, a
 /// checkpoint saved by another run (other seed, number of centers, affinity,
 /// resolution or frames) and a damaged one (cut anywhere, with a byte
-/// appended, every byte inverted, another file's content, empty), and leaves
-/// the file as it found it. The tests know nothing of the file's layout.
+/// appended, one bit flipped, every byte inverted, another file's content,
+/// empty), and leaves the file as it found it. The tests know nothing of the
+/// file's layout.
 /// Without a checkpoint yet, resuming starts from the first frame.
 #[test]
 fn a_checkpoint_of_another_run_or_a_damaged_one_is_refused_with_its_name() {
@@ -204,6 +205,13 @@ fn a_checkpoint_of_another_run_or_a_damaged_one_is_refused_with_its_name() {
         damaged.push((format!("cut to {cut} of {} bytes", saved.len()), saved[..cut].to_vec()));
     }
     damaged.push(("one byte appended".into(), [&saved[..], &[0]].concat()));
+    // One bit flipped anywhere: the checksum refuses it, where the layout
+    // alone would read most such files as a valid state.
+    for at in (0..saved.len()).step_by(stride).chain([saved.len() - 1]) {
+        let mut flipped = saved.clone();
+        flipped[at] ^= 1 << (at % 8);
+        damaged.push((format!("bit {} of byte {at} flipped", at % 8), flipped));
+    }
     damaged.push(("every byte inverted".into(), saved.iter().map(|b| !b).collect()));
     damaged.push(("an OBJ file".into(), b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n".to_vec()));
     damaged.push(("empty".into(), Vec::new()));

@@ -6,7 +6,9 @@
 //! stored as their bits, so a resumed run continues with exactly the numbers
 //! the interrupted one had and ends byte-identical to an uninterrupted run.
 //! A fingerprint of the voxels and parameters keeps a checkpoint from
-//! resuming a different run.
+//! resuming a different run, and a checksum of the whole file (64-bit
+//! FNV-1a, which tells apart any two files differing in one byte) keeps a
+//! damaged one from resuming.
 
 use super::affinity::{Affinity, Neighbor};
 use super::FrameTiming;
@@ -45,7 +47,7 @@ impl Checkpointing {
 
 /// Name of the checkpoint file inside the checkpoint folder.
 pub const CHECKPOINT_FILE: &str = "track.ckpt";
-const MAGIC: &[u8; 16] = b"voltrack-track\0\x02";
+const MAGIC: &[u8; 16] = b"voltrack-track\0\x03";
 
 /// What the tracker has done so far, borrowed for saving.
 pub(super) struct Snapshot<'a> {
@@ -72,7 +74,7 @@ pub(super) struct Restored {
 /// frame's occupied voxels: two runs with the same fingerprint track the same
 /// way.
 pub(super) fn fingerprint(seq: &VoxelSequence, params: &TrackParams) -> u64 {
-    let mut h = Fnv(0xcbf2_9ce4_8422_2325);
+    let mut h = Fnv::new();
     h.bytes(env!("CARGO_PKG_VERSION").as_bytes());
     h.bytes(serde_json::to_string(params).expect("parameters serialise").as_bytes());
     let g = &seq.grid;
@@ -94,6 +96,10 @@ pub(super) fn fingerprint(seq: &VoxelSequence, params: &TrackParams) -> u64 {
 struct Fnv(u64);
 
 impl Fnv {
+    fn new() -> Self {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+
     fn bytes(&mut self, bytes: &[u8]) {
         for &b in bytes {
             self.0 = (self.0 ^ b as u64).wrapping_mul(0x0100_0000_01b3);
@@ -104,8 +110,37 @@ impl Fnv {
 /// Writes the checkpoint atomically (a kill mid-write leaves the previous one).
 pub(super) fn save(ckpt: &Checkpointing, fingerprint: u64, s: &Snapshot) -> Result<()> {
     std::fs::create_dir_all(&ckpt.dir).map_err(|e| Error::io(&ckpt.dir, e))?;
+    crate::files::write_atomic(&ckpt.path(), |file| {
+        let mut hashed = Hashing { inner: file, hash: Fnv::new() };
+        write_state(&mut hashed, fingerprint, s)?;
+        // The checksum, so that a damaged file is refused rather than resumed.
+        let sum = hashed.hash.0;
+        put_u64(file, sum)
+    })
+}
+
+/// A writer that hashes what passes through it.
+struct Hashing<'w, W: Write> {
+    inner: &'w mut W,
+    hash: Fnv,
+}
+
+impl<W: Write> Write for Hashing<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.hash.bytes(&buf[..n]);
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
+/// The checkpoint's content before its checksum.
+fn write_state(w: &mut impl Write, fingerprint: u64, s: &Snapshot) -> std::io::Result<()> {
     let traj = s.trajectories;
-    crate::files::write_atomic(&ckpt.path(), |w| {
+    {
         w.write_all(MAGIC)?;
         put_u64(w, fingerprint)?;
         for n in [traj.frames, traj.centers, s.frames_done] {
@@ -137,17 +172,27 @@ pub(super) fn save(ckpt: &Checkpointing, fingerprint: u64, s: &Snapshot) -> Resu
             w.write_all(&v.to_bits().to_le_bytes())?;
         }
         put_u32s(w, s.owners)
-    })
+    }
 }
 
 /// Reads the checkpoint of `ckpt` back, checking it belongs to this run.
 pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, seq: &VoxelSequence, params: &TrackParams) -> Result<Restored> {
     let path = ckpt.path();
     let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
-    let mut r = Reader { bytes: &bytes, at: 0, path: &path };
-    if r.take(MAGIC.len())? != MAGIC {
+    if !bytes.starts_with(MAGIC) {
         return Err(Error::parse(&path, None, "not a voltrack tracking checkpoint (or one of another format version)"));
     }
+    let Some((state, sum)) = bytes.split_last_chunk::<8>().filter(|(state, _)| state.len() > MAGIC.len()) else {
+        return Err(Error::parse(&path, None, "checkpoint is truncated"));
+    };
+    let mut hash = Fnv::new();
+    hash.bytes(state);
+    if hash.0 != u64::from_le_bytes(*sum) {
+        return Err(Error::parse(&path, None, "the checkpoint is damaged (its checksum does not match); drop --resume to start over"));
+    }
+    let bytes = state;
+    let mut r = Reader { bytes, at: 0, path: &path };
+    r.take(MAGIC.len())?;
     if r.u64()? != fingerprint {
         return Err(Error::InvalidInput(format!(
             "{}: the checkpoint was saved for different input, resolution or tracking parameters; \
