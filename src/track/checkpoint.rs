@@ -140,39 +140,37 @@ impl<W: Write> Write for Hashing<'_, W> {
 /// The checkpoint's content before its checksum.
 fn write_state(w: &mut impl Write, fingerprint: u64, s: &Snapshot) -> std::io::Result<()> {
     let traj = s.trajectories;
-    {
-        w.write_all(MAGIC)?;
-        put_u64(w, fingerprint)?;
-        for n in [traj.frames, traj.centers, s.frames_done] {
-            put_u64(w, n as u64)?;
-        }
-        for p in &traj.positions[..s.frames_done * traj.centers] {
-            put_reals(w, p.coords.as_slice())?;
-        }
-        for counts in &s.cell_counts[..s.frames_done] {
-            put_u32s(w, counts)?;
-        }
-        for t in &s.timings[..s.frames_done] {
-            put_reals(w, &[t.total, t.assign, t.fit, t.affinity])?;
-            put_u64(w, t.iterations as u64)?;
-            put_u64(w, t.dropped_iterations as u64)?;
-            put_u64(w, t.damped_guess_kept as u64)?;
-        }
-        let a = s.affinity;
-        put_u64(w, a.lists.len() as u64)?;
-        for list in &a.lists {
-            put_u64(w, list.len() as u64)?;
-            for n in list {
-                put_u32s(w, &[n.j])?;
-                put_reals(w, &[n.w, n.max_d2, n.max_m2])?;
-            }
-        }
-        put_u64(w, a.iir.len() as u64)?;
-        for v in &a.iir {
-            w.write_all(&v.to_bits().to_le_bytes())?;
-        }
-        put_u32s(w, s.owners)
+    w.write_all(MAGIC)?;
+    put_u64(w, fingerprint)?;
+    for n in [traj.frames, traj.centers, s.frames_done] {
+        put_u64(w, n as u64)?;
     }
+    for p in &traj.positions[..s.frames_done * traj.centers] {
+        put_reals(w, p.coords.as_slice())?;
+    }
+    for counts in &s.cell_counts[..s.frames_done] {
+        put_u32s(w, counts)?;
+    }
+    for t in &s.timings[..s.frames_done] {
+        put_reals(w, &[t.total, t.assign, t.fit, t.affinity])?;
+        put_u64(w, t.iterations as u64)?;
+        put_u64(w, t.dropped_iterations as u64)?;
+        put_u64(w, t.damped_guess_kept as u64)?;
+    }
+    let a = s.affinity;
+    put_u64(w, a.lists.len() as u64)?;
+    for list in &a.lists {
+        put_u64(w, list.len() as u64)?;
+        for n in list {
+            put_u32s(w, &[n.j])?;
+            put_reals(w, &[n.w, n.max_d2, n.max_m2])?;
+        }
+    }
+    put_u64(w, a.iir.len() as u64)?;
+    for v in &a.iir {
+        w.write_all(&v.to_bits().to_le_bytes())?;
+    }
+    put_u32s(w, s.owners)
 }
 
 /// Reads the checkpoint of `ckpt` back, checking it belongs to this run.
