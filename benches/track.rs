@@ -43,17 +43,17 @@ fn main() {
             1000.0 * seq.voxelize_seconds / seq.frames.len() as f64,
             res.timings[0].total
         );
-        // With two guesses the parts add up both runs, which overlap in time.
+        // With several guesses the parts add up all runs, which overlap in time.
         println!(
-            "  tracking {:.3} s/frame: assign {:.3}, fit {:.3}, affinity {:.3}{}; {:.1} iterations/frame ({:.1} more dropped); damped guess kept in {} of {} frames",
+            "  tracking {:.3} s/frame: assign {:.3}, fit {:.3}, affinity {:.3}{}; {:.1} iterations/frame ({:.1} more dropped); a guess other than the paper's kept in {} of {} frames",
             mean(|t| t.total),
             mean(|t| t.assign),
             mean(|t| t.fit),
             mean(|t| t.affinity),
-            if single { format!(", other {:.3}", mean(|t| t.total - t.assign - t.fit - t.affinity)) } else { " (both runs)".into() },
+            if single { format!(", other {:.3}", mean(|t| t.total - t.assign - t.fit - t.affinity)) } else { " (all runs)".into() },
             mean(|t| t.iterations as f64),
             mean(|t| t.dropped_iterations as f64),
-            tracked.iter().filter(|t| t.damped_guess_kept).count(),
+            tracked.iter().filter(|t| t.kept_guess != voltrack::track::Guess::ConstantVelocity).count(),
             tracked.len()
         );
     }

@@ -65,16 +65,31 @@ pub struct TrackParams {
     /// k of a second start for every frame after the first: besides the
     /// paper's constant-velocity guess c^{f-1} + (c^{f-1} − c^{f-2}), the
     /// frame is also tracked from c^{f-1} + k (c^{f-1} − c^{f-2}), and the
-    /// run that ends with the lower energy E = Es + β Eu (method.md §3) is
-    /// kept. Limbs that swing and turn back within a few frames defeat the
+    /// runs are compared by their energy E = Es + β Eu (method.md §3), region
+    /// by region (see `guess_screening`). Limbs that swing and turn back within a few frames defeat the
     /// constant-velocity guess, all the more when frames are far apart in
     /// time: it sends a hand that has just stopped at the hip into the hip,
     /// its centers stay there, and a forearm follows them. A damped guess
     /// alone loses limbs that start moving at constant velocity instead (feet
-    /// lifting off). Keeping the better of the two loses neither. It doubles
-    /// the tracking work (the two runs share the cores); None tracks from the
-    /// paper's guess alone. Default Some(0.25); in [0, 1).
+    /// lifting off). Keeping the better of the two loses neither. Each guess
+    /// adds a run (they share the cores); None, with `accelerated_guess`
+    /// false, tracks from the paper's guess alone. Default Some(0.25); in
+    /// [0, 1).
     pub damped_guess: Option<Real>,
+    /// A start at constant acceleration from frame 3 on, besides the others:
+    /// c^{f-1} + v + (v − v') with v = c^{f-1} − c^{f-2}, v' = c^{f-2} −
+    /// c^{f-3}. A limb that swings like a pendulum turns back within a few
+    /// frames; the constant-velocity guess then sends it on past the turn and
+    /// the damped one leaves it behind, both by several of its widths when it
+    /// is thin and fast (a galloping animal's legs), and its centers end in
+    /// another part. Default true.
+    pub accelerated_guess: bool,
+    /// With several guesses, their runs stop once no update is as long as
+    /// this many times `threshold`; they are then compared region by region
+    /// and combined, and only the kept run goes on to `threshold`
+    /// (`track::forward`). 1 runs every guess to `threshold`. Default 4; in
+    /// [1, 1e6].
+    pub guess_screening: Real,
     /// ω of the tracking iterations: each step moves a center ω times the
     /// way to the paper's update (p + β x̄) / (1 + β); convergence is judged
     /// on that update's length whatever ω, so the iterations stop where the
@@ -111,6 +126,8 @@ impl Default for TrackParams {
             threshold: 5.6e-5,
             max_iterations: 1000,
             damped_guess: Some(0.25),
+            accelerated_guess: true,
+            guess_screening: 4.0,
             tracking_over_relaxation: 1.0,
             lloyd_iterations: 1000,
             over_relaxation: 1.8,
@@ -137,6 +154,7 @@ impl TrackParams {
             check("the damped guess's factor", k, Span::closed_open(0.0, 1.0))?;
         }
         check("the tracking over-relaxation", self.tracking_over_relaxation, Span::open(0.0, 2.0))?;
+        check("the guess screening factor", self.guess_screening, Span::closed(1.0, 1e6))?;
         // 0 would leave the centers where the seeding put them, unplaced.
         check_count("the Lloyd iterations", self.lloyd_iterations, 1..=MAX_ITERATIONS)?;
         check("the over-relaxation", self.over_relaxation, Span::open(0.0, 2.0))?;

@@ -24,9 +24,17 @@ fn fixture(name: &str) -> PathBuf {
 
 /// The README's kind of run at low resolution, everything else at defaults.
 fn convert(name: &str, resolution: usize, centers: usize) -> (Conversion, Measurements) {
+    convert_with(name, resolution, TrackParams { centers, ..Default::default() })
+}
+
+/// The paper's guess alone, which still loses the swinging leg.
+fn single_guess(centers: usize) -> TrackParams {
+    TrackParams { centers, damped_guess: None, accelerated_guess: false, ..Default::default() }
+}
+
+fn convert_with(name: &str, resolution: usize, track: TrackParams) -> (Conversion, Measurements) {
     let files = voltrack::io::FrameFiles::discover(&[fixture(name)]).unwrap();
     let voxel = VoxelParams { resolution, ..Default::default() };
-    let track = TrackParams { centers, ..Default::default() };
     let conv = voltrack::pipeline::convert(
         &files,
         &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: Default::default(), checkpoint: None, ..Default::default() },
@@ -95,11 +103,11 @@ fn coverage_flags_a_leg_whose_centers_stayed_behind() {
     assert_eq!(c.flagged_runs().first().map(|r| r.0), c.flagged.first().copied());
 }
 
-/// Today's tracker loses the swinging leg at `-r 48 -n 150`; the detector
-/// must flag every frame where it does.
+/// The paper's single guess loses the swinging leg at `-r 48 -n 150`; the
+/// detector must flag every frame where it does.
 #[test]
 fn the_detector_flags_the_frames_where_the_tracker_loses_the_leg() {
-    let (conv, measured) = convert("swinging_leg", 48, 150);
+    let (conv, measured) = convert_with("swinging_leg", 48, single_guess(150));
     let errors = leg_errors(final_trajectories(&conv), conv.sequence.grid.voxel_size);
     let flagged: Vec<usize> = (0..SWINGING_LEG_FRAMES).filter(|f| conv.coverage.flagged.contains(f) || measured.fit_outliers.flagged.contains(f)).collect();
     for (f, (mean, max)) in errors.iter().enumerate() {
@@ -115,7 +123,7 @@ fn the_detector_flags_the_frames_where_the_tracker_loses_the_leg() {
     let lost: Vec<usize> = (0..SWINGING_LEG_FRAMES).filter(|&f| errors[f].0 > 8.0).collect();
     assert!(
         !lost.is_empty(),
-        "the tracker kept the leg (issue 21 fixed?): un-ignore the_tracker_keeps_the_swinging_leg, and give this test a fixture it still loses"
+        "the paper's single guess kept the leg: give this test a fixture it still loses"
     );
     for f in &lost {
         assert!(flagged.contains(f), "frame {f}: the leg is lost ({:?} voxels) but not flagged", errors[*f]);
@@ -185,7 +193,8 @@ fn convert_warns_after_its_summary_and_the_report_marks_the_frames() {
     let input = fixture("swinging_leg");
     let dir = common::Scratch::new("thin-parts", "report");
     let report = dir.join("report.html");
-    let args = [input.to_str().unwrap(), "-r", "48", "-n", "150", "-o", "out.glb", "--report", report.to_str().unwrap()];
+    // The paper's single guess, which still loses the leg.
+    let args = [input.to_str().unwrap(), "-r", "48", "-n", "150", "--single-guess", "-o", "out.glb", "--report", report.to_str().unwrap()];
     let stdout = voltrack("convert", &[&["convert"][..], &args].concat());
     let wrote = stdout.find("wrote ").expect("summary");
     let warning = stdout.find("warning: frames 6-9: the result is far from the input").unwrap_or_else(|| panic!("no warning:\n{stdout}"));
@@ -195,7 +204,7 @@ fn convert_warns_after_its_summary_and_the_report_marks_the_frames() {
     assert!(html.contains("Warning: a part may have been lost") && html.contains("Frames 6-9"), "no warning in the report");
     assert_eq!(html.matches("<tr class=\"flagged\">").count(), 4);
     // Without a report too: the fit is measured for every mesh output.
-    let plain = voltrack("plain", &["convert", input.to_str().unwrap(), "-r", "48", "-n", "150", "-o", "plain.glb"]);
+    let plain = voltrack("plain", &["convert", input.to_str().unwrap(), "-r", "48", "-n", "150", "--single-guess", "-o", "plain.glb"]);
     assert!(plain.contains("warning: frames 6-9: the result is far from the input"), "no warning without --report:\n{plain}");
     // The bar is not flagged.
     let bar = fixture("bending_bar");

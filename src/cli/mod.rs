@@ -186,7 +186,7 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
     bars.finish();
     let after = refined.as_ref().map(|_| pipeline::measure(&traj, &seq));
     let coverage = pipeline::check_coverage(&traj, &seq, &CoverageParams::default())?;
-    let timings: Vec<_> = tracked.timings.iter().map(|t| serde_json::json!({"seconds": t.total, "iterations": t.iterations, "assign": t.assign, "fit": t.fit, "affinity": t.affinity, "dropped_iterations": t.dropped_iterations, "damped_guess_kept": t.damped_guess_kept})).collect();
+    let timings: Vec<_> = tracked.timings.iter().map(|t| serde_json::json!({"seconds": t.total, "iterations": t.iterations, "assign": t.assign, "fit": t.fit, "affinity": t.affinity, "dropped_iterations": t.dropped_iterations, "kept_guess": t.kept_guess})).collect();
     if json {
         return print_json(&serde_json::json!({
             "output": output,

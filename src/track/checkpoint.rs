@@ -155,7 +155,7 @@ fn write_state(w: &mut impl Write, fingerprint: u64, s: &Snapshot) -> std::io::R
         put_reals(w, &[t.total, t.assign, t.fit, t.affinity])?;
         put_u64(w, t.iterations as u64)?;
         put_u64(w, t.dropped_iterations as u64)?;
-        put_u64(w, t.damped_guess_kept as u64)?;
+        put_u64(w, t.kept_guess.code())?;
     }
     let a = s.affinity;
     put_u64(w, a.lists.len() as u64)?;
@@ -208,7 +208,7 @@ pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, seq: &VoxelSequence, 
     }
     let cell_counts = (0..frames_done).map(|_| r.u32s(centers)).collect::<Result<_>>()?;
     let timings = (0..frames_done)
-        .map(|_| Ok(FrameTiming { total: r.real()?, assign: r.real()?, fit: r.real()?, affinity: r.real()?, iterations: r.usize()?, dropped_iterations: r.usize()?, damped_guess_kept: r.usize()? != 0 }))
+        .map(|_| Ok(FrameTiming { total: r.real()?, assign: r.real()?, fit: r.real()?, affinity: r.real()?, iterations: r.usize()?, dropped_iterations: r.usize()?, kept_guess: r.guess()? }))
         .collect::<Result<_>>()?;
     if r.usize()? != centers {
         return Err(Error::parse(&path, None, "affinity lists do not match the number of centers"));
@@ -283,5 +283,9 @@ impl<'a> Reader<'a> {
     }
     fn real(&mut self) -> Result<crate::math::Real> {
         Ok(crate::math::Real::from_bits(self.u64()?))
+    }
+    fn guess(&mut self) -> Result<super::Guess> {
+        let code = self.u64()?;
+        super::Guess::from_code(code).ok_or_else(|| Error::parse(self.path, None, format!("unknown guess {code}")))
     }
 }

@@ -2,8 +2,10 @@
 //! with rigid predictions, then alternate Voronoi centroids and rigid
 //! predictions until no center moves more than the threshold.
 //!
-//! Beyond the paper, each frame is also tracked from a damped guess and the
-//! result with the lower energy is kept (see [`TrackParams::damped_guess`]).
+//! Beyond the paper, each frame is tracked from several guesses (see
+//! [`TrackParams::damped_guess`] and [`TrackParams::accelerated_guess`]);
+//! their runs are compared region by region and the best of each region
+//! combined (see [`Tracker::track_frame`]).
 
 use super::affinity::Affinity;
 use super::checkpoint::{self, Checkpointing, Snapshot};
@@ -15,17 +17,18 @@ use crate::math::{Point3, Real};
 use crate::params::TrackParams;
 use crate::progress::{Progress, Stage};
 use crate::voxel::VoxelSequence;
-use super::FrameTiming;
+use super::{FrameTiming, Guess};
+use rayon::prelude::*;
 use std::time::Instant;
 
 
 impl FrameTiming {
-    /// Adds the parts of the dropped run of the same frame.
+    /// Adds the parts of a dropped run of the same frame.
     fn add_dropped(&mut self, dropped: &FrameTiming) {
         self.assign += dropped.assign;
         self.fit += dropped.fit;
         self.affinity += dropped.affinity;
-        self.dropped_iterations = dropped.iterations;
+        self.dropped_iterations += dropped.iterations;
     }
 }
 
@@ -145,18 +148,8 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
         let start = Instant::now();
         let voxels: std::sync::Arc<[u32]> = seq.frames[f].indices().into();
         let (prev, voxels) = (traj.frame(f - 1), &voxels);
-        let extrapolate = |k: Real| -> Vec<Point3> { prev.iter().zip(traj.frame(f - 2)).map(|(a, b)| a + (a - b) * k).collect() };
         let fits = tracker.fits(prev);
-        let kept = match params.damped_guess.filter(|_| f >= 2) {
-            None => {
-                let guess = if f == 1 { prev.to_vec() } else { extrapolate(1.0) };
-                tracker.track_frame(prev, guess, &fits, voxels, progress)
-            }
-            Some(k) => tracker.track_frame_from_two_guesses(prev, [extrapolate(1.0), extrapolate(k)], &fits, voxels, progress).map(|(kept, damped_kept)| {
-                log::debug!("frame {f}: {} guess kept", if damped_kept { "damped" } else { "constant-velocity" });
-                kept
-            }),
-        };
+        let kept = tracker.track_frame(prev, guesses(&traj, f, params), &fits, voxels, progress);
         let Some(FrameResult { centers, counts, mut timing, energy }) = kept else {
             // Frame f was abandoned; the state is still that after frame f - 1.
             if saved < f {
@@ -167,7 +160,7 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
         timing.total = start.elapsed().as_secs_f64();
         traj.frame_mut(f).copy_from_slice(&centers);
         cell_counts.push(counts);
-        log::debug!("frame {f}: {} iterations, energy {energy:.4e}, {:.3} s", timing.iterations, timing.total);
+        log::debug!("frame {f}: {:?} guess kept, {} iterations, energy {energy:.4e}, {:.3} s", timing.kept_guess, timing.iterations, timing.total);
         timings.push(timing);
         progress.report(Stage::Track, f + 1, frames);
         if checkpoint.is_some_and(|c| (f + 1) % c.every == 0 || f + 1 == frames) {
@@ -178,6 +171,29 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
     Ok(TrackResult { trajectories: traj, cell_counts, timings, scale })
 }
 
+/// The starts of frame `f` (from 1): the paper's constant-velocity guess
+/// c^{f-1} + v with v = c^{f-1} − c^{f-2} (c^0 itself in frame 1), the damped
+/// guess c^{f-1} + k v from frame 2, and the accelerated guess
+/// c^{f-1} + v + (v − v') with v' = c^{f-2} − c^{f-3} from frame 3, as
+/// `params` asks for them.
+fn guesses(traj: &Trajectories, f: usize, params: &TrackParams) -> Vec<(Guess, Vec<Point3>)> {
+    let prev = traj.frame(f - 1);
+    if f == 1 {
+        return vec![(Guess::ConstantVelocity, prev.to_vec())];
+    }
+    let before = traj.frame(f - 2);
+    let extrapolate = |k: Real| -> Vec<Point3> { prev.iter().zip(before).map(|(a, b)| a + (a - b) * k).collect() };
+    let mut starts = vec![(Guess::ConstantVelocity, extrapolate(1.0))];
+    if let Some(k) = params.damped_guess {
+        starts.push((Guess::Damped, extrapolate(k)));
+    }
+    if params.accelerated_guess && f >= 3 {
+        let accelerated = prev.iter().zip(before).zip(traj.frame(f - 3)).map(|((a, b), c)| a + (a - b) * 2.0 - (b - c)).collect();
+        starts.push((Guess::Accelerated, accelerated));
+    }
+    starts
+}
+
 /// One run of a frame's iterations from one guess.
 struct Run {
     cur: Vec<Point3>,
@@ -186,8 +202,6 @@ struct Run {
     moved: Vec<Real>,
     index: CenterIndex,
     timing: FrameTiming,
-    /// E at the positions before the last iteration (infinite before the first).
-    energy: Real,
     converged: bool,
 }
 
@@ -197,25 +211,27 @@ impl<'a> Tracker<'a> {
         RigidFits::new(prev, prev.len(), |i| self.affinity.pairs(i))
     }
 
-    /// Presmoothing from the guess `cur`, and the cells carried over from frame f-1.
-    fn start(&self, prev: &[Point3], mut cur: Vec<Point3>, fits: &RigidFits, voxels: &[u32]) -> Run {
+    /// `presmooth_steps` of presmoothing from the guess `cur`, and the cells
+    /// carried over from frame f-1.
+    fn start(&self, prev: &[Point3], mut cur: Vec<Point3>, fits: &RigidFits, voxels: &[u32], presmooth_steps: usize) -> Run {
         let mut timing = FrameTiming::default();
         let cells = Assignment::new(self.grid, voxels, carry_owners(&self.prev_voxels, &self.owners, voxels));
         let clock = Instant::now();
-        for _ in 0..self.params.presmooth_steps {
+        for _ in 0..presmooth_steps {
             cur = predict(&fits.fit(&cur), prev);
         }
         timing.fit += clock.elapsed().as_secs_f64();
         let index = CenterIndex::new(&cur);
-        Run { cur, cells, moved: Vec::new(), index, timing, energy: Real::INFINITY, converged: false }
+        Run { cur, cells, moved: Vec::new(), index, timing, converged: false }
     }
 
-    /// Iterates `run` until it converges or reaches the iteration limit.
-    /// None when `progress` asks to stop.
-    fn iterate(&self, run: &mut Run, prev: &[Point3], fits: &RigidFits, progress: Progress) -> Option<()> {
+    /// Iterates `run` until no center's update is as long as the square
+    /// root of `threshold2`, or the iteration limit. None when `progress`
+    /// asks to stop.
+    fn iterate(&self, run: &mut Run, prev: &[Point3], fits: &RigidFits, threshold2: Real, progress: Progress) -> Option<()> {
         let limit = self.params.max_iterations;
         let (beta, omega) = (self.params.beta, self.params.tracking_over_relaxation);
-        let Run { cur, cells, moved, index, timing: t, energy, converged } = run;
+        let Run { cur, cells, moved, index, timing: t, converged } = run;
         while !*converged && t.iterations < limit {
             if progress.cancelled() {
                 return None;
@@ -233,25 +249,21 @@ impl<'a> Tracker<'a> {
             moved.clear();
             // The residual G(c) − c of the paper's update G(c) = (p + β x̄) / (1 + β)
             // decides convergence whatever the step taken along it.
-            let (mut residual_most, mut smooth, mut data): (Real, Real, Real) = (0.0, 0.0, 0.0);
+            let mut residual_most: Real = 0.0;
             for (i, c) in cur.iter_mut().enumerate() {
                 let p = motions[i].apply(&prev[i]);
-                let x = stats.centroid(i, self.grid);
-                smooth += (*c - p).norm_squared();
-                data += x.map_or(0.0, |x| (*c - x).norm_squared());
-                let x = x.unwrap_or(p);
+                let x = stats.centroid(i, self.grid).unwrap_or(p);
                 let residual = Point3::from((p.coords + x.coords * beta) / (1.0 + beta)) - *c;
                 residual_most = residual_most.max(residual.norm());
                 let step = residual * omega;
                 moved.push(step.norm());
                 *c += step;
             }
-            *energy = 0.5 * (smooth + beta * data);
             if t.iterations % 100 == 0 {
-                let over = moved.iter().filter(|&&m| m * m >= self.threshold2).count();
+                let over = moved.iter().filter(|&&m| m * m >= threshold2).count();
                 log::debug!("iteration {}: {over} centers move more than the threshold, largest residual {residual_most:.2e}", t.iterations);
             }
-            *converged = residual_most * residual_most < self.threshold2;
+            *converged = residual_most * residual_most < threshold2;
         }
         Some(())
     }
@@ -273,43 +285,100 @@ impl<'a> Tracker<'a> {
         FrameResult { centers: cur, counts: stats.count, timing, energy }
     }
 
-    /// One frame from the guess `guess`. None when `progress` asks to stop;
-    /// the state is then left as it was. The caller times the whole frame.
-    fn track_frame(&mut self, prev: &[Point3], guess: Vec<Point3>, fits: &RigidFits, voxels: &std::sync::Arc<[u32]>, progress: Progress) -> Option<FrameResult> {
-        let mut run = self.start(prev, guess, fits, voxels);
-        self.iterate(&mut run, prev, fits, progress)?;
-        Some(self.finish(run, prev, fits, voxels))
+    /// Each center's share of E at `run`'s positions: ½ ‖c_i − p_i‖² +
+    /// β ½ ‖c_i − x̄_i‖² (nothing for x̄ of an empty cell). Brings the run's
+    /// cells up to those positions.
+    fn local_energies(&self, run: &mut Run, prev: &[Point3], fits: &RigidFits) -> Vec<Real> {
+        let Run { cur, cells, moved, index, timing, .. } = run;
+        let clock = Instant::now();
+        if !moved.is_empty() {
+            *index = std::mem::replace(index, CenterIndex::new(&[])).moved_to(cur, moved);
+        }
+        let stats = cells.update(index, moved, false);
+        timing.assign += clock.elapsed().as_secs_f64();
+        // The cells and the index are now those of `cur`.
+        moved.clear();
+        moved.resize(cur.len(), 0.0);
+        let clock = Instant::now();
+        let motions = fits.fit(cur);
+        timing.fit += clock.elapsed().as_secs_f64();
+        let beta = self.params.beta;
+        cur.iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let data = stats.centroid(i, self.grid).map_or(0.0, |x| (c - x).norm_squared());
+                0.5 * ((c - motions[i].apply(&prev[i])).norm_squared() + beta * data)
+            })
+            .collect()
     }
 
-    /// One frame from two guesses, run side by side to convergence; the one
-    /// with the higher energy is dropped. Returns the result and whether the
-    /// second guess was kept.
+    /// One frame from `guesses` (at least one). None when `progress` asks to
+    /// stop; the state is then left as it was. The caller times the whole
+    /// frame.
     ///
-    /// Why not decide earlier: on crane_tvm the order of the two runs'
-    /// energies after 5 to 40 iterations matched the final order in about
-    /// half the frames, no better than chance (docs/measurements.md).
-    fn track_frame_from_two_guesses(
-        &mut self,
-        prev: &[Point3],
-        [first, second]: [Vec<Point3>; 2],
-        fits: &RigidFits,
-        voxels: &std::sync::Arc<[u32]>,
-        progress: Progress,
-    ) -> Option<(FrameResult, bool)> {
+    /// One guess runs to convergence. Several run side by side until their
+    /// updates are below `guess_screening` times the threshold; then each
+    /// center takes the run whose energy summed over its neighbourhood
+    /// (weighted by affinity) is lowest, and where that mixes runs, the
+    /// combination runs as well. The run with the lowest energy goes on to
+    /// the threshold. Why region by region: a galloping animal's front legs
+    /// may turn back while its hind legs keep their speed, so no one guess
+    /// suits the whole frame, and the frame's energy would hand one leg's
+    /// failure to the run that got the other leg right. Why screen early:
+    /// the last stretch to the threshold, a slow creep, takes most of a
+    /// run's iterations and changes little between runs
+    /// (docs/measurements.md).
+    fn track_frame(&mut self, prev: &[Point3], guesses: Vec<(Guess, Vec<Point3>)>, fits: &RigidFits, voxels: &std::sync::Arc<[u32]>, progress: Progress) -> Option<FrameResult> {
         let this = &*self;
-        let run = |guess: Vec<Point3>| {
-            let mut run = this.start(prev, guess, fits, voxels);
-            this.iterate(&mut run, prev, fits, progress).map(|_| run)
-        };
-        // Each run is parallel inside, but not evenly: running both at once fills the cores.
-        let (a, b) = rayon::join(|| run(first), || run(second));
-        let (a, b) = (a?, b?);
-        let second_kept = b.energy < a.energy;
-        let (kept, dropped) = if second_kept { (b, a) } else { (a, b) };
+        let presmooth = self.params.presmooth_steps;
+        let fine = self.threshold2;
+        if guesses.len() == 1 {
+            let (guess, start) = guesses.into_iter().next().expect("one guess");
+            let mut run = self.start(prev, start, fits, voxels, presmooth);
+            self.iterate(&mut run, prev, fits, fine, progress)?;
+            let mut result = self.finish(run, prev, fits, voxels);
+            result.timing.kept_guess = guess;
+            return Some(result);
+        }
+        let coarse = fine * self.params.guess_screening.powi(2);
+        // Each run is parallel inside, but not evenly: running them at once fills the cores.
+        let mut runs: Vec<(Guess, Run, Vec<Real>)> = guesses
+            .into_par_iter()
+            .map(|(guess, start)| {
+                let mut run = this.start(prev, start, fits, voxels, presmooth);
+                this.iterate(&mut run, prev, fits, coarse, progress)?;
+                let energies = this.local_energies(&mut run, prev, fits);
+                Some((guess, run, energies))
+            })
+            .collect::<Option<_>>()?;
+        let choice: Vec<usize> = (0..prev.len())
+            .into_par_iter()
+            .map(|i| {
+                let around = |r: usize| this.affinity.pairs(i).map(|(j, w)| w * runs[r].2[j]).sum::<Real>();
+                (1..runs.len()).fold((0, around(0)), |(b, e), r| if around(r) < e { (r, around(r)) } else { (b, e) }).0
+            })
+            .collect();
+        if choice.iter().any(|&r| r != choice[0]) {
+            // Already through presmoothing: it would blur the seams' choice.
+            let mixed = choice.iter().enumerate().map(|(i, &r)| runs[r].1.cur[i]).collect();
+            let mut run = this.start(prev, mixed, fits, voxels, 0);
+            this.iterate(&mut run, prev, fits, coarse, progress)?;
+            let energies = this.local_energies(&mut run, prev, fits);
+            runs.push((Guess::Mixed, run, energies));
+        }
+        let total = |r: &(Guess, Run, Vec<Real>)| r.2.iter().sum::<Real>();
+        let best = (1..runs.len()).fold(0, |b, r| if total(&runs[r]) < total(&runs[b]) { r } else { b });
+        let (guess, mut kept, _) = runs.remove(best);
+        if coarse > fine {
+            kept.converged = false;
+            self.iterate(&mut kept, prev, fits, fine, progress)?;
+        }
         let mut result = self.finish(kept, prev, fits, voxels);
-        result.timing.add_dropped(&dropped.timing);
-        result.timing.damped_guess_kept = second_kept;
-        Some((result, second_kept))
+        for (_, dropped, _) in &runs {
+            result.timing.add_dropped(&dropped.timing);
+        }
+        result.timing.kept_guess = guess;
+        Some(result)
     }
 }
 

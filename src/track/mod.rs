@@ -12,8 +12,34 @@ pub use checkpoint::Checkpointing;
 pub(crate) use forward::cell_moments;
 pub use forward::{predict, track, track_with_checkpoints, TrackResult};
 
-/// Where the time of one frame went, in seconds. With a damped guess the
-/// parts add up both runs, which run side by side: they can exceed `total`.
+/// The start a frame's kept run came from (see `forward::guesses`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Guess {
+    /// The paper's: c^{f-1} + (c^{f-1} − c^{f-2}).
+    #[default]
+    ConstantVelocity,
+    /// [`crate::params::TrackParams::damped_guess`].
+    Damped,
+    /// [`crate::params::TrackParams::accelerated_guess`].
+    Accelerated,
+    /// Region by region the best of the others.
+    Mixed,
+}
+
+impl Guess {
+    /// Its number in a checkpoint.
+    pub(crate) fn code(self) -> u64 {
+        self as u64
+    }
+
+    pub(crate) fn from_code(code: u64) -> Option<Guess> {
+        [Guess::ConstantVelocity, Guess::Damped, Guess::Accelerated, Guess::Mixed].get(code as usize).copied()
+    }
+}
+
+/// Where the time of one frame went, in seconds. With several guesses the
+/// parts add up all runs, which run side by side: they can exceed `total`.
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct FrameTiming {
     pub total: f64,
@@ -22,10 +48,10 @@ pub struct FrameTiming {
     pub affinity: f64,
     /// Iterations of the run that was kept.
     pub iterations: usize,
-    /// Iterations of the run from the other guess, dropped (0 with one guess).
+    /// Iterations of the runs from the other guesses, dropped (0 with one guess).
     pub dropped_iterations: usize,
-    /// The run from the damped guess ended with the lower energy and was kept.
-    pub damped_guess_kept: bool,
+    /// The start of the kept run.
+    pub kept_guess: Guess,
 }
 
 /// ρ_p in the input's units (see [`crate::params::TrackParams::rho_p`]), from frame 0's
