@@ -134,10 +134,30 @@ fn the_detector_flags_the_frames_where_the_tracker_loses_the_leg() {
     }
 }
 
-/// Issue 21's goal: the centers of the fast thin part follow it. Fails
-/// today (docs/measurements.md says by how much).
+/// The leg is no longer lost: in every frame its centers are on average
+/// within a third of its length (23 voxels) of where its motion takes them,
+/// the bound past which the detector test calls it lost. Before the
+/// accelerated guess and the region-by-region combination of the guesses'
+/// runs (issue 21) they were up to 17.7 voxels off on average, taken by the
+/// still leg and the body from frame 6 on; now at most about 6.
 #[test]
-#[ignore = "issue 21: the tracker loses fast thin parts"]
+fn the_tracker_no_longer_loses_the_swinging_leg() {
+    let (conv, _) = convert("swinging_leg", 48, 150);
+    let errors = leg_errors(final_trajectories(&conv), conv.sequence.grid.voxel_size);
+    for (f, (mean, max)) in errors.iter().enumerate() {
+        eprintln!("frame {f}: leg centers off by {mean:.1} (max {max:.1}) voxels");
+    }
+    for (f, (mean, _)) in errors.iter().enumerate() {
+        assert!(*mean <= 8.0, "frame {f}: the leg's centers are {mean:.1} voxels off on average: lost");
+    }
+    assert!(conv.coverage.flagged.is_empty(), "{:?}", conv.coverage.frames);
+}
+
+/// Issue 21's goal: the centers of the fast thin part follow it closely.
+/// Fails today: where the leg turns back (frames 7-8) they follow with a
+/// lag (docs/measurements.md says how much).
+#[test]
+#[ignore = "issue 21: the tracker lags a fast thin part where it turns back"]
 fn the_tracker_keeps_the_swinging_leg() {
     let (conv, _) = convert("swinging_leg", 48, 150);
     let errors = leg_errors(final_trajectories(&conv), conv.sequence.grid.voxel_size);
