@@ -65,9 +65,9 @@ pub struct TrackParams {
     /// k of a second start for every frame after the first: besides the
     /// paper's constant-velocity guess c^{f-1} + (c^{f-1} − c^{f-2}), the
     /// frame is also tracked from c^{f-1} + k (c^{f-1} − c^{f-2}), and the
-    /// runs are compared by their energy E = Es + β Eu (method.md §3), region
-    /// by region (see `guess_screening`). Limbs that swing and turn back within a few frames defeat the
-    /// constant-velocity guess, all the more when frames are far apart in
+    /// runs are compared by their energy E = Es + β Eu (method.md §3),
+    /// region by region (see `guess_screening`). Limbs that swing and turn
+    /// back within a few frames defeat the constant-velocity guess, all the more when frames are far apart in
     /// time: it sends a hand that has just stopped at the hip into the hip,
     /// its centers stay there, and a forearm follows them. A damped guess
     /// alone loses limbs that start moving at constant velocity instead (feet

@@ -75,7 +75,7 @@ pub struct TrackArgs {
     /// Iteration limit per frame (range: 1..=100000)
     #[arg(long, default_value_t = TrackParams::default().max_iterations)]
     pub max_iterations: usize,
-    /// Also track every frame from the previous velocity scaled by K, and keep the run with the lower energy (range: 0 <= K < 1)
+    /// Also track every frame from the previous velocity scaled by K; the runs from the guesses are compared region by region by their energy (range: 0 <= K < 1)
     #[arg(long, value_name = "K", default_value_t = TrackParams::default().damped_guess.expect("on by default"))]
     pub damped_guess: f64,
     /// Track every frame from the paper's constant-velocity guess alone (no damped or accelerated guess): a third of the tracking work, but fast limbs that turn back get lost

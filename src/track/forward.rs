@@ -326,8 +326,8 @@ impl<'a> Tracker<'a> {
     /// suits the whole frame, and the frame's energy would hand one leg's
     /// failure to the run that got the other leg right. Why screen early:
     /// the last stretch to the threshold, a slow creep, takes most of a
-    /// run's iterations and changes little between runs
-    /// (docs/measurements.md).
+    /// run's iterations (docs/measurements.md), and only the kept run needs
+    /// it.
     fn track_frame(&mut self, prev: &[Point3], guesses: Vec<(Guess, Vec<Point3>)>, fits: &RigidFits, voxels: &std::sync::Arc<[u32]>, progress: Progress) -> Option<FrameResult> {
         let this = &*self;
         let presmooth = self.params.presmooth_steps;
