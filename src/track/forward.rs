@@ -285,9 +285,8 @@ impl<'a> Tracker<'a> {
         FrameResult { centers: cur, counts: stats.count, timing, energy }
     }
 
-    /// Each center's share of E at `run`'s positions: ½ ‖c_i − p_i‖² +
-    /// β ½ ‖c_i − x̄_i‖² (nothing for x̄ of an empty cell). Brings the run's
-    /// cells up to those positions.
+    /// Each center's term of E at `run`'s positions ([`center_energies`]).
+    /// Brings the run's cells up to those positions.
     fn local_energies(&self, run: &mut Run, prev: &[Point3], fits: &RigidFits) -> Vec<Real> {
         let Run { cur, cells, moved, index, timing, .. } = run;
         let clock = Instant::now();
@@ -300,16 +299,9 @@ impl<'a> Tracker<'a> {
         moved.clear();
         moved.resize(cur.len(), 0.0);
         let clock = Instant::now();
-        let motions = fits.fit(cur);
+        let predictions = predict(&fits.fit(cur), prev);
         timing.fit += clock.elapsed().as_secs_f64();
-        let beta = self.params.beta;
-        cur.iter()
-            .enumerate()
-            .map(|(i, c)| {
-                let data = stats.centroid(i, self.grid).map_or(0.0, |x| (c - x).norm_squared());
-                0.5 * ((c - motions[i].apply(&prev[i])).norm_squared() + beta * data)
-            })
-            .collect()
+        center_energies(cur, &predictions, &stats, self.grid, self.params.beta)
     }
 
     /// One frame from `guesses` (at least one). None when `progress` asks to
@@ -355,7 +347,7 @@ impl<'a> Tracker<'a> {
             .into_par_iter()
             .map(|i| {
                 let around = |r: usize| this.affinity.pairs(i).map(|(j, w)| w * runs[r].2[j]).sum::<Real>();
-                (1..runs.len()).fold((0, around(0)), |(b, e), r| if around(r) < e { (r, around(r)) } else { (b, e) }).0
+                lowest((0..runs.len()).map(around))
             })
             .collect();
         if choice.iter().any(|&r| r != choice[0]) {
@@ -366,8 +358,7 @@ impl<'a> Tracker<'a> {
             let energies = this.local_energies(&mut run, prev, fits);
             runs.push((Guess::Mixed, run, energies));
         }
-        let total = |r: &(Guess, Run, Vec<Real>)| r.2.iter().sum::<Real>();
-        let best = (1..runs.len()).fold(0, |b, r| if total(&runs[r]) < total(&runs[b]) { r } else { b });
+        let best = lowest(runs.iter().map(|r| r.2.iter().sum::<Real>()));
         let (guess, mut kept, _) = runs.remove(best);
         if coarse > fine {
             kept.converged = false;
@@ -385,9 +376,22 @@ impl<'a> Tracker<'a> {
 /// E = Es + β Eu = ½ Σ ‖c_i − p_i‖² + β ½ Σ ‖c_i − x̄_i‖² (method.md §3);
 /// an empty cell adds nothing to Eu.
 fn energy(centers: &[Point3], predictions: &[Point3], stats: &CellStats, grid: &GridSpec, beta: Real) -> Real {
-    let smooth: Real = centers.iter().zip(predictions).map(|(c, p)| (c - p).norm_squared()).sum();
-    let data: Real = centers.iter().enumerate().filter_map(|(i, c)| Some((c - stats.centroid(i, grid)?).norm_squared())).sum();
-    0.5 * (smooth + beta * data)
+    center_energies(centers, predictions, stats, grid, beta).iter().sum()
+}
+
+/// Each center's term of [`energy`].
+fn center_energies(centers: &[Point3], predictions: &[Point3], stats: &CellStats, grid: &GridSpec, beta: Real) -> Vec<Real> {
+    centers
+        .iter()
+        .zip(predictions)
+        .enumerate()
+        .map(|(i, (c, p))| 0.5 * ((c - p).norm_squared() + beta * stats.centroid(i, grid).map_or(0.0, |x| (c - x).norm_squared())))
+        .collect()
+}
+
+/// The position of the smallest of `values`, the first of equal ones.
+fn lowest(values: impl Iterator<Item = Real>) -> usize {
+    values.enumerate().fold((0, Real::INFINITY), |(b, e), (r, v)| if v < e { (r, v) } else { (b, e) }).0
 }
 
 /// Rigid predictions p_i = A_i(c_i^{f-1}).
