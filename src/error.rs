@@ -33,11 +33,36 @@ pub enum Error {
     /// replace an input or another output, or its place takes no file.
     #[error("{}: cannot write: {message}", path.display())]
     OutputRefused { path: PathBuf, message: String },
-    /// Stopped on request (Ctrl-C). `saved` names the checkpoint file and the
-    /// frames it holds when tracking state was saved.
-    #[error("interrupted{}", saved.as_ref().map(|(p, k)| format!(
-        "; the first {k} tracked frames are saved in {}: resume from it to continue", p.display())).unwrap_or_default())]
-    Interrupted { saved: Option<(PathBuf, usize)> },
+    /// Stopped on request (Ctrl-C). `saved` says what a resumed run will
+    /// not do again, when state was saved.
+    #[error("interrupted{}", saved.as_ref().map(|s| format!("; {s}: resume from it to continue")).unwrap_or_default())]
+    Interrupted { saved: Option<Saved> },
+}
+
+/// What an interrupted run saved for a resumed one.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Saved {
+    /// The tracking checkpoint file.
+    pub path: PathBuf,
+    /// Tracked frames it holds.
+    pub frames: usize,
+    /// Refinement batches finished and in all, when refinement saved its
+    /// state beside it (`Checkpointing::refine_path`).
+    pub refine: Option<(usize, usize)>,
+}
+
+impl std::fmt::Display for Saved {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.refine {
+            None => write!(f, "the first {} tracked frames are saved in {}", self.frames, self.path.display()),
+            Some((done, all)) => write!(
+                f,
+                "the {} tracked frames and the refinement ({done} of {all} batches done) are saved in {}",
+                self.frames,
+                self.path.parent().unwrap_or(&self.path).display()
+            ),
+        }
+    }
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

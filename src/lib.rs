@@ -64,6 +64,7 @@
 //! # Ok::<(), voltrack::Error>(())
 //! ```
 
+pub mod checkpoint;
 pub mod deform;
 pub mod error;
 pub mod export;

@@ -9,7 +9,9 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use voltrack::params::{AffinityKind, ConformParams, DeformParams, RefineParams, TrackParams};
 use voltrack::pipeline::{convert, ConvertOptions};
 use voltrack::progress::ProgressSink;
+use voltrack::refine::{refine, refine_with_checkpoints, RefineResult};
 use voltrack::track::{track, track_with_checkpoints, Checkpointing, TrackResult};
+use voltrack::error::Saved;
 use voltrack::{Error, Progress, Stage};
 
 const FRAMES: usize = 12;
@@ -67,7 +69,7 @@ impl ProgressSink for StopAtPoll {
 /// interrupted by `sink`, and returns the frames the error says are saved.
 fn interrupted(seq: &voltrack::voxel::VoxelSequence, params: &TrackParams, ckpt: &Checkpointing, sink: &dyn ProgressSink) -> usize {
     match track_with_checkpoints(seq, params, Some(ckpt), Progress(Some(sink))) {
-        Err(Error::Interrupted { saved: Some((path, frames)) }) => {
+        Err(Error::Interrupted { saved: Some(Saved { path, frames, refine: None }) }) => {
             assert_eq!(path, ckpt.path());
             frames
         }
@@ -90,7 +92,7 @@ fn interrupted_and_resumed_tracking_equals_an_uninterrupted_run() {
         let whole = track(&seq, &params, Progress::none()).unwrap();
 
         let dir = Scratch::new("checkpoint", &format!("{kind:?}-{every}-{first}"));
-        let ckpt = Checkpointing { dir: dir.join("state"), every, resume: false };
+        let ckpt = Checkpointing { dir: dir.join("state"), every, ..Checkpointing::new("") };
         let frames = interrupted(&seq, &params, &ckpt, &StopAfter { after: first, stop: AtomicBool::new(false) });
         assert_eq!(frames, first, "the state after the last finished frame is saved");
         assert!(dir.files().iter().all(|f| !f.contains("partial")), "no temporary file left: {:?}", dir.files());
@@ -122,7 +124,7 @@ fn a_frame_abandoned_midway_leaves_no_trace_after_resuming() {
         let mut stopped_in = Vec::new();
         for after in [0, 40, 150, 300] {
             let dir = Scratch::new("checkpoint", &format!("midway-{}-{after}", damped_guess.is_some()));
-            let ckpt = Checkpointing { dir: dir.join("state"), every: 100, resume: false };
+            let ckpt = Checkpointing { dir: dir.join("state"), every: 100, ..Checkpointing::new("") };
             let sink = StopAtPoll { after, polls: AtomicUsize::new(0), reported: AtomicUsize::new(0) };
             let frames = interrupted(&seq, &params, &ckpt, &sink);
             let reported = sink.reported.load(Ordering::Relaxed);
@@ -149,7 +151,7 @@ fn resuming_with_another_checkpoint_interval_gives_the_same_result() {
     let params = TrackParams { centers: 60, seed: 9, ..Default::default() };
     let whole = track(&seq, &params, Progress::none()).unwrap();
     let dir = Scratch::new("checkpoint", "interval");
-    let ckpt = Checkpointing { dir: dir.join("state"), every: 1, resume: false };
+    let ckpt = Checkpointing { dir: dir.join("state"), every: 1, ..Checkpointing::new("") };
     assert_eq!(interrupted(&seq, &params, &ckpt, &StopAfter { after: 7, stop: AtomicBool::new(false) }), 7);
     let resumed = track_with_checkpoints(&seq, &params, Some(&Checkpointing { every: 3, resume: true, ..ckpt }), Progress::none()).unwrap();
     assert_same(&whole, &resumed);
@@ -167,7 +169,7 @@ fn a_checkpoint_of_another_run_or_a_damaged_one_is_refused_with_its_name() {
     let seq = sequence();
     let params = TrackParams { centers: 60, ..Default::default() };
     let dir = Scratch::new("checkpoint", "refused");
-    let ckpt = Checkpointing { dir: dir.0.clone(), every: 2, resume: false };
+    let ckpt = Checkpointing { dir: dir.0.clone(), every: 2, ..Checkpointing::new("") };
     let whole = track_with_checkpoints(&seq, &params, Some(&ckpt), Progress::none()).unwrap();
     let resume = Checkpointing { resume: true, ..ckpt.clone() };
     let saved = std::fs::read(ckpt.path()).unwrap();
@@ -364,11 +366,12 @@ fn interrupted_while_conforming_names_the_finished_tracking_and_resumes() {
         convert(&files, &options, progress)
     };
     let dir = Scratch::new("checkpoint", "conform");
-    let ckpt = Checkpointing { dir: dir.join("state"), every: 4, resume: false };
+    let ckpt = Checkpointing { dir: dir.join("state"), every: 4, ..Checkpointing::new("") };
     let sink = StopAt(Stage::Conform, AtomicBool::new(false));
     match run(Some(&ckpt), Progress(Some(&sink))).map(|_| ()).unwrap_err() {
-        Error::Interrupted { saved: Some((path, frames)) } => {
+        Error::Interrupted { saved: Some(Saved { path, frames, refine: batches }) } => {
             assert_eq!(path, ckpt.path());
+            assert_eq!(batches, Some((refine.batches, refine.batches)), "refinement had finished");
             assert_eq!(frames, voltrack::fixtures::BENDING_BAR_FRAMES, "every frame was tracked");
         }
         other => panic!("expected an interruption naming the checkpoint, got {other}"),
@@ -377,4 +380,190 @@ fn interrupted_while_conforming_names_the_finished_tracking_and_resumes() {
     let resumed = run(Some(&Checkpointing { resume: true, ..ckpt }), Progress::none()).unwrap();
     let whole = run(None, Progress::none()).unwrap();
     assert_eq!(resumed.mesh.frames, whole.mesh.frames);
+}
+
+/// Asks to stop once refinement reports `after` steps done (an iteration of
+/// the global optimisation is a step; a batch has `max_iterations` of them).
+struct StopInRefine {
+    after: usize,
+    stop: AtomicBool,
+}
+
+impl ProgressSink for StopInRefine {
+    fn report(&self, stage: Stage, done: usize, _total: usize) {
+        if stage == Stage::Refine && done >= self.after {
+            self.stop.store(true, Ordering::Relaxed);
+        }
+    }
+    fn cancelled(&self) -> bool {
+        self.stop.load(Ordering::Relaxed)
+    }
+}
+
+/// Everything a refinement returns but its timing, floats as bits.
+fn refined_bits(r: &RefineResult) -> (Vec<u64>, Vec<usize>, Vec<usize>, Vec<Vec<[u64; 4]>>) {
+    let positions = r.trajectories.positions.iter().flat_map(|p| p.coords.iter().map(|c| c.to_bits()).collect::<Vec<_>>()).collect();
+    let histories = r.batches.iter().map(|h| h.iter().map(|i| [i.energy, i.smooth, i.data, i.lambda].map(f64::to_bits)).collect()).collect();
+    (positions, r.removed.clone(), r.kept.clone(), histories)
+}
+
+fn tracked_bar() -> (voltrack::voxel::VoxelSequence, TrackResult) {
+    let seq = sequence();
+    let tracked = track(&seq, &TrackParams { centers: 60, seed: 3, ..Default::default() }, Progress::none()).unwrap();
+    (seq, tracked)
+}
+
+/// Stopped within a batch of the global optimisation, at a batch's end, or
+/// twice, refinement saves its state beside the tracking's and says so;
+/// resumed, it ends bit-identical to a refinement never interrupted
+/// (trajectories, removed and kept centers, energy histories), and resuming
+/// the finished state again changes nothing.
+#[test]
+fn interrupted_and_resumed_refinement_equals_an_uninterrupted_run() {
+    let (seq, tracked) = tracked_bar();
+    let params = RefineParams { batches: 3, max_iterations: 6, ..Default::default() };
+    let whole = refine(&tracked.trajectories, &seq, &params, Progress::none()).unwrap();
+    assert!(whole.batches.iter().all(|h| h.len() > 2), "every batch takes steps: {:?}", whole.batches.iter().map(Vec::len).collect::<Vec<_>>());
+    for (first, second) in [(2, None), (6, Some(9)), (15, None), (1, Some(2))] {
+        let dir = Scratch::new("checkpoint", &format!("refine-{first}"));
+        let ckpt = Checkpointing { dir: dir.join("state"), ..Checkpointing::new("") };
+        let stop = |after: usize, ckpt: &Checkpointing| {
+            let sink = StopInRefine { after, stop: AtomicBool::new(false) };
+            match refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(ckpt), Progress(Some(&sink))) {
+                Err(e @ Error::Interrupted { saved: Some(Saved { refine: Some((done, 3)), .. }) }) => {
+                    assert_eq!(done, (after - 1) / params.max_iterations, "stopped at step {after}");
+                    let message = e.to_string();
+                    assert!(message.contains(&format!("{done} of 3 batches")) && message.contains("state"), "{message}");
+                }
+                Err(e) => panic!("stop at {after}: expected an interruption saving the refinement, got {e}"),
+                Ok(_) => panic!("stop at {after}: the refinement ran to the end"),
+            }
+            assert!(ckpt.refine_path().exists());
+        };
+        stop(first, &ckpt);
+        let resume = Checkpointing { resume: true, ..ckpt.clone() };
+        if let Some(second) = second {
+            stop(second, &resume);
+        }
+        let resumed = refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&resume), Progress::none()).unwrap();
+        assert!(refined_bits(&resumed) == refined_bits(&whole), "stopped at {first} then {second:?}: the resumed refinement differs");
+        let again = refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&resume), Progress::none()).unwrap();
+        assert!(refined_bits(&again) == refined_bits(&whole), "resuming the finished refinement changed it");
+        assert!(dir.files().iter().all(|f| !f.contains("partial")), "no temporary file left: {:?}", dir.files());
+    }
+}
+
+/// Saving within a batch (here after every iteration) leaves a state a
+/// killed run resumes from: the file as it was at some iteration, resumed,
+/// ends as the run that was never stopped.
+#[test]
+fn a_refinement_killed_within_a_batch_resumes_from_its_last_save() {
+    let (seq, tracked) = tracked_bar();
+    let params = RefineParams { batches: 2, max_iterations: 6, ..Default::default() };
+    let whole = refine(&tracked.trajectories, &seq, &params, Progress::none()).unwrap();
+    let dir = Scratch::new("checkpoint", "refine-killed");
+    let ckpt = Checkpointing { dir: dir.join("state"), refine_save_seconds: 0.0, ..Checkpointing::new("") };
+    /// Copies the refinement checkpoint aside when step `at` is reported:
+    /// the state saved after the step before.
+    struct CopyAt<'a>(usize, &'a Checkpointing, PathBuf);
+    impl ProgressSink for CopyAt<'_> {
+        fn report(&self, stage: Stage, done: usize, _total: usize) {
+            if stage == Stage::Refine && done == self.0 {
+                std::fs::copy(self.1.refine_path(), &self.2).unwrap();
+            }
+        }
+    }
+    for at in [3, 8] {
+        let kept_aside = dir.join(&format!("at-{at}.ckpt"));
+        let full = refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&ckpt), Progress(Some(&CopyAt(at, &ckpt, kept_aside.clone())))).unwrap();
+        assert!(refined_bits(&full) == refined_bits(&whole), "saving changed the refinement");
+        std::fs::rename(&kept_aside, ckpt.refine_path()).unwrap();
+        let resumed = refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&Checkpointing { resume: true, ..ckpt.clone() }), Progress::none()).unwrap();
+        assert!(refined_bits(&resumed) == refined_bits(&whole), "killed at step {at}: the resumed refinement differs");
+    }
+}
+
+/// A refinement checkpoint saved with other parameters, or for other
+/// tracking, or damaged, is refused with its name and left as it was.
+#[test]
+fn a_refinement_checkpoint_of_another_run_or_a_damaged_one_is_refused() {
+    let (seq, tracked) = tracked_bar();
+    let params = RefineParams { batches: 2, max_iterations: 4, ..Default::default() };
+    let dir = Scratch::new("checkpoint", "refine-refused");
+    let ckpt = Checkpointing { dir: dir.join("state"), ..Checkpointing::new("") };
+    let sink = StopInRefine { after: 5, stop: AtomicBool::new(false) };
+    assert!(refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&ckpt), Progress(Some(&sink))).is_err());
+    let resume = Checkpointing { resume: true, ..ckpt.clone() };
+    let saved = std::fs::read(ckpt.refine_path()).unwrap();
+    let refused = |traj: &voltrack::model::Trajectories, params: &RefineParams, what: &str| -> String {
+        let message = match refine_with_checkpoints(traj, &seq, params, Some(&resume), Progress::none()) {
+            Ok(_) => panic!("{what}: resumed"),
+            Err(e) => e.to_string(),
+        };
+        assert!(message.contains("refine.ckpt"), "{what}: the error does not name the file: {message}");
+        assert!(std::fs::read(ckpt.refine_path()).unwrap() == saved, "{what}: the checkpoint was changed");
+        message
+    };
+    let mut moved = tracked.trajectories.clone();
+    moved.positions[7].x += 1e-9;
+    for (what, traj, params) in [
+        ("other refinement parameters", &tracked.trajectories, RefineParams { beta_hat: params.beta_hat * 2.0, ..params.clone() }),
+        ("more batches", &tracked.trajectories, RefineParams { batches: 3, ..params.clone() }),
+        ("other tracking", &moved, params.clone()),
+    ] {
+        let message = refused(traj, &params, what);
+        assert!(message.contains("different tracking or refinement parameters"), "{what}: {message}");
+    }
+    for at in [3, saved.len() / 2, saved.len() - 1] {
+        let mut damaged = saved.clone();
+        damaged[at] ^= 0x10;
+        std::fs::write(ckpt.refine_path(), &damaged).unwrap();
+        let message = match refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&resume), Progress::none()) {
+            Ok(_) => panic!("byte {at} flipped: resumed"),
+            Err(e) => e.to_string(),
+        };
+        assert!(message.contains("refine.ckpt") && (message.contains("damaged") || message.contains("not a voltrack")), "byte {at}: {message}");
+    }
+    std::fs::write(ckpt.refine_path(), &saved).unwrap();
+    assert!(refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&resume), Progress::none()).is_ok());
+}
+
+/// A conversion interrupted in refinement names the folder holding the
+/// tracking and the refinement so far; resumed, it ends with the mesh of a
+/// conversion never interrupted. A run that starts over removes the stale
+/// refinement state, which belongs to the tracking it replaces.
+#[test]
+fn a_conversion_interrupted_in_refinement_resumes_there() {
+    let inputs = [PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/bending_bar"))];
+    let files = voltrack::io::FrameFiles::discover(&inputs).unwrap();
+    let refine = RefineParams { batches: 2, max_iterations: 5, ..Default::default() };
+    let run = |ckpt: Option<&Checkpointing>, progress| {
+        let options = ConvertOptions {
+            voxel: voltrack::voxel::VoxelParams { resolution: 48, ..Default::default() },
+            track: TrackParams { centers: 100, ..Default::default() },
+            refine: Some(refine.clone()),
+            conform: ConformParams { iterations: 5, ..Default::default() },
+            checkpoint: ckpt.cloned(),
+            ..Default::default()
+        };
+        convert(&files, &options, progress)
+    };
+    let dir = Scratch::new("checkpoint", "convert-refine");
+    let ckpt = Checkpointing { dir: dir.join("state"), ..Checkpointing::new("") };
+    let sink = StopInRefine { after: 7, stop: AtomicBool::new(false) };
+    match run(Some(&ckpt), Progress(Some(&sink))).map(|_| ()).unwrap_err() {
+        Error::Interrupted { saved: Some(Saved { path, frames, refine: Some((1, 2)) }) } => {
+            assert_eq!(path, ckpt.path());
+            assert_eq!(frames, voltrack::fixtures::BENDING_BAR_FRAMES);
+        }
+        other => panic!("expected an interruption in the second batch, got {other}"),
+    }
+    let resumed = run(Some(&Checkpointing { resume: true, ..ckpt.clone() }), Progress::none()).unwrap();
+    let whole = run(None, Progress::none()).unwrap();
+    assert_eq!(resumed.mesh.frames, whole.mesh.frames);
+    assert!(ckpt.refine_path().exists(), "the finished refinement is saved");
+    // Starting over: the stale refinement state goes once tracking starts.
+    let sink = StopAfter { after: 2, stop: AtomicBool::new(false) };
+    assert!(run(Some(&ckpt), Progress(Some(&sink))).is_err());
+    assert!(!ckpt.refine_path().exists(), "the refinement of the replaced tracking is gone");
 }

@@ -99,13 +99,13 @@ pub struct TrackArgs {
     /// Take lengths (ρ, thresholds) in the input's units, not as fractions of the bounding box's longest side
     #[arg(long)]
     pub absolute_units: bool,
-    /// Save the tracking state in this folder every few frames, on Ctrl-C and at the end, so an interrupted run can --resume
+    /// Save the tracking state in this folder every few frames, and the refinement's after every batch and once a minute, on Ctrl-C and at the end, so an interrupted run can --resume
     #[arg(long, value_name = "DIR")]
     pub checkpoint: Option<PathBuf>,
     /// Frames between checkpoints (range: 1..=1000000)
     #[arg(long, value_name = "FRAMES", default_value_t = Checkpointing::new("").every, requires = "checkpoint")]
     pub checkpoint_every: usize,
-    /// Continue from the checkpoint in --checkpoint DIR (same command, same input); start over if there is none yet
+    /// Continue from the checkpoints in --checkpoint DIR (same command, same input), in tracking or in refinement; start over if there is none yet
     #[arg(long, requires = "checkpoint")]
     pub resume: bool,
 }
@@ -117,7 +117,7 @@ impl TrackArgs {
         if !(1..=1_000_000).contains(&self.checkpoint_every) {
             return Err(voltrack::Error::InvalidParameter(format!("--checkpoint-every is {}, outside 1..=1000000", self.checkpoint_every)).into());
         }
-        Ok(Some(Checkpointing { dir, every: self.checkpoint_every, resume: self.resume }))
+        Ok(Some(Checkpointing { every: self.checkpoint_every, resume: self.resume, ..Checkpointing::new(dir) }))
     }
 
     pub fn params(&self) -> TrackParams {

@@ -2,14 +2,14 @@
 //! its inputs and options and returns a result the CLI prints or writes.
 
 use crate::deform::{conform, deform, DynamicMesh};
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, Saved};
 use crate::math::Real;
 use crate::model::mesh::TriangleMesh;
 use crate::model::FrameSource;
 use crate::metrics::{fit_outliers, fit_to_input, Coverage, FitOutliers, SequenceFit};
 use crate::params::{ConformParams, CoverageParams, DeformParams, RefineParams, TrackParams};
 use crate::progress::{Progress, Stage};
-use crate::refine::{global_affinity, refine, RefineResult, SequenceCells};
+use crate::refine::{global_affinity, refine_with_checkpoints, RefineResult, SequenceCells};
 use crate::model::metadata::GridRecord;
 use crate::model::{GridSpec, TrajectoryMetadata, Trajectories};
 use crate::track::{track_with_checkpoints, Checkpointing, TrackResult};
@@ -214,7 +214,7 @@ pub fn convert(source: &dyn FrameSource, options: &ConvertOptions, progress: Pro
     progress.report(Stage::Deform, 1, 1);
     seconds.push((Stage::Deform, clock.elapsed().as_secs_f64()));
     let clock = Instant::now();
-    let mesh = conform(mesh, source, &sequence.bounds, &options.conform, progress).map_err(|e| tracking_saved(e, checkpoint, &sequence))?;
+    let mesh = conform(mesh, source, &sequence.bounds, &options.conform, progress).map_err(|e| finished_saved(e, checkpoint, &sequence, options.refine.as_ref()))?;
     if options.conform.iterations > 0 {
         seconds.push((Stage::Conform, clock.elapsed().as_secs_f64()));
     }
@@ -231,17 +231,19 @@ pub fn check_coverage(traj: &Trajectories, seq: &VoxelSequence, params: &Coverag
     Ok(coverage)
 }
 
-/// [`refine`] after [`track_with_checkpoints`]: when interrupted, says that
-/// the checkpoint holds the finished tracking, so a resumed run starts here.
+/// [`refine_with_checkpoints`] after [`track_with_checkpoints`], saving and
+/// resuming through the same checkpoint folder.
 pub fn refine_tracked(traj: &Trajectories, seq: &VoxelSequence, params: &RefineParams, checkpoint: Option<&Checkpointing>, progress: Progress) -> Result<RefineResult> {
-    refine(traj, seq, params, progress).map_err(|e| tracking_saved(e, checkpoint, seq))
+    refine_with_checkpoints(traj, seq, params, checkpoint, progress)
 }
 
-/// An interruption after tracking names the checkpoint, which holds every
-/// tracked frame.
-fn tracking_saved(e: Error, checkpoint: Option<&Checkpointing>, seq: &VoxelSequence) -> Error {
+/// An interruption after tracking (and refinement, when `refine` gives its
+/// parameters) names the checkpoint folder, which holds them finished.
+fn finished_saved(e: Error, checkpoint: Option<&Checkpointing>, seq: &VoxelSequence, refine: Option<&RefineParams>) -> Error {
     match e {
-        Error::Interrupted { saved: None } => Error::Interrupted { saved: checkpoint.map(|c| (c.path(), seq.frames.len())) },
+        Error::Interrupted { saved: None } => Error::Interrupted {
+            saved: checkpoint.map(|c| Saved { path: c.path(), frames: seq.frames.len(), refine: refine.map(|p| (p.batches, p.batches)) }),
+        },
         e => e,
     }
 }

@@ -92,6 +92,23 @@ pub fn optimise(
     max_halvings: usize,
     mut on_iteration: impl FnMut(usize) -> bool,
 ) -> Vec<Iteration> {
+    optimise_observed(traj, grid, cells, omega, beta_hat, lambda0, max_iterations, max_halvings, |it, _, _| on_iteration(it))
+}
+
+/// [`optimise`], with `on_iteration` also shown the trajectories and the
+/// history after each iteration (to save them).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn optimise_observed(
+    traj: &mut Trajectories,
+    grid: &GridSpec,
+    cells: &mut SequenceCells,
+    omega: &SparseAffinity,
+    beta_hat: Real,
+    lambda0: Real,
+    max_iterations: usize,
+    max_halvings: usize,
+    mut on_iteration: impl FnMut(usize, &Trajectories, &[Iteration]) -> bool,
+) -> Vec<Iteration> {
     let mut current = evaluate(traj, grid, cells, omega, beta_hat);
     let mut history = vec![Iteration { energy: current.energy, smooth: current.smooth, data: current.data, lambda: 0.0 }];
     for it in 0..max_iterations {
@@ -110,14 +127,14 @@ pub fn optimise(
             lambda *= 0.5;
         }
         let Some((trial, e)) = accepted else {
-            on_iteration(it + 1);
+            on_iteration(it + 1, traj, &history);
             log::debug!("global optimisation: no step lowers the energy after {it} iterations");
             break;
         };
         *traj = trial;
         history.push(Iteration { energy: e.energy, smooth: e.smooth, data: e.data, lambda });
         current = e;
-        if !on_iteration(it + 1) {
+        if !on_iteration(it + 1, traj, &history) {
             break;
         }
     }

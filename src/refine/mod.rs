@@ -3,15 +3,19 @@
 
 pub mod affinity;
 pub mod cells;
+mod checkpoint;
 pub mod global;
 pub mod irregular;
 
 pub use affinity::{global_affinity, SparseAffinity};
 pub use cells::SequenceCells;
 pub use global::{evaluate, optimise, Iteration};
+use global::optimise_observed;
+use checkpoint::Snapshot;
 pub use irregular::most_irregular;
 
-use crate::error::{Error, Result};
+use crate::checkpoint::Checkpointing;
+use crate::error::{Error, Result, Saved};
 use crate::params::RefineParams;
 use crate::progress::{Progress, Stage};
 use crate::model::Trajectories;
@@ -35,50 +39,126 @@ pub struct RefineResult {
 /// Removes `params.total_removed(N)` irregular centers in `params.batches`
 /// batches, optimising globally after each.
 pub fn refine(traj: &Trajectories, seq: &VoxelSequence, params: &RefineParams, progress: Progress) -> Result<RefineResult> {
+    refine_with_checkpoints(traj, seq, params, None, progress)
+}
+
+/// [`refine`], saving its state to `checkpoint` ([`Checkpointing::refine_path`])
+/// after every batch, every `refine_save_seconds` within one, and when
+/// cancelled through `progress` (then returning [`Error::Interrupted`]); with
+/// `checkpoint.resume` it continues from the saved state. The result is
+/// bit-identical to an uninterrupted [`refine`].
+pub fn refine_with_checkpoints(traj: &Trajectories, seq: &VoxelSequence, params: &RefineParams, checkpoint: Option<&Checkpointing>, progress: Progress) -> Result<RefineResult> {
     params.validate(traj.centers)?;
     let start = Instant::now();
     let scale = params.length_scale(&seq.bounds);
     let total = params.total_removed(traj.centers);
-    let mut current = traj.clone();
-    let mut kept: Vec<usize> = (0..traj.centers).collect();
-    let mut removed = Vec::new();
-    let mut batches = Vec::new();
-    let mut cells = SequenceCells::new(seq);
-    let steps = params.batches * params.max_iterations.max(1);
-    progress.report(Stage::Refine, 0, steps);
-    for b in 0..params.batches {
-        // Spread the remainder over the first batches.
-        let n_rem = total / params.batches + usize::from(b < total % params.batches);
-        let irregularity = irregular::irregularity(&current);
-        let worst = most_irregular(&irregularity, n_rem);
-        removed.extend(worst.iter().map(|&i| kept[i]));
-        current = current.without(&worst);
-        kept = (0..kept.len()).filter(|i| !worst.contains(i)).map(|i| kept[i]).collect();
-        if !params.optimise {
-            continue;
+    let fingerprint = checkpoint.map(|_| checkpoint::fingerprint(traj, seq, params));
+    let restored = match checkpoint {
+        Some(c) if c.resume && c.refine_path().exists() => {
+            let r = checkpoint::load(c, fingerprint.expect("fingerprinted"), traj, params.batches)?;
+            log::info!("resuming refinement from {} after {} of {} batches", c.refine_path().display(), r.batches_done, params.batches);
+            Some(r)
         }
-        let omega = global_affinity(&current, seq, &mut cells, params.rho_gp * scale, params.rho_gm * scale, params.mu);
-        log::info!("batch {}: removed {n_rem}, ω keeps {:.1} neighbours per center", b + 1, omega.mean_neighbors());
-        let done = b * params.max_iterations.max(1);
-        let history = optimise(
+        _ => None,
+    };
+    let (first, mut current, mut kept, mut removed, mut batches, mut in_progress, earlier) = match restored {
+        Some(r) => (r.batches_done, r.trajectories, r.kept, r.removed, r.finished, r.current, r.seconds),
+        None => (0, traj.clone(), (0..traj.centers).collect(), Vec::new(), Vec::new(), None, 0.0),
+    };
+    let seconds = |start: &Instant| earlier + start.elapsed().as_secs_f64();
+    let interrupted = |batches_done: usize| {
+        Error::Interrupted { saved: checkpoint.map(|c| Saved { path: c.path(), frames: traj.frames, refine: Some((batches_done, params.batches)) }) }
+    };
+    let mut cells = SequenceCells::new(seq);
+    let per_batch = params.max_iterations.max(1);
+    let steps = params.batches * per_batch;
+    progress.report(Stage::Refine, first * per_batch, steps);
+    for b in first..params.batches {
+        let (omega, before) = match in_progress.take() {
+            Some(resumed) => resumed,
+            None => {
+                // Spread the remainder over the first batches.
+                let n_rem = total / params.batches + usize::from(b < total % params.batches);
+                let irregularity = irregular::irregularity(&current);
+                let worst = most_irregular(&irregularity, n_rem);
+                removed.extend(worst.iter().map(|&i| kept[i]));
+                current = current.without(&worst);
+                kept = (0..kept.len()).filter(|i| !worst.contains(i)).map(|i| kept[i]).collect();
+                if !params.optimise {
+                    if let (Some(c), Some(fp)) = (checkpoint, fingerprint) {
+                        let snapshot = Snapshot { batches_done: b + 1, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: None, seconds: seconds(&start) };
+                        checkpoint::save(c, fp, &snapshot)?;
+                    }
+                    continue;
+                }
+                let omega = global_affinity(&current, seq, &mut cells, params.rho_gp * scale, params.rho_gm * scale, params.mu);
+                log::info!("batch {}: removed {n_rem}, ω keeps {:.1} neighbours per center", b + 1, omega.mean_neighbors());
+                (omega, Vec::new())
+            }
+        };
+        // A resumed batch goes on with the iterations it had left; its start
+        // is the saved history's last entry.
+        let done_before = before.len().saturating_sub(1);
+        let joined = |history: &[Iteration]| -> Vec<Iteration> {
+            if before.is_empty() {
+                history.to_vec()
+            } else {
+                before.iter().chain(history.iter().skip(1)).copied().collect()
+            }
+        };
+        let mut last_save = Instant::now();
+        let mut save_error = None;
+        let done = b * per_batch + done_before;
+        let history = optimise_observed(
             &mut current,
             &seq.grid,
             &mut cells,
             &omega,
             params.beta_hat,
             params.lambda,
-            params.max_iterations,
+            params.max_iterations.saturating_sub(done_before),
             params.max_halvings,
-            |it| {
+            |it, now, history| {
                 progress.report(Stage::Refine, done + it, steps);
-                !progress.cancelled()
+                if progress.cancelled() {
+                    return false;
+                }
+                if let (Some(c), Some(fp)) = (checkpoint, fingerprint) {
+                    if last_save.elapsed().as_secs_f64() >= c.refine_save_seconds {
+                        let history = joined(history);
+                        let snapshot = Snapshot { batches_done: b, trajectories: now, kept: &kept, removed: &removed, finished: &batches, current: Some((&omega, &history)), seconds: seconds(&start) };
+                        if let Err(e) = checkpoint::save(c, fp, &snapshot) {
+                            save_error = Some(e);
+                            return false;
+                        }
+                        last_save = Instant::now();
+                    }
+                }
+                true
             },
         );
-        batches.push(history);
-        if progress.cancelled() {
-            return Err(Error::Interrupted { saved: None });
+        if let Some(e) = save_error {
+            return Err(e);
         }
+        let history = joined(&history);
+        let (Some(c), Some(fp)) = (checkpoint, fingerprint) else {
+            if progress.cancelled() {
+                return Err(interrupted(b));
+            }
+            batches.push(history);
+            continue;
+        };
+        if progress.cancelled() {
+            // The batch may have ended too; resumed, it finds no iteration
+            // left or no step that lowers the energy, as it would have.
+            let snapshot = Snapshot { batches_done: b, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: Some((&omega, &history)), seconds: seconds(&start) };
+            checkpoint::save(c, fp, &snapshot)?;
+            return Err(interrupted(b));
+        }
+        batches.push(history);
+        let snapshot = Snapshot { batches_done: b + 1, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: None, seconds: seconds(&start) };
+        checkpoint::save(c, fp, &snapshot)?;
     }
     progress.report(Stage::Refine, steps, steps);
-    Ok(RefineResult { trajectories: current, removed, kept, batches, seconds: start.elapsed().as_secs_f64() })
+    Ok(RefineResult { trajectories: current, removed, kept, batches, seconds: seconds(&start) })
 }

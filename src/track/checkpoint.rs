@@ -17,36 +17,10 @@ use crate::error::{Error, Result};
 use crate::math::Point3;
 use crate::params::{AffinityKind, TrackParams};
 use crate::voxel::VoxelSequence;
+use crate::checkpoint::{put_reals, put_u32s, put_u64, Fnv, Reader};
+pub use crate::checkpoint::{Checkpointing, CHECKPOINT_FILE};
 use std::io::Write;
-use std::path::{Path, PathBuf};
 
-/// Where and how often tracking saves its state.
-#[derive(Clone, Debug)]
-pub struct Checkpointing {
-    /// Folder of the checkpoint file ([`CHECKPOINT_FILE`]); created if missing.
-    pub dir: PathBuf,
-    /// Save after every this many tracked frames (and when interrupted, and
-    /// when tracking ends). Default 10; >= 1.
-    pub every: usize,
-    /// Continue from the checkpoint in `dir` (which must match the input and
-    /// parameters) instead of starting over; without one, start over.
-    /// Default false.
-    pub resume: bool,
-}
-
-impl Checkpointing {
-    pub fn new(dir: impl Into<PathBuf>) -> Self {
-        Checkpointing { dir: dir.into(), every: 10, resume: false }
-    }
-
-    /// The checkpoint file inside `dir`.
-    pub fn path(&self) -> PathBuf {
-        self.dir.join(CHECKPOINT_FILE)
-    }
-}
-
-/// Name of the checkpoint file inside the checkpoint folder.
-pub const CHECKPOINT_FILE: &str = "track.ckpt";
 const MAGIC: &[u8; 16] = b"voltrack-track\0\x03";
 
 /// What the tracker has done so far, borrowed for saving.
@@ -93,54 +67,14 @@ pub(super) fn fingerprint(seq: &VoxelSequence, params: &TrackParams) -> u64 {
     h.0
 }
 
-struct Fnv(u64);
-
-impl Fnv {
-    fn new() -> Self {
-        Fnv(0xcbf2_9ce4_8422_2325)
-    }
-
-    fn bytes(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = (self.0 ^ b as u64).wrapping_mul(0x0100_0000_01b3);
-        }
-    }
-}
-
 /// Writes the checkpoint atomically (a kill mid-write leaves the previous one).
 pub(super) fn save(ckpt: &Checkpointing, fingerprint: u64, s: &Snapshot) -> Result<()> {
-    std::fs::create_dir_all(&ckpt.dir).map_err(|e| Error::io(&ckpt.dir, e))?;
-    crate::files::write_atomic(&ckpt.path(), |file| {
-        let mut hashed = Hashing { inner: file, hash: Fnv::new() };
-        write_state(&mut hashed, fingerprint, s)?;
-        // The checksum, so that a damaged file is refused rather than resumed.
-        let sum = hashed.hash.0;
-        put_u64(file, sum)
-    })
-}
-
-/// A writer that hashes what passes through it.
-struct Hashing<'w, W: Write> {
-    inner: &'w mut W,
-    hash: Fnv,
-}
-
-impl<W: Write> Write for Hashing<'_, W> {
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        let n = self.inner.write(buf)?;
-        self.hash.bytes(&buf[..n]);
-        Ok(n)
-    }
-
-    fn flush(&mut self) -> std::io::Result<()> {
-        self.inner.flush()
-    }
+    crate::checkpoint::save(&ckpt.path(), MAGIC, |w| write_state(w, fingerprint, s))
 }
 
 /// The checkpoint's content before its checksum.
-fn write_state(w: &mut impl Write, fingerprint: u64, s: &Snapshot) -> std::io::Result<()> {
+fn write_state(w: &mut dyn Write, fingerprint: u64, s: &Snapshot) -> std::io::Result<()> {
     let traj = s.trajectories;
-    w.write_all(MAGIC)?;
     put_u64(w, fingerprint)?;
     for n in [traj.frames, traj.centers, s.frames_done] {
         put_u64(w, n as u64)?;
@@ -176,21 +110,8 @@ fn write_state(w: &mut impl Write, fingerprint: u64, s: &Snapshot) -> std::io::R
 /// Reads the checkpoint of `ckpt` back, checking it belongs to this run.
 pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, seq: &VoxelSequence, params: &TrackParams) -> Result<Restored> {
     let path = ckpt.path();
-    let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
-    if !bytes.starts_with(MAGIC) {
-        return Err(Error::parse(&path, None, "not a voltrack tracking checkpoint (or one of another format version)"));
-    }
-    let Some((state, sum)) = bytes.split_last_chunk::<8>().filter(|(state, _)| state.len() > MAGIC.len()) else {
-        return Err(Error::parse(&path, None, "checkpoint is truncated"));
-    };
-    let mut hash = Fnv::new();
-    hash.bytes(state);
-    if hash.0 != u64::from_le_bytes(*sum) {
-        return Err(Error::parse(&path, None, "the checkpoint is damaged (its checksum does not match); drop --resume to start over"));
-    }
-    let bytes = state;
-    let mut r = Reader { bytes, at: 0, path: &path };
-    r.take(MAGIC.len())?;
+    let bytes = crate::checkpoint::load(&path, MAGIC, "tracking checkpoint")?;
+    let mut r = Reader::new(&bytes, &path);
     if r.u64()? != fingerprint {
         return Err(Error::InvalidInput(format!(
             "{}: the checkpoint was saved for different input, resolution or tracking parameters; \
@@ -208,7 +129,7 @@ pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, seq: &VoxelSequence, 
     }
     let cell_counts = (0..frames_done).map(|_| r.u32s(centers)).collect::<Result<_>>()?;
     let timings = (0..frames_done)
-        .map(|_| Ok(FrameTiming { total: r.real()?, assign: r.real()?, fit: r.real()?, affinity: r.real()?, iterations: r.usize()?, dropped_iterations: r.usize()?, kept_guess: r.guess()? }))
+        .map(|_| Ok(FrameTiming { total: r.real()?, assign: r.real()?, fit: r.real()?, affinity: r.real()?, iterations: r.usize()?, dropped_iterations: r.usize()?, kept_guess: guess(&mut r)? }))
         .collect::<Result<_>>()?;
     if r.usize()? != centers {
         return Err(Error::parse(&path, None, "affinity lists do not match the number of centers"));
@@ -234,58 +155,14 @@ pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, seq: &VoxelSequence, 
     }
     let iir = (0..iir_len).map(|_| Ok(f32::from_bits(r.u32()?))).collect::<Result<_>>()?;
     let owners = r.u32s(seq.frames[frames_done - 1].len())?;
-    if r.at != bytes.len() {
-        return Err(Error::parse(&path, None, "trailing bytes after the tracker state"));
-    }
+    r.finish("tracker state")?;
     let scale = params.length_scale(&seq.bounds);
     let affinity = Affinity::restore(params.affinity, super::rho_p(params, seq, scale), params.rho_m * scale, params.alpha, params.mu, lists, iir);
     Ok(Restored { frames_done, trajectories, cell_counts, timings, affinity, owners })
 }
 
-fn put_u64(w: &mut impl Write, v: u64) -> std::io::Result<()> {
-    w.write_all(&v.to_le_bytes())
-}
 
-fn put_reals(w: &mut impl Write, v: &[crate::math::Real]) -> std::io::Result<()> {
-    v.iter().try_for_each(|x| w.write_all(&x.to_bits().to_le_bytes()))
-}
-
-fn put_u32s(w: &mut impl Write, v: &[u32]) -> std::io::Result<()> {
-    v.iter().try_for_each(|x| w.write_all(&x.to_le_bytes()))
-}
-
-/// Reads little-endian values, failing with the file's name when it ends early.
-struct Reader<'a> {
-    bytes: &'a [u8],
-    at: usize,
-    path: &'a Path,
-}
-
-impl<'a> Reader<'a> {
-    fn take(&mut self, n: usize) -> Result<&'a [u8]> {
-        let end = self.at.checked_add(n).filter(|&e| e <= self.bytes.len());
-        let end = end.ok_or_else(|| Error::parse(self.path, None, "checkpoint is truncated"))?;
-        let s = &self.bytes[self.at..end];
-        self.at = end;
-        Ok(s)
-    }
-    fn u64(&mut self) -> Result<u64> {
-        Ok(u64::from_le_bytes(self.take(8)?.try_into().expect("8 bytes")))
-    }
-    fn usize(&mut self) -> Result<usize> {
-        usize::try_from(self.u64()?).map_err(|_| Error::parse(self.path, None, "count out of range"))
-    }
-    fn u32(&mut self) -> Result<u32> {
-        Ok(u32::from_le_bytes(self.take(4)?.try_into().expect("4 bytes")))
-    }
-    fn u32s(&mut self, n: usize) -> Result<Vec<u32>> {
-        (0..n).map(|_| self.u32()).collect()
-    }
-    fn real(&mut self) -> Result<crate::math::Real> {
-        Ok(crate::math::Real::from_bits(self.u64()?))
-    }
-    fn guess(&mut self) -> Result<super::Guess> {
-        let code = self.u64()?;
-        super::Guess::from_code(code).ok_or_else(|| Error::parse(self.path, None, format!("unknown guess {code}")))
-    }
+fn guess(r: &mut Reader) -> Result<super::Guess> {
+    let code = r.u64()?;
+    super::Guess::from_code(code).ok_or_else(|| Error::parse(r.path, None, format!("unknown guess {code}")))
 }

@@ -12,7 +12,7 @@ use super::checkpoint::{self, Checkpointing, Snapshot};
 use crate::spatial::cells::{assign, carry_owners, Assignment, CellMoments, CellStats, CenterIndex, NO_OWNER};
 use super::lloyd::seed_centers;
 use crate::model::{GridSpec, Rigid, RigidFits, Trajectories};
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, Saved};
 use crate::math::{Point3, Real};
 use crate::params::TrackParams;
 use crate::progress::{Progress, Stage};
@@ -109,6 +109,11 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
             (r.trajectories, r.cell_counts, r.timings, r.affinity, r.owners, r.frames_done)
         }
         None => {
+            if let Some(stale) = checkpoint.map(|c| c.refine_path()).filter(|p| p.exists()) {
+                // It refined the tracking this run starts over, not this run's.
+                log::info!("tracking starts over: removing {}", stale.display());
+                std::fs::remove_file(&stale).map_err(|e| Error::io(&stale, e))?;
+            }
             let start = Instant::now();
             let voxels0 = &seq.frames[0].indices();
             let (centers0, lloyd_steps) =
@@ -155,7 +160,7 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
             if saved < f {
                 save(&tracker, &traj, &cell_counts, &timings)?;
             }
-            return Err(Error::Interrupted { saved: checkpoint.map(|c| (c.path(), f)) });
+            return Err(Error::Interrupted { saved: checkpoint.map(|c| Saved { path: c.path(), frames: f, refine: None }) });
         };
         timing.total = start.elapsed().as_secs_f64();
         traj.frame_mut(f).copy_from_slice(&centers);
