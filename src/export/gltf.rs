@@ -143,19 +143,22 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
         timing: Some(Timing { fps: options.fps, frames: frames.len() }),
         compress: options.compress,
     };
-    let bytes = glb_bytes(&base, animation.as_ref(), &scene)?;
+    let glb = glb_with(&base, animation.as_ref(), &scene, GlbExtras::default())?;
     let (error_max, error_mean) = if options.compress {
         quantised_error(frames, &base, animation.as_ref())
     } else {
         (error.max, error.mean)
     };
-    crate::files::write_atomic(path, |w| std::io::Write::write_all(w, &bytes))?;
+    drop(animation);
+    let chunk = |len: usize| 8 + len.next_multiple_of(4);
+    let bytes = 12 + chunk(glb.json.len()) + glb.bin.as_ref().map_or(0, |b| chunk(b.len()));
+    crate::files::write_atomic(path, |w| glb.to_writer(w).map_err(|e| std::io::Error::other(e.to_string())))?;
     Ok(GltfExportReport {
         targets: basis.targets(),
         basis: basis.components,
         reconstruction_error_max: relative(error_max),
         reconstruction_error_mean: relative(error_mean),
-        bytes: bytes.len() as u64,
+        bytes: bytes as u64,
         compressed: options.compress,
     })
 }
@@ -613,6 +616,12 @@ pub(crate) struct GlbExtras<'a> {
 
 /// [`glb_bytes`] with `extras` added.
 pub(crate) fn glb_bytes_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo, extras: GlbExtras) -> Result<Vec<u8>> {
+    glb_with(mesh, animation, scene, extras)?.to_vec().map_err(|e| Error::InvalidInput(e.to_string()))
+}
+
+/// The GLB of [`glb_bytes_with`], its JSON and binary chunks apart: written
+/// straight to a file, they need no third copy of the vertex data.
+fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo, extras: GlbExtras) -> Result<gltf::binary::Glb<'static>> {
     crate::model::check_name(&scene.name)?;
     if let Some(anim) = animation {
         anim.check(mesh)?;
@@ -730,12 +739,11 @@ pub(crate) fn glb_bytes_with(mesh: &TriangleMesh, animation: Option<&MorphAnimat
     while json_bytes.len() % 4 != 0 {
         json_bytes.push(b' ');
     }
-    let glb = gltf::binary::Glb {
+    Ok(gltf::binary::Glb {
         header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 },
         json: json_bytes.into(),
         bin: Some(b.bin.into()),
-    };
-    glb.to_vec().map_err(|e| Error::InvalidInput(e.to_string()))
+    })
 }
 
 fn add_weight_animation(
