@@ -78,23 +78,21 @@ fn typical_spacing(tree: &ImmutableKdTree<Real, 3>, points: &[[Real; 3]]) -> Rea
     d[d.len() / 2].max(Real::MIN_POSITIVE)
 }
 
-/// Each center's rigid motion from frame 0 to every frame: the rotation
+/// Each center's rigid motion from frame 0 to frame `f`: the rotation
 /// fitted over its affine neighbours, the translation chosen so that the
-/// center itself lands exactly on its tracked position (`motions[f][i]`).
+/// center itself lands exactly on its tracked position.
 ///
 /// Why anchor: the plain fit carries the neighbours' weighted centroid, not
 /// the center, so wherever a neighbourhood bends (a limb at a joint) vertices
 /// near the center would miss its tracked position by the bend's sagitta.
-pub(crate) fn center_motions(traj: &Trajectories, omega: &SparseAffinity) -> Vec<Vec<Rigid>> {
-    (0..traj.frames)
-        .map(|f| {
-            let mut motions = omega.fit_frames(traj, 0, f);
-            for (i, m) in motions.iter_mut().enumerate() {
-                m.translation = traj.get(f, i).coords - m.rotation * traj.get(0, i).coords;
-            }
-            motions
-        })
-        .collect()
+/// One frame at a time: all frames' motions would take 96 bytes per center
+/// and frame for as long as the deformation runs.
+pub(crate) fn center_motions(traj: &Trajectories, omega: &SparseAffinity, f: usize) -> Vec<Rigid> {
+    let mut motions = omega.fit_frames(traj, 0, f);
+    for (i, m) in motions.iter_mut().enumerate() {
+        m.translation = traj.get(f, i).coords - m.rotation * traj.get(0, i).coords;
+    }
+    motions
 }
 
 /// The dynamic mesh: `mesh` (frame 0 as loaded) moved by the trajectories.
@@ -110,10 +108,9 @@ pub fn deform(mesh: &TriangleMesh, traj: &Trajectories, omega: &SparseAffinity, 
     let (weld, welded) = mesh.welded();
     let smoothed = smooth_bindings(&welded, bind(mesh, traj.frame(0), omega, params), omega, params.smoothing, 2 * params.neighbors);
     let bindings: Vec<Binding> = weld.iter().map(|&w| smoothed[w as usize].clone()).collect();
-    let motions = center_motions(traj, omega);
     let mut frames = vec![mesh.positions.clone()];
-    for m in motions.iter().skip(1) {
-        frames.push(move_vertices(&mesh.positions, &bindings, m, params.blending));
+    for f in 1..traj.frames {
+        frames.push(move_vertices(&mesh.positions, &bindings, &center_motions(traj, omega, f), params.blending));
     }
     Ok(DynamicMesh { base: mesh.clone(), frames })
 }
