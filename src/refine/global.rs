@@ -45,14 +45,15 @@ pub fn evaluate(traj: &Trajectories, grid: &GridSpec, cells: &mut SequenceCells,
             (forward, backward)
         })
         .unzip();
-    let per_frame: Vec<(Real, Real, Vec<Vector3>)> = (0..frames)
-        .into_par_iter()
-        .map(|f| {
+    let mut gradient = vec![Vector3::zeros(); frames * n];
+    // Each frame's gradient written in place; its energy terms summed after, in frame order.
+    let per_frame: Vec<(Real, Real)> = gradient
+        .par_chunks_mut(n.max(1))
+        .enumerate()
+        .map(|(f, grad)| {
             let (mut smooth, mut data) = (0.0, 0.0);
-            let mut grad = vec![Vector3::zeros(); n];
-            for i in 0..n {
+            for (i, g) in grad.iter_mut().enumerate() {
                 let c = traj.get(f, i);
-                let g = &mut grad[i];
                 if let Some(x) = stats[f].centroid(i, grid) {
                     let r = c - x;
                     data += 0.5 * r.norm_squared();
@@ -69,16 +70,14 @@ pub fn evaluate(traj: &Trajectories, grid: &GridSpec, cells: &mut SequenceCells,
                     *g += r;
                 }
             }
-            (smooth, data, grad)
+            (smooth, data)
         })
         .collect();
     let mut smooth = 0.0;
     let mut data = 0.0;
-    let mut gradient = Vec::with_capacity(frames * n);
-    for (s, d, g) in per_frame {
+    for (s, d) in per_frame {
         smooth += s;
         data += d;
-        gradient.extend(g);
     }
     Evaluation { energy: smooth + beta_hat * data, smooth, data, gradient }
 }
