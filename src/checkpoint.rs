@@ -71,6 +71,21 @@ impl Fnv {
             self.0 = (self.0 ^ b as u64).wrapping_mul(0x0100_0000_01b3);
         }
     }
+
+    /// The start of a run's fingerprint: the tool's version, a stage's
+    /// parameters and the grid.
+    pub(crate) fn run(params: &impl serde::Serialize, grid: &crate::model::GridSpec) -> Self {
+        let mut h = Fnv::new();
+        h.bytes(env!("CARGO_PKG_VERSION").as_bytes());
+        h.bytes(serde_json::to_string(params).expect("parameters serialise").as_bytes());
+        for d in grid.dims {
+            h.bytes(&(d as u64).to_le_bytes());
+        }
+        for c in [grid.origin.x, grid.origin.y, grid.origin.z, grid.voxel_size] {
+            h.bytes(&c.to_bits().to_le_bytes());
+        }
+        h
+    }
 }
 
 /// A writer that hashes what passes through it.

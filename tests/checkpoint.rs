@@ -21,15 +21,17 @@ fn sequence() -> voltrack::voxel::VoxelSequence {
     voxel_sequence(&meshes, 40)
 }
 
-/// Asks to stop once `after` frames are tracked, like Ctrl-C would.
+/// Asks to stop once `stage` reports `after` steps done (frames tracked,
+/// refinement iterations), like Ctrl-C would.
 struct StopAfter {
+    stage: Stage,
     after: usize,
     stop: AtomicBool,
 }
 
 impl ProgressSink for StopAfter {
     fn report(&self, stage: Stage, done: usize, _total: usize) {
-        if stage == Stage::Track && done >= self.after {
+        if stage == self.stage && done >= self.after {
             self.stop.store(true, Ordering::Relaxed);
         }
     }
@@ -93,13 +95,13 @@ fn interrupted_and_resumed_tracking_equals_an_uninterrupted_run() {
 
         let dir = Scratch::new("checkpoint", &format!("{kind:?}-{every}-{first}"));
         let ckpt = Checkpointing { dir: dir.join("state"), every, ..Checkpointing::new("") };
-        let frames = interrupted(&seq, &params, &ckpt, &StopAfter { after: first, stop: AtomicBool::new(false) });
+        let frames = interrupted(&seq, &params, &ckpt, &StopAfter { stage: Stage::Track, after: first, stop: AtomicBool::new(false) });
         assert_eq!(frames, first, "the state after the last finished frame is saved");
         assert!(dir.files().iter().all(|f| !f.contains("partial")), "no temporary file left: {:?}", dir.files());
 
         let resume = Checkpointing { resume: true, ..ckpt.clone() };
         if let Some(second) = second {
-            let frames = interrupted(&seq, &params, &resume, &StopAfter { after: second, stop: AtomicBool::new(false) });
+            let frames = interrupted(&seq, &params, &resume, &StopAfter { stage: Stage::Track, after: second, stop: AtomicBool::new(false) });
             assert_eq!(frames, second, "resumed and interrupted again: the state after frame {second} is saved");
         }
         let resumed = track_with_checkpoints(&seq, &params, Some(&resume), Progress::none()).unwrap();
@@ -152,7 +154,7 @@ fn resuming_with_another_checkpoint_interval_gives_the_same_result() {
     let whole = track(&seq, &params, Progress::none()).unwrap();
     let dir = Scratch::new("checkpoint", "interval");
     let ckpt = Checkpointing { dir: dir.join("state"), every: 1, ..Checkpointing::new("") };
-    assert_eq!(interrupted(&seq, &params, &ckpt, &StopAfter { after: 7, stop: AtomicBool::new(false) }), 7);
+    assert_eq!(interrupted(&seq, &params, &ckpt, &StopAfter { stage: Stage::Track, after: 7, stop: AtomicBool::new(false) }), 7);
     let resumed = track_with_checkpoints(&seq, &params, Some(&Checkpointing { every: 3, resume: true, ..ckpt }), Progress::none()).unwrap();
     assert_same(&whole, &resumed);
 }
@@ -382,24 +384,6 @@ fn interrupted_while_conforming_names_the_finished_tracking_and_resumes() {
     assert_eq!(resumed.mesh.frames, whole.mesh.frames);
 }
 
-/// Asks to stop once refinement reports `after` steps done (an iteration of
-/// the global optimisation is a step; a batch has `max_iterations` of them).
-struct StopInRefine {
-    after: usize,
-    stop: AtomicBool,
-}
-
-impl ProgressSink for StopInRefine {
-    fn report(&self, stage: Stage, done: usize, _total: usize) {
-        if stage == Stage::Refine && done >= self.after {
-            self.stop.store(true, Ordering::Relaxed);
-        }
-    }
-    fn cancelled(&self) -> bool {
-        self.stop.load(Ordering::Relaxed)
-    }
-}
-
 /// Everything a refinement returns but its timing, floats as bits.
 fn refined_bits(r: &RefineResult) -> (Vec<u64>, Vec<usize>, Vec<usize>, Vec<Vec<[u64; 4]>>) {
     let positions = r.trajectories.positions.iter().flat_map(|p| p.coords.iter().map(|c| c.to_bits()).collect::<Vec<_>>()).collect();
@@ -428,7 +412,7 @@ fn interrupted_and_resumed_refinement_equals_an_uninterrupted_run() {
         let dir = Scratch::new("checkpoint", &format!("refine-{first}"));
         let ckpt = Checkpointing { dir: dir.join("state"), ..Checkpointing::new("") };
         let stop = |after: usize, ckpt: &Checkpointing| {
-            let sink = StopInRefine { after, stop: AtomicBool::new(false) };
+            let sink = StopAfter { stage: Stage::Refine, after, stop: AtomicBool::new(false) };
             match refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(ckpt), Progress(Some(&sink))) {
                 Err(e @ Error::Interrupted { saved: Some(Saved { refine: Some((done, 3)), .. }) }) => {
                     assert_eq!(done, (after - 1) / params.max_iterations, "stopped at step {after}");
@@ -491,7 +475,7 @@ fn a_refinement_checkpoint_of_another_run_or_a_damaged_one_is_refused() {
     let params = RefineParams { batches: 2, max_iterations: 4, ..Default::default() };
     let dir = Scratch::new("checkpoint", "refine-refused");
     let ckpt = Checkpointing { dir: dir.join("state"), ..Checkpointing::new("") };
-    let sink = StopInRefine { after: 5, stop: AtomicBool::new(false) };
+    let sink = StopAfter { stage: Stage::Refine, after: 5, stop: AtomicBool::new(false) };
     assert!(refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&ckpt), Progress(Some(&sink))).is_err());
     let resume = Checkpointing { resume: true, ..ckpt.clone() };
     let saved = std::fs::read(ckpt.refine_path()).unwrap();
@@ -550,7 +534,7 @@ fn a_conversion_interrupted_in_refinement_resumes_there() {
     };
     let dir = Scratch::new("checkpoint", "convert-refine");
     let ckpt = Checkpointing { dir: dir.join("state"), ..Checkpointing::new("") };
-    let sink = StopInRefine { after: 7, stop: AtomicBool::new(false) };
+    let sink = StopAfter { stage: Stage::Refine, after: 7, stop: AtomicBool::new(false) };
     match run(Some(&ckpt), Progress(Some(&sink))).map(|_| ()).unwrap_err() {
         Error::Interrupted { saved: Some(Saved { path, frames, refine: Some((1, 2)) }) } => {
             assert_eq!(path, ckpt.path());
@@ -563,7 +547,7 @@ fn a_conversion_interrupted_in_refinement_resumes_there() {
     assert_eq!(resumed.mesh.frames, whole.mesh.frames);
     assert!(ckpt.refine_path().exists(), "the finished refinement is saved");
     // Starting over: the stale refinement state goes once tracking starts.
-    let sink = StopAfter { after: 2, stop: AtomicBool::new(false) };
+    let sink = StopAfter { stage: Stage::Track, after: 2, stop: AtomicBool::new(false) };
     assert!(run(Some(&ckpt), Progress(Some(&sink))).is_err());
     assert!(!ckpt.refine_path().exists(), "the refinement of the replaced tracking is gone");
 }

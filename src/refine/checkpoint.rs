@@ -56,16 +56,7 @@ pub(super) struct Restored {
 /// frame's number of occupied voxels and the tracked trajectories: two runs
 /// with the same fingerprint refine the same way.
 pub(super) fn fingerprint(tracked: &Trajectories, seq: &VoxelSequence, params: &RefineParams) -> u64 {
-    let mut h = Fnv::new();
-    h.bytes(env!("CARGO_PKG_VERSION").as_bytes());
-    h.bytes(serde_json::to_string(params).expect("parameters serialise").as_bytes());
-    let g = &seq.grid;
-    for d in g.dims {
-        h.bytes(&(d as u64).to_le_bytes());
-    }
-    for c in [g.origin.x, g.origin.y, g.origin.z, g.voxel_size] {
-        h.bytes(&c.to_bits().to_le_bytes());
-    }
+    let mut h = Fnv::run(params, &seq.grid);
     for frame in &seq.frames {
         h.bytes(&(frame.len() as u64).to_le_bytes());
     }

@@ -84,26 +84,10 @@ pub fn evaluate(traj: &Trajectories, grid: &GridSpec, cells: &mut SequenceCells,
 
 /// Gradient descent with λ halved until the energy drops; stops after
 /// `max_iterations`, when no halving helps, or when `on_iteration` (called
-/// with the iterations done) returns false. Returns the energy before and
-/// after every accepted step.
+/// with the iterations done, the trajectories and the history so far, to
+/// report or save them) returns false. Returns the energy before and after
+/// every accepted step.
 pub fn optimise(
-    traj: &mut Trajectories,
-    grid: &GridSpec,
-    cells: &mut SequenceCells,
-    omega: &SparseAffinity,
-    beta_hat: Real,
-    lambda0: Real,
-    max_iterations: usize,
-    max_halvings: usize,
-    mut on_iteration: impl FnMut(usize) -> bool,
-) -> Vec<Iteration> {
-    optimise_observed(traj, grid, cells, omega, beta_hat, lambda0, max_iterations, max_halvings, |it, _, _| on_iteration(it))
-}
-
-/// [`optimise`], with `on_iteration` also shown the trajectories and the
-/// history after each iteration (to save them).
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn optimise_observed(
     traj: &mut Trajectories,
     grid: &GridSpec,
     cells: &mut SequenceCells,

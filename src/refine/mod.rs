@@ -10,7 +10,6 @@ pub mod irregular;
 pub use affinity::{global_affinity, SparseAffinity};
 pub use cells::SequenceCells;
 pub use global::{evaluate, optimise, Iteration};
-use global::optimise_observed;
 use checkpoint::Snapshot;
 pub use irregular::most_irregular;
 
@@ -109,7 +108,7 @@ pub fn refine_with_checkpoints(traj: &Trajectories, seq: &VoxelSequence, params:
         let mut last_save = Instant::now();
         let mut save_error = None;
         let done = b * per_batch + done_before;
-        let history = optimise_observed(
+        let history = optimise(
             &mut current,
             &seq.grid,
             &mut cells,
