@@ -51,10 +51,11 @@ pub fn refine_with_checkpoints(traj: &Trajectories, seq: &VoxelSequence, params:
     let start = Instant::now();
     let scale = params.length_scale(&seq.bounds);
     let total = params.total_removed(traj.centers);
-    let fingerprint = checkpoint.map(|_| checkpoint::fingerprint(traj, seq, params));
-    let restored = match checkpoint {
-        Some(c) if c.resume && c.refine_path().exists() => {
-            let r = checkpoint::load(c, fingerprint.expect("fingerprinted"), traj, params.batches)?;
+    // Where to save, and the fingerprint the file carries.
+    let saving = checkpoint.map(|c| (c, checkpoint::fingerprint(traj, seq, params)));
+    let restored = match saving {
+        Some((c, fp)) if c.resume && c.refine_path().exists() => {
+            let r = checkpoint::load(c, fp, traj, params.batches)?;
             log::info!("resuming refinement from {} after {} of {} batches", c.refine_path().display(), r.batches_done, params.batches);
             Some(r)
         }
@@ -84,10 +85,7 @@ pub fn refine_with_checkpoints(traj: &Trajectories, seq: &VoxelSequence, params:
                 current = current.without(&worst);
                 kept = (0..kept.len()).filter(|i| !worst.contains(i)).map(|i| kept[i]).collect();
                 if !params.optimise {
-                    if let (Some(c), Some(fp)) = (checkpoint, fingerprint) {
-                        let snapshot = Snapshot { batches_done: b + 1, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: None, seconds: seconds(&start) };
-                        checkpoint::save(c, fp, &snapshot)?;
-                    }
+                    save(saving, Snapshot { batches_done: b + 1, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: None, seconds: seconds(&start) })?;
                     continue;
                 }
                 let omega = global_affinity(&current, seq, &mut cells, params.rho_gp * scale, params.rho_gm * scale, params.mu);
@@ -122,16 +120,14 @@ pub fn refine_with_checkpoints(traj: &Trajectories, seq: &VoxelSequence, params:
                 if progress.cancelled() {
                     return false;
                 }
-                if let (Some(c), Some(fp)) = (checkpoint, fingerprint) {
-                    if last_save.elapsed().as_secs_f64() >= c.refine_save_seconds {
-                        let history = joined(history);
-                        let snapshot = Snapshot { batches_done: b, trajectories: now, kept: &kept, removed: &removed, finished: &batches, current: Some((&omega, &history)), seconds: seconds(&start) };
-                        if let Err(e) = checkpoint::save(c, fp, &snapshot) {
-                            save_error = Some(e);
-                            return false;
-                        }
-                        last_save = Instant::now();
+                if saving.is_some_and(|(c, _)| last_save.elapsed().as_secs_f64() >= c.refine_save_seconds) {
+                    let history = joined(history);
+                    let snapshot = Snapshot { batches_done: b, trajectories: now, kept: &kept, removed: &removed, finished: &batches, current: Some((&omega, &history)), seconds: seconds(&start) };
+                    if let Err(e) = save(saving, snapshot) {
+                        save_error = Some(e);
+                        return false;
                     }
+                    last_save = Instant::now();
                 }
                 true
             },
@@ -140,24 +136,20 @@ pub fn refine_with_checkpoints(traj: &Trajectories, seq: &VoxelSequence, params:
             return Err(e);
         }
         let history = joined(&history);
-        let (Some(c), Some(fp)) = (checkpoint, fingerprint) else {
-            if progress.cancelled() {
-                return Err(interrupted(b));
-            }
-            batches.push(history);
-            continue;
-        };
         if progress.cancelled() {
             // The batch may have ended too; resumed, it finds no iteration
             // left or no step that lowers the energy, as it would have.
-            let snapshot = Snapshot { batches_done: b, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: Some((&omega, &history)), seconds: seconds(&start) };
-            checkpoint::save(c, fp, &snapshot)?;
+            save(saving, Snapshot { batches_done: b, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: Some((&omega, &history)), seconds: seconds(&start) })?;
             return Err(interrupted(b));
         }
         batches.push(history);
-        let snapshot = Snapshot { batches_done: b + 1, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: None, seconds: seconds(&start) };
-        checkpoint::save(c, fp, &snapshot)?;
+        save(saving, Snapshot { batches_done: b + 1, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: None, seconds: seconds(&start) })?;
     }
     progress.report(Stage::Refine, steps, steps);
     Ok(RefineResult { trajectories: current, removed, kept, batches, seconds: seconds(&start) })
+}
+
+/// Saves `snapshot` where `saving` says, if anywhere.
+fn save(saving: Option<(&Checkpointing, u64)>, snapshot: Snapshot) -> Result<()> {
+    saving.map_or(Ok(()), |(c, fp)| checkpoint::save(c, fp, &snapshot))
 }
