@@ -3,13 +3,14 @@
 //! seconds per frame count. The cost should grow about linearly in F.
 //!
 //! `cargo bench --bench basis`; `VOLTRACK_BENCH_FRAMES=250,500` picks the
-//! frame counts.
+//! frame counts, `VOLTRACK_BENCH_IN_FILE=1` keeps the frames in a temporary
+//! file (as a long sequence's are).
 
 use std::time::Instant;
 use voltrack::export::basis::{choose, BasisChoice};
 use voltrack::fixtures;
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
-use voltrack::model::mesh::Aabb;
+use voltrack::model::PositionFrames;
 
 /// A turn, two travelling waves, a bend and a slowly chirping ripple: smooth
 /// motion of moderate rank whose spectrum decays, like a tracked capture's.
@@ -27,13 +28,19 @@ fn main() {
         .ok()
         .map(|s| s.split(',').filter_map(|x| x.trim().parse().ok()).collect())
         .unwrap_or_else(|| vec![250, 500, 1000, 2000]);
+    // VOLTRACK_BENCH_IN_FILE=1 keeps the frames in a temporary file, as a
+    // long sequence's are (`DeformParams::memory`).
+    let in_file = std::env::var("VOLTRACK_BENCH_IN_FILE").is_ok_and(|v| v == "1");
     let base = fixtures::torus(Point3::origin(), 1.0, 0.3, 100, 50);
-    println!("{} vertices, threads {}", base.positions.len(), rayon::current_num_threads());
+    println!("{} vertices, threads {}, frames {}", base.positions.len(), rayon::current_num_threads(), if in_file { "in a file" } else { "in memory" });
     println!("| frames | Auto s | Auto components | Components(16) s | s per 1000 frames (Auto, 16) |");
     println!("|---|---|---|---|---|");
     for &f in &counts {
-        let frames: Vec<Vec<Point3>> = (0..f).map(|g| base.positions.iter().map(|p| motion(g, p)).collect()).collect();
-        let tolerance = 0.001 * Aabb::from_points(frames.iter().flatten()).diagonal();
+        let mut frames = PositionFrames::new(base.positions.len(), f, if in_file { 0 } else { usize::MAX }).expect("a temporary file");
+        for g in 0..f {
+            frames.push(base.positions.iter().map(|p| motion(g, p)).collect()).expect("written");
+        }
+        let tolerance = 0.001 * frames.bounds().expect("read").diagonal();
         let clock = Instant::now();
         let (auto, _) = choose(&frames, BasisChoice::Auto, tolerance, Default::default()).expect("Auto basis");
         let auto_s = clock.elapsed().as_secs_f64();

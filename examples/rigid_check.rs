@@ -55,7 +55,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: conform.clone(), checkpoint: None, ..Default::default() },
         Default::default(),
     )?;
-            (conv.mesh.frames, conv.sequence.grid.voxel_size)
+            (conv.mesh.frames.to_vec()?, conv.sequence.grid.voxel_size)
         }
         other => return Err(format!("unknown mode {other}: centers or vertices").into()),
     };

@@ -56,7 +56,7 @@
 //! assert_eq!(result.mesh.frames.len(), 3);
 //! assert_eq!(result.mesh.base.triangles, frames[0].triangles);
 //! for (f, frame) in result.mesh.frames.iter().enumerate() {
-//!     for (v, p) in frame.iter().enumerate() {
+//!     for (v, p) in frame?.iter().enumerate() {
 //!         let truth = frames[f].positions[v];
 //!         assert!((p - truth).norm() < 0.05, "frame {f}, corner {v}: {p} against {truth}");
 //!     }

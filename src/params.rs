@@ -301,7 +301,17 @@ pub struct DeformParams {
     pub smoothing: usize,
     /// Blending. Default dual quaternions.
     pub blending: Blending,
+    /// Bytes of vertex positions the dynamic mesh keeps in memory (24 per
+    /// vertex and frame); a longer sequence's frames go to a temporary file
+    /// (in `TMPDIR`) and are read back a few at a time by conforming and
+    /// export, so memory stops growing with the frames. The output is the
+    /// same either way. Default [`DYNAMIC_MESH_MEMORY`] (64 MiB); any value.
+    pub memory: usize,
 }
+
+/// [`DeformParams::memory`]'s default: 64 MiB, some 2,700 frames of a
+/// 1,000-vertex mesh or 45 of a 60,000-vertex one.
+pub const DYNAMIC_MESH_MEMORY: usize = 64 << 20;
 
 impl DeformParams {
     /// Checks every field's range.
@@ -315,7 +325,7 @@ impl DeformParams {
 
 impl Default for DeformParams {
     fn default() -> Self {
-        DeformParams { neighbors: 4, min_affinity: 0.5, smoothing: 10, blending: Blending::DualQuaternion }
+        DeformParams { neighbors: 4, min_affinity: 0.5, smoothing: 10, blending: Blending::DualQuaternion, memory: DYNAMIC_MESH_MEMORY }
     }
 }
 

@@ -265,7 +265,7 @@ fn convert_and_measure(data: &Path, name: &str, frames: usize, r: usize, n: usiz
         Default::default(),
     ).unwrap();
     let seconds = clock.elapsed().as_secs_f64();
-    let mesh = correspondence(&inputs, &conv.mesh.frames, &gt);
+    let mesh = correspondence(&inputs, &conv.mesh.frames.to_vec().unwrap(), &gt);
     let centers = centers_error(&conv.tracked.trajectories, &gt, mesh.diag);
     println!(
         "{name}, first {frames} frames, R = {r}, N = {n}: correspondence error mean {:.4} %, p95 {:.4} %, max {:.4} % of the diagonal \
@@ -274,7 +274,7 @@ fn convert_and_measure(data: &Path, name: &str, frames: usize, r: usize, n: usiz
         mesh.p95 * 100.0,
         mesh.max * 100.0,
         mesh.kept,
-        conv.mesh.frames[0].len(),
+        conv.mesh.frames.get(0).unwrap().len(),
         mesh.base_to_frame0_max,
         centers * 100.0,
     );
@@ -303,8 +303,8 @@ fn pent_tvm_distance_from_rigid(data: &Path, frames: usize, r: usize, n: usize) 
     ).unwrap();
     let seconds = clock.elapsed().as_secs_f64();
     let voxel_size = conv.sequence.grid.voxel_size;
-    let base = &conv.mesh.frames[0];
-    let d: Vec<Real> = conv.mesh.frames.iter().zip(&motions).flat_map(|(points, m)| base.iter().zip(points).map(move |(p0, p)| (m.apply(p0) - p).norm() / voxel_size)).collect();
+    let base = &conv.mesh.frames.get(0).unwrap()[..];
+    let d: Vec<Real> = conv.mesh.frames.to_vec().unwrap().iter().zip(&motions).flat_map(|(points, m)| base.iter().zip(points).map(move |(p0, p)| (m.apply(p0) - p).norm() / voxel_size)).collect();
     let (mean, max) = (d.iter().sum::<Real>() / d.len() as Real, d.iter().copied().fold(0.0, Real::max));
     println!("pent_tvm, first {frames} frames, R = {r}, N = {n}: vertices from the rigid motion mean {mean:.4}, max {max:.4} voxels; converted in {seconds:.1} s");
     (mean, max)

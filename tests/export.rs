@@ -9,7 +9,7 @@ use voltrack::export::gltf::{write_dynamic_glb, BasisChoice, GltfExportOptions, 
 use voltrack::export::vat::{write_vat, VatOptions};
 use voltrack::fixtures;
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
-use voltrack::model::mesh::Aabb;
+use voltrack::model::PositionFrames;
 use voltrack::Progress;
 
 mod common;
@@ -18,16 +18,16 @@ use common::Scratch;
 /// The bundled example's frame-0 mesh carried through its true motion.
 fn bending_bar() -> DynamicMesh {
     let base = fixtures::bending_bar(0);
-    let frames = (0..fixtures::BENDING_BAR_FRAMES).map(|f| base.positions.iter().map(|p| fixtures::bending_bar_motion(f, p)).collect()).collect();
-    DynamicMesh { base, frames }
+    let frames: Vec<Vec<Point3>> = (0..fixtures::BENDING_BAR_FRAMES).map(|f| base.positions.iter().map(|p| fixtures::bending_bar_motion(f, p)).collect()).collect();
+    DynamicMesh { base, frames: frames.into() }
 }
 
 /// A torus with UVs moved per frame by `motion(f, p)`.
 fn torus(frames: usize, motion: impl Fn(usize, &Point3) -> Point3) -> DynamicMesh {
     let mut base = fixtures::torus(Point3::origin(), 1.0, 0.3, 24, 12);
     base.uvs = Some((0..base.positions.len()).map(|v| [(v / 12) as f32 / 24.0, (v % 12) as f32 / 12.0]).collect());
-    let frames = (0..frames).map(|f| base.positions.iter().map(|p| motion(f, p)).collect()).collect();
-    DynamicMesh { base, frames }
+    let frames: Vec<Vec<Point3>> = (0..frames).map(|f| base.positions.iter().map(|p| motion(f, p)).collect()).collect();
+    DynamicMesh { base, frames: frames.into() }
 }
 
 /// Rigid rotation about z plus a lift along z: displacements of rank 3
@@ -44,7 +44,7 @@ fn wobble(f: usize, p: &Point3) -> Point3 {
 }
 
 fn diagonal(mesh: &DynamicMesh) -> Real {
-    Aabb::from_points(mesh.frames.iter().flatten()).diagonal()
+    mesh.frames.bounds().unwrap().diagonal()
 }
 
 /// What a GLB holds, read with the gltf crate.
@@ -178,7 +178,7 @@ impl Glb {
         // One key per frame and the closing one.
         assert_eq!(self.weights.len(), mesh.frames.len() + 1);
         let (mut max, mut sum, mut n): (Real, Real, usize) = (0.0, 0.0, 0);
-        for (k, frame) in mesh.frames.iter().enumerate() {
+        for (k, frame) in mesh.frames.to_vec().unwrap().iter().enumerate() {
             for (p, q) in self.frame(k).iter().zip(frame) {
                 let d = (p - q).norm();
                 max = max.max(d);
@@ -203,7 +203,7 @@ fn check_common(glb: &Glb, mesh: &DynamicMesh, report: &GltfExportReport, path: 
     assert_eq!(glb.targets.len(), report.targets);
     // Base = frame 0 in f32, one connectivity.
     assert_eq!(glb.base.len(), mesh.base.positions.len());
-    for (b, p) in glb.base.iter().zip(&mesh.frames[0]) {
+    for (b, p) in glb.base.iter().zip(&mesh.frames.get(0).unwrap()[..]) {
         assert_eq!(*b, [p.x as f32, p.y as f32, p.z as f32]);
     }
     let triangles: Vec<u32> = mesh.base.triangles.iter().flatten().copied().collect();
@@ -306,7 +306,7 @@ fn the_clip_lasts_every_frame_and_ends_holding_the_last() {
         // Frame F − 1 is shown from its key to the end, keyed as it is.
         assert_eq!(glb.weights[frames], glb.weights[frames - 1], "{name}");
         let last = glb.frame(frames);
-        for (p, q) in last.iter().zip(&mesh.frames[frames - 1]) {
+        for (p, q) in last.iter().zip(&mesh.frames.get(frames - 1).unwrap()[..]) {
             assert!((p - q).norm() < 1e-5 * diagonal(&mesh) + report.reconstruction_error_max * diagonal(&mesh), "{name}");
         }
         // Every other key is still at f / fps.
@@ -338,7 +338,7 @@ fn glb_records_the_frame_rate_and_count() {
     }
     // A single frame has no animation, but the scene still says its rate.
     let mut one = bending_bar();
-    one.frames.truncate(1);
+    one.frames = one.frames.to_vec().unwrap()[..1].to_vec().into();
     let path = dir.join("one.glb");
     write_dynamic_glb(&path, &one, &GltfExportOptions::default(), Progress::none()).unwrap();
     let glb = Glb::read(&path);
@@ -473,7 +473,7 @@ fn glb_edge_cases() {
     let dir = Scratch::new("export", "edge");
     // One frame: a static mesh, no targets, no animation.
     let mut one = bending_bar();
-    one.frames.truncate(1);
+    one.frames = one.frames.to_vec().unwrap()[..1].to_vec().into();
     let path = dir.join("one.glb");
     let report = write_dynamic_glb(&path, &one, &GltfExportOptions::default(), Progress::none()).unwrap();
     assert_eq!(report.targets, 0);
@@ -493,13 +493,15 @@ fn glb_edge_cases() {
         assert!(write_dynamic_glb(&bad, &mesh, &GltfExportOptions { fps, ..Default::default() }, Progress::none()).is_err(), "fps {fps}");
     }
     assert!(write_dynamic_glb(&bad, &mesh, &GltfExportOptions { max_basis_error: -1.0, ..Default::default() }, Progress::none()).is_err());
-    let mut ragged = mesh.clone();
-    ragged.frames[2].pop();
+    let mut frames = mesh.frames.to_vec().unwrap();
+    frames[2].pop();
+    let ragged = DynamicMesh { base: mesh.base.clone(), frames: frames.into() };
     assert!(write_dynamic_glb(&bad, &ragged, &GltfExportOptions::default(), Progress::none()).is_err());
-    let mut nan = mesh.clone();
-    nan.frames[3][7].y = Real::NAN;
+    let mut frames = mesh.frames.to_vec().unwrap();
+    frames[3][7].y = Real::NAN;
+    let nan = DynamicMesh { base: mesh.base.clone(), frames: frames.into() };
     assert!(write_dynamic_glb(&bad, &nan, &GltfExportOptions::default(), Progress::none()).is_err());
-    let empty = DynamicMesh { base: mesh.base.clone(), frames: vec![] };
+    let empty = DynamicMesh { base: mesh.base.clone(), frames: Vec::new().into() };
     assert!(write_dynamic_glb(&bad, &empty, &GltfExportOptions::default(), Progress::none()).is_err());
     assert!(write_dynamic_glb(&dir.join("missing/x.glb"), &mesh, &GltfExportOptions::default(), Progress::none()).is_err());
     let left: Vec<_> = std::fs::read_dir(&dir.0).unwrap().flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect();
@@ -522,6 +524,46 @@ fn glb_bytes_do_not_depend_on_threads() {
         let one = write("a.glb", 1);
         assert_eq!(one, write("b.glb", 1), "{basis:?}: two runs differ");
         assert_eq!(one, write("c.glb", 4), "{basis:?}: 1 and 4 threads differ");
+    }
+}
+
+/// `mesh` with its frames in a temporary file, as a long sequence's are.
+fn in_file(mesh: &DynamicMesh) -> DynamicMesh {
+    let all = mesh.frames.to_vec().unwrap();
+    let mut frames = PositionFrames::new(all[0].len(), all.len(), 0).unwrap();
+    for frame in all {
+        frames.push(frame).unwrap();
+    }
+    assert!(frames.in_file());
+    DynamicMesh { base: mesh.base.clone(), frames }
+}
+
+#[test]
+fn every_writer_writes_the_same_bytes_from_frames_in_a_file() {
+    let dir = Scratch::new("export", "in-file");
+    let memory = torus(40, wobble);
+    let file = in_file(&memory);
+    let bytes = |path: PathBuf| std::fs::read(path).unwrap();
+    for (k, basis) in [BasisChoice::PerFrame, BasisChoice::Components(3)].into_iter().enumerate() {
+        for compress in [false, true] {
+            let options = GltfExportOptions { compress, ..options(basis) };
+            let write = |name: String, mesh: &DynamicMesh| {
+                let report = write_dynamic_glb(&dir.join(&name), mesh, &options, Progress::none()).unwrap();
+                (report, bytes(dir.join(&name)))
+            };
+            assert!(write(format!("m{k}{compress}.glb"), &memory) == write(format!("f{k}{compress}.glb"), &file), "{basis:?}, compress {compress}: differ");
+        }
+    }
+    // The same names in two folders: the files name each other.
+    for (name, mesh) in [("m", &memory), ("f", &file)] {
+        let out = dir.join(name);
+        std::fs::create_dir(&out).unwrap();
+        voltrack::export::pc2::write_pc2(&out.join("a.pc2"), mesh, 30.0, "t").unwrap();
+        write_vat(&out.join("a.exr"), mesh, &VatOptions::default()).unwrap();
+        voltrack::export::obj::write_obj_sequence(&out.join("obj"), mesh, "t").unwrap();
+    }
+    for file in ["a.pc2", "a.obj", "a.exr", "a.glb", "a.json", "obj/frame_0000.obj", "obj/frame_0039.obj"] {
+        assert!(bytes(dir.join("m").join(file)) == bytes(dir.join("f").join(file)), "{file} differs");
     }
 }
 
@@ -658,7 +700,9 @@ fn point_cache_header_counts_and_positions() {
     let mut mesh = bending_bar();
     let unused = mesh.base.positions.len();
     mesh.base.positions.push(Point3::new(9.0, 9.0, 9.0));
-    mesh.frames.iter_mut().for_each(|f| f.push(Point3::new(9.0, 9.0, 9.0)));
+    let mut frames = mesh.frames.to_vec().unwrap();
+    frames.iter_mut().for_each(|f| f.push(Point3::new(9.0, 9.0, 9.0)));
+    mesh.frames = frames.into();
     let path = dir.join("bar.pc2");
     voltrack::export::pc2::write_pc2(&path, &mesh, 25.0, "bar").unwrap();
     let bytes = std::fs::read(&path).unwrap();
@@ -673,7 +717,7 @@ fn point_cache_header_counts_and_positions() {
     assert_eq!(&bytes[..32], &header[..]);
     assert_eq!((i32_at(&bytes, 16), i32_at(&bytes, 28)), (points as i32, samples as i32));
     assert_eq!(bytes.len(), 32 + 12 * points * samples);
-    for (f, frame) in mesh.frames.iter().enumerate() {
+    for (f, frame) in mesh.frames.to_vec().unwrap().iter().enumerate() {
         for v in 0..points {
             for k in 0..3 {
                 assert_eq!(f32_at(&bytes, 32 + 12 * (f * points + v) + 4 * k), frame[v][k] as f32, "frame {f}, vertex {v}");
@@ -689,7 +733,7 @@ fn point_cache_header_counts_and_positions() {
     assert!(vt.is_empty());
     assert_eq!(obj_objects_and_normals(&text), (vec!["bar".to_string()], obj_objects_and_normals(&text).1));
     assert_eq!(obj_objects_and_normals(&text).1.len(), points, "a normal for every vertex kept, none for the unused one");
-    for (a, p) in v.iter().zip(&mesh.frames[0]) {
+    for (a, p) in v.iter().zip(&mesh.frames.get(0).unwrap()[..]) {
         assert_eq!(*a, [p.x as f32, p.y as f32, p.z as f32]);
     }
     assert_eq!(face_indices(&f), mesh.base.triangles);
@@ -762,7 +806,7 @@ fn point_cache_obj_is_named_and_smooth() {
     let n = |v: usize| Vector3::new(normals[v][0] as Real, normals[v][1] as Real, normals[v][2] as Real);
     for &(original, copy) in &pairs {
         assert_eq!(normals[original], normals[copy], "vertex {original} and its copy {copy}");
-        let p = mesh.frames[0][original];
+        let p = mesh.frames.get(0).unwrap()[original];
         let ring = Vector3::new(p.x, p.y, 0.0).normalize();
         let exact = (p.coords - ring).normalize();
         assert!(n(original).dot(&exact) > 0.99, "vertex {original}: {:?} vs {exact:?}", n(original));
@@ -783,6 +827,7 @@ fn obj_sequence_shares_one_connectivity() {
         let mut listed: Vec<PathBuf> = std::fs::read_dir(&out).unwrap().flatten().map(|e| e.path()).collect();
         listed.sort();
         assert_eq!(listed, want, "only the frames are in the directory");
+        let first = mesh.frames.get(0).unwrap();
         let (_, vt0, f0) = obj_lines(&std::fs::read_to_string(&paths[0]).unwrap());
         assert_eq!(f0.len(), mesh.base.triangles.len());
         assert_eq!(face_indices(&f0), mesh.base.triangles);
@@ -792,7 +837,7 @@ fn obj_sequence_shares_one_connectivity() {
         } else {
             assert!(f0.iter().all(|l| l.matches("//").count() == 3), "v//vn corners: {}", f0[0]);
         }
-        for (path, frame) in paths.iter().zip(&mesh.frames) {
+        for (path, frame) in paths.iter().zip(&mesh.frames.to_vec().unwrap()) {
             let text = std::fs::read_to_string(path).unwrap();
             let (objects, normals) = obj_objects_and_normals(&text);
             assert_eq!(objects, [name], "{}: one object, named", path.display());
@@ -808,7 +853,7 @@ fn obj_sequence_shares_one_connectivity() {
                 }
             }
             for (i, n) in normals.iter().enumerate() {
-                let copies = (0..frame.len()).filter(|&j| mesh.frames[0][j] == mesh.frames[0][i]);
+                let copies = (0..frame.len()).filter(|&j| first[j] == first[i]);
                 let Some(want) = copies.map(|j| sum[j]).sum::<Vector3>().try_normalize(1e-12) else { continue };
                 let got = Vector3::new(n[0] as Real, n[1] as Real, n[2] as Real);
                 assert!((got - want).norm() < 1e-5, "{}: normal {i} is {got:?}, want {want:?}", path.display());
@@ -862,7 +907,7 @@ fn vat_of_100k_vertices_fits_a_gpu_texture() {
         }
         let info: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path.with_extension("json")).unwrap()).unwrap();
         assert_eq!((info["width"].as_u64(), info["height"].as_u64(), info["rows_per_frame"].as_u64()), (Some(8192), Some(height as u64), Some(13)));
-        for (f, frame) in mesh.frames.iter().enumerate() {
+        for (f, frame) in mesh.frames.to_vec().unwrap().iter().enumerate() {
             for v in (0..vertices).step_by(97).chain([vertices - 1]) {
                 let (column, row) = (v % 8192, f * 13 + v / 8192);
                 assert_eq!(layout.texel(v, f), (column, row));
@@ -940,7 +985,7 @@ fn vat_mesh_carries_frame_0_and_texel_uvs() {
     assert!(primitive.morph_targets().next().is_none());
     let reader = primitive.reader(|_| Some(blob));
     let positions: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
-    assert!(positions.iter().zip(&mesh.frames[0]).all(|(a, b)| (0..3).all(|k| a[k] == b[k] as f32)));
+    assert!(positions.iter().zip(&mesh.frames.get(0).unwrap()[..]).all(|(a, b)| (0..3).all(|k| a[k] == b[k] as f32)));
     assert_eq!(reader.read_normals().unwrap().count(), positions.len());
     let uv0: Vec<[f32; 2]> = reader.read_tex_coords(0).unwrap().into_f32().collect();
     assert_eq!(Some(&uv0), mesh.base.uvs.as_ref());
@@ -1029,7 +1074,7 @@ fn compressed_glb_decodes_to_every_frame_within_the_reported_error() {
         // Every frame: base + Σ w · delta at its keyed weights, then the node transform.
         let read = Glb::read_weights(&json, &bin);
         let (mut max, mut sum, mut n) = (0.0f64, 0.0f64, 0usize);
-        for (f, frame) in mesh.frames.iter().enumerate() {
+        for (f, frame) in mesh.frames.to_vec().unwrap().iter().enumerate() {
             for (v, p) in frame.iter().enumerate() {
                 let mut q = positions[v];
                 for (w, target) in read[f].iter().zip(&targets) {
@@ -1049,7 +1094,7 @@ fn compressed_glb_decodes_to_every_frame_within_the_reported_error() {
         assert!((sum / n as f64 - report.reconstruction_error_mean as f64).abs() < 1e-6);
     }
     // A single frame: no animation, the base mesh quantised alone.
-    let still = DynamicMesh { base: mesh.base.clone(), frames: mesh.frames[..1].to_vec() };
+    let still = DynamicMesh { base: mesh.base.clone(), frames: mesh.frames.to_vec().unwrap()[..1].to_vec().into() };
     let report = write_dynamic_glb(&dir.join("still.glb"), &still, &GltfExportOptions { compress: true, ..Default::default() }, Progress::none()).unwrap();
     assert_eq!(report.targets, 0);
     assert!(report.compressed && report.reconstruction_error_max > 0.0 && report.reconstruction_error_max < 0.0005, "{report:?}");

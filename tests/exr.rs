@@ -56,7 +56,7 @@ fn trajectories(frames: usize, centers: usize) -> Trajectories {
 fn animated(t: &Trajectories) -> DynamicMesh {
     let frames: Vec<Vec<Point3>> = (0..t.frames).map(|f| t.frame(f).to_vec()).collect();
     let triangles = (0..t.centers as u32 / 3).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
-    DynamicMesh { base: voltrack::TriangleMesh { positions: frames[0].clone(), triangles, ..Default::default() }, frames }
+    DynamicMesh { base: voltrack::TriangleMesh { positions: frames[0].clone(), triangles, ..Default::default() }, frames: frames.into() }
 }
 
 fn write_vat_exr(path: &Path, mesh: &DynamicMesh) -> voltrack::Result<()> {
@@ -226,12 +226,13 @@ fn vertex_animation_texture_with_json_sidecar() {
 
     // Frames of different lengths, no vertices, or a name that would collide
     // with the sidecar or the mesh: errors, nothing written.
-    let mut ragged = mesh.clone();
-    ragged.frames[1].pop();
+    let mut frames = mesh.frames.to_vec().unwrap();
+    frames[1].pop();
+    let ragged = DynamicMesh { base: mesh.base.clone(), frames: frames.into() };
     assert!(write_vat_exr(&dir.join("ragged.exr"), &ragged).is_err());
-    let empty = DynamicMesh { base: Default::default(), frames: vec![vec![], vec![]] };
+    let empty = DynamicMesh { base: Default::default(), frames: vec![vec![], vec![]].into() };
     assert!(write_vat_exr(&dir.join("none.exr"), &empty).is_err());
-    assert!(write_vat_exr(&dir.join("none.exr"), &DynamicMesh { frames: vec![], ..mesh.clone() }).is_err());
+    assert!(write_vat_exr(&dir.join("none.exr"), &DynamicMesh { frames: Vec::new().into(), base: mesh.base.clone() }).is_err());
     assert!(write_vat_exr(&dir.join("clash.json"), &mesh).is_err());
     assert!(write_vat_exr(&dir.join("clash.glb"), &mesh).is_err());
     assert_eq!(files_under(&dir.0), vec!["anim.exr", "anim.glb", "anim.json"]);

@@ -48,7 +48,7 @@ fn fit_of_the_true_motion_is_zero_and_of_a_still_mesh_is_not() {
     }
     // Frame 0 unmoved for every frame: the bent end is off by up to its
     // sagitta, most in the last frame.
-    let still = DynamicMesh { frames: vec![base.positions.clone(); BENDING_BAR_FRAMES], base };
+    let still = DynamicMesh { frames: vec![base.positions.clone(); BENDING_BAR_FRAMES].into(), base };
     let fit = fit_to_input(&still, &FrameFiles::new(paths.clone()), diagonal, Progress::none()).unwrap();
     assert_eq!(fit.frames[0].two_sided, DistanceSummary::default());
     let last = &fit.frames[BENDING_BAR_FRAMES - 1];

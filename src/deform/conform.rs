@@ -173,18 +173,28 @@ pub fn conform(mesh: DynamicMesh, source: &dyn FrameSource, bounds: &Aabb, param
     let topology = Topology::new(&mesh.base);
     let max_distance = params.length_scale(bounds) * params.max_distance;
     let counter = Counter::new(progress, Stage::Conform, source.len().saturating_sub(1));
-    // Each frame is replaced where it lies, so memory holds the sequence once.
+    // A few frames at a time, each replaced where it lies: memory holds a
+    // block, whether the frames are in memory or in a file.
     let DynamicMesh { base, mut frames } = mesh;
-    frames[1..].par_iter_mut().enumerate().try_for_each(|(k, frame)| {
-        let f = k + 1;
-        if progress.cancelled() {
-            return Err(Error::Interrupted { saved: None });
+    let block = 4 * rayon::current_num_threads().max(1);
+    for start in (1..frames.len()).step_by(block) {
+        let fitted: Vec<Vec<Point3>> = (start..(start + block).min(frames.len()))
+            .into_par_iter()
+            .map(|f| {
+                if progress.cancelled() {
+                    return Err(Error::Interrupted { saved: None });
+                }
+                let input = source.mesh(f)?;
+                let fitted = fit_frame(&base, &topology, &frames.get(f)?, &input, max_distance, params, &|| progress.cancelled())
+                    .ok_or(Error::Interrupted { saved: None })?;
+                counter.tick();
+                Ok(fitted)
+            })
+            .collect::<Result<_>>()?;
+        for (k, frame) in fitted.into_iter().enumerate() {
+            frames.replace(start + k, frame)?;
         }
-        let input = source.mesh(f)?;
-        *frame = fit_frame(&base, &topology, frame, &input, max_distance, params, &|| progress.cancelled()).ok_or(Error::Interrupted { saved: None })?;
-        counter.tick();
-        Ok(())
-    })?;
+    }
     Ok(DynamicMesh { base, frames })
 }
 

@@ -19,18 +19,19 @@ use crate::math::{Point3, Real};
 use crate::model::mesh::TriangleMesh;
 use crate::params::{Blending, DeformParams};
 use crate::refine::SparseAffinity;
-use crate::model::{Rigid, Trajectories};
+use crate::model::{PositionFrames, Rigid, Trajectories};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 use std::num::NonZeroUsize;
 
 /// One connectivity, animated: `base` is the first frame as loaded (vertex
-/// order, UVs, normals, texture), `frames[f][v]` vertex v's position in frame f
-/// (`frames[0]` equals `base.positions`).
-#[derive(Clone, Debug)]
+/// order, UVs, normals, texture), `frames.get(f)?[v]` vertex v's position in
+/// frame f (frame 0 equals `base.positions`). A long sequence's frames are
+/// kept in a temporary file ([`DeformParams::memory`]).
+#[derive(Debug)]
 pub struct DynamicMesh {
     pub base: TriangleMesh,
-    pub frames: Vec<Vec<Point3>>,
+    pub frames: PositionFrames,
 }
 
 /// A vertex's centers and their normalised weights.
@@ -108,9 +109,10 @@ pub fn deform(mesh: &TriangleMesh, traj: &Trajectories, omega: &SparseAffinity, 
     let (weld, welded) = mesh.welded();
     let smoothed = smooth_bindings(&welded, bind(mesh, traj.frame(0), omega, params), omega, params.smoothing, 2 * params.neighbors);
     let bindings: Vec<Binding> = weld.iter().map(|&w| smoothed[w as usize].clone()).collect();
-    let mut frames = vec![mesh.positions.clone()];
+    let mut frames = PositionFrames::new(mesh.positions.len(), traj.frames, params.memory)?;
+    frames.push(mesh.positions.clone())?;
     for f in 1..traj.frames {
-        frames.push(move_vertices(&mesh.positions, &bindings, &center_motions(traj, omega, f), params.blending));
+        frames.push(move_vertices(&mesh.positions, &bindings, &center_motions(traj, omega, f), params.blending))?;
     }
     Ok(DynamicMesh { base: mesh.clone(), frames })
 }

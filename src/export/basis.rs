@@ -15,8 +15,9 @@
 //! [`MorphBasis::combine`], and frame 0 is always the base mesh.
 
 use crate::deform::DynamicMesh;
+use crate::model::PositionFrames;
 use crate::error::{Error, Result};
-use crate::math::{Point3, Real, Vector3};
+use crate::math::{Real, Vector3};
 use crate::progress::{Progress, Stage};
 use crate::model::rng::SplitMix64;
 use nalgebra::DMatrix;
@@ -84,6 +85,7 @@ pub fn check_frames(mesh: &DynamicMesh) -> Result<()> {
         return Err(Error::InvalidInput(format!("a triangle refers to a vertex beyond the {n} of the base mesh")));
     }
     for (f, frame) in mesh.frames.iter().enumerate() {
+        let frame = frame?;
         if frame.len() != n {
             return Err(Error::InvalidInput(format!("frame {f} has {} vertices, the base mesh {n}", frame.len())));
         }
@@ -138,12 +140,13 @@ impl MorphBasis {
     /// Applies the mix to per-frame vectors: target j, vertex v =
     /// Σ_(g, a) ∈ `mix[j]` a · `vectors(g)[v]`, summed in f64 in frame order
     /// (deterministic) and rounded to f32, as the exported files store them.
-    /// `vectors(g)` (g ≥ 1) must return `vertices` entries; it is called once
+    /// `vectors(g)` (g ≥ 1) must return `vertices` entries (or the error
+    /// that stops the work); it is called once
     /// per frame, a few frames at a time in parallel. Reports the frames done
     /// under [`Stage::Export`] and stops between blocks when asked to.
     pub(crate) fn combine<V>(&self, frames: usize, vertices: usize, vectors: V, progress: Progress) -> Result<Vec<Vec<[f32; 3]>>>
     where
-        V: Fn(usize) -> Vec<Vector3> + Sync,
+        V: Fn(usize) -> Result<Vec<Vector3>> + Sync,
     {
         // A target's f64 sum lives only while its frames are being visited, so
         // per-frame targets never hold more than one block in f64.
@@ -153,7 +156,7 @@ impl MorphBasis {
             stop_requested(progress)?;
             progress.report(Stage::Export, start - 1, frames - 1);
             let block = start..(start + FRAME_BLOCK).min(frames);
-            let vecs: Vec<Vec<Vector3>> = block.clone().into_par_iter().map(&vectors).collect();
+            let vecs: Vec<Vec<Vector3>> = block.clone().into_par_iter().map(&vectors).collect::<Result<_>>()?;
             sums.par_iter_mut().zip(out.par_iter_mut()).zip(&self.mix).for_each(|((sum, out), mix)| {
                 let first = mix.partition_point(|&(g, _)| g < block.start);
                 let entries = mix[first..].iter().take_while(|&&(g, _)| g < block.end);
@@ -180,7 +183,7 @@ impl MorphBasis {
 /// reconstruction error (zero for per-frame targets). Reports its passes over
 /// the frames under [`Stage::Export`] and returns [`Error::Interrupted`] when
 /// `progress` asks it to stop.
-pub fn choose(frames: &[Vec<Point3>], choice: BasisChoice, tolerance: Real, progress: Progress) -> Result<(MorphBasis, BasisError)> {
+pub fn choose(frames: &PositionFrames, choice: BasisChoice, tolerance: Real, progress: Progress) -> Result<(MorphBasis, BasisError)> {
     let exact = || (MorphBasis::per_frame(frames.len()), BasisError::default());
     let mut passes = Passes { progress, done: 0 };
     match choice {
@@ -290,9 +293,9 @@ struct Pca {
 impl Pca {
     /// Sketches `width` components (fewer when A is smaller); `passes` counts
     /// its passes over the frames and one error pass after them.
-    fn new(frames: &[Vec<Point3>], width: usize, passes: &mut Passes) -> Result<Self> {
+    fn new(frames: &PositionFrames, width: usize, passes: &mut Passes) -> Result<Self> {
         let moving = frames.len().saturating_sub(1);
-        let rows = 3 * frames.first().map_or(0, Vec::len);
+        let rows = 3 * if frames.is_empty() { 0 } else { frames.get(0)?.len() };
         let width = width.min(moving).min(rows);
         let mut pca = Pca { components: Vec::new(), squared: Vec::new(), total: 0.0, complete: width == moving.min(rows), frames: frames.len() };
         if width == 0 {
@@ -305,7 +308,7 @@ impl Pca {
             passes.start(left)
         };
         pass(passes)?;
-        pca.total = squared_norm(frames);
+        pca.total = squared_norm(frames)?;
         let mut q = orthonormal(apply(frames, &gaussian(moving, width), width, passes.progress)?, rows, width);
         for _ in 0..POWER_ITERATIONS {
             pass(passes)?;
@@ -368,13 +371,13 @@ impl Pca {
     /// `ks` (k ≤ number of components). Each vertex's trajectory over the
     /// frames is projected onto the components (x − U_k U_kᵀ x), so this costs
     /// one pass over the frames and never stores the residual.
-    fn errors(&self, frames: &[Vec<Point3>], ks: RangeInclusive<usize>, passes: &mut Passes) -> Result<Vec<BasisError>> {
+    fn errors(&self, frames: &PositionFrames, ks: RangeInclusive<usize>, passes: &mut Passes) -> Result<Vec<BasisError>> {
         let (k0, k1) = (*ks.start(), *ks.end());
         assert!(k0 <= k1 && k1 <= self.components.len(), "component range {k0}..={k1} beyond {}", self.components.len());
         passes.start(1)?;
         let progress = passes.progress;
         let moving = self.frames - 1;
-        let vertices = frames[0].len();
+        let vertices = frames.get(0)?.len();
         let u = &self.components;
         let starts: Vec<usize> = (0..vertices).step_by(VERTEX_CHUNK).collect();
         // Per chunk and k: (largest error, sum of errors).
@@ -388,9 +391,11 @@ impl Pca {
                 // One vertex's displacements over the frames, contiguous, as
                 // every component goes over them.
                 let mut x = vec![Vector3::zeros(); moving];
-                for v in start..(start + VERTEX_CHUNK).min(vertices) {
-                    for (x, frame) in x.iter_mut().zip(&frames[1..]) {
-                        *x = frame[v] - frames[0][v];
+                let end = (start + VERTEX_CHUNK).min(vertices);
+                let block = (0..frames.len()).map(|f| frames.rows(f, start..end)).collect::<Result<Vec<_>>>()?;
+                for v in 0..end - start {
+                    for (x, frame) in x.iter_mut().zip(&block[1..]) {
+                        *x = frame[v] - block[0][v];
                     }
                     for (yk, uk) in y.iter_mut().zip(u) {
                         *yk = uk.iter().zip(&x).map(|(&w, x)| w * x).sum();
@@ -452,17 +457,22 @@ impl Pca {
 }
 
 /// ‖A‖², summed per vertex block and then over the blocks in order.
-fn squared_norm(frames: &[Vec<Point3>]) -> Real {
-    let vertices = frames[0].len();
+fn squared_norm(frames: &PositionFrames) -> Result<Real> {
+    let vertices = frames.get(0)?.len();
     let starts: Vec<usize> = (0..vertices).step_by(VERTEX_CHUNK).collect();
     let parts: Vec<Real> = starts
         .par_iter()
         .map(|&start| {
-            let base = &frames[0][start..(start + VERTEX_CHUNK).min(vertices)];
-            frames[1..].iter().map(|frame| frame[start..].iter().zip(base).map(|(p, p0)| (p - p0).norm_squared()).sum::<Real>()).sum()
+            let range = start..(start + VERTEX_CHUNK).min(vertices);
+            let base = frames.rows(0, range.clone())?;
+            let mut sum = 0.0;
+            for f in 1..frames.len() {
+                sum += frames.rows(f, range.clone())?.iter().zip(base.iter()).map(|(p, p0)| (p - p0).norm_squared()).sum::<Real>();
+            }
+            Ok(sum)
         })
-        .collect();
-    parts.iter().sum()
+        .collect::<Result<_>>()?;
+    Ok(parts.iter().sum())
 }
 
 /// A (F − 1) × `width` matrix of independent standard normal entries,
@@ -482,15 +492,17 @@ fn gaussian(rows: usize, width: usize) -> Vec<Real> {
 /// A X, 3V × `width`, for X with one row per frame after the first (both
 /// row-major, A's rows vertex-major: 3v + axis). Parallel over vertex blocks,
 /// each writing its own rows, summed over the frames in order.
-fn apply(frames: &[Vec<Point3>], x: &[Real], width: usize, progress: Progress) -> Result<Vec<Real>> {
-    let vertices = frames[0].len();
+fn apply(frames: &PositionFrames, x: &[Real], width: usize, progress: Progress) -> Result<Vec<Real>> {
+    let vertices = frames.get(0)?.len();
     let mut y = vec![0.0; 3 * vertices * width];
     y.par_chunks_mut(3 * VERTEX_CHUNK * width).enumerate().try_for_each(|(c, out)| {
         stop_requested(progress)?;
         let start = c * VERTEX_CHUNK;
-        let base = &frames[0][start..start + out.len() / (3 * width)];
-        for (frame, xg) in frames[1..].iter().zip(x.chunks_exact(width)) {
-            for ((p, p0), rows) in frame[start..].iter().zip(base).zip(out.chunks_exact_mut(3 * width)) {
+        let range = start..start + out.len() / (3 * width);
+        let base = frames.rows(0, range.clone())?;
+        for (f, xg) in (1..frames.len()).zip(x.chunks_exact(width)) {
+            let frame = frames.rows(f, range.clone())?;
+            for ((p, p0), rows) in frame.iter().zip(base.iter()).zip(out.chunks_exact_mut(3 * width)) {
                 let d = p - p0;
                 for (a, row) in rows.chunks_exact_mut(width).enumerate() {
                     axpy(d[a], xg, row);
@@ -505,22 +517,24 @@ fn apply(frames: &[Vec<Point3>], x: &[Real], width: usize, progress: Progress) -
 /// Aᵀ Q, (F − 1) × `width`, for Q with 3V rows (layouts as in [`apply`]).
 /// Vertex blocks in order, each added to every frame's row in parallel over
 /// the frames: every entry is summed in the same order whatever the threads.
-fn apply_transposed(frames: &[Vec<Point3>], q: &[Real], width: usize, progress: Progress) -> Result<Vec<Real>> {
-    let vertices = frames[0].len();
+fn apply_transposed(frames: &PositionFrames, q: &[Real], width: usize, progress: Progress) -> Result<Vec<Real>> {
+    let vertices = frames.get(0)?.len();
     let mut z = vec![0.0; (frames.len() - 1) * width];
     for start in (0..vertices).step_by(VERTEX_CHUNK) {
         stop_requested(progress)?;
         let end = (start + VERTEX_CHUNK).min(vertices);
-        let base = &frames[0][start..end];
+        let base = frames.rows(0, start..end)?;
         let block = &q[3 * start * width..3 * end * width];
-        z.par_chunks_mut(width).zip(&frames[1..]).for_each(|(zg, frame)| {
-            for ((p, p0), rows) in frame[start..end].iter().zip(base).zip(block.chunks_exact(3 * width)) {
+        z.par_chunks_mut(width).enumerate().try_for_each(|(g, zg)| {
+            let frame = frames.rows(g + 1, start..end)?;
+            for ((p, p0), rows) in frame.iter().zip(base.iter()).zip(block.chunks_exact(3 * width)) {
                 let d = p - p0;
                 for (a, row) in rows.chunks_exact(width).enumerate() {
                     axpy(d[a], row, zg);
                 }
             }
-        });
+            Ok::<_, Error>(())
+        })?;
     }
     Ok(z)
 }
@@ -544,7 +558,7 @@ fn axpy(a: Real, x: &[Real], y: &mut [Real]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::Rotation3;
+    use crate::math::{Point3, Rotation3};
 
     /// The vertices of a torus (radii 1 and 0.3, 24 × 12 of them).
     fn torus() -> Vec<Point3> {
@@ -617,9 +631,10 @@ mod tests {
     #[test]
     fn sketched_components_reconstruct_as_well_as_the_exact_decomposition() {
         for count in [150, 400] {
-            let frames = sequence(count);
-            let diagonal = crate::model::mesh::Aabb::from_points(frames.iter().flatten()).diagonal();
-            let reference = exact(&frames);
+            let raw = sequence(count);
+            let diagonal = crate::model::mesh::Aabb::from_points(raw.iter().flatten()).diagonal();
+            let reference = exact(&raw);
+            let frames = PositionFrames::from(raw);
             let all = reference.errors(&frames, 0..=24, &mut no_passes()).unwrap();
             for k in [1, 2, 3, 5, 8, 12, 16, 24] {
                 let pca = Pca::new(&frames, k + OVERSAMPLING, &mut no_passes()).unwrap();
@@ -651,10 +666,28 @@ mod tests {
                 base.iter().map(|p| turn * p + Vector3::new(1.0, 2.0, -0.5) * (0.7 * f as Real).sin()).collect()
             })
             .collect();
+        let frames = PositionFrames::from(frames);
         let pca = Pca::new(&frames, 8 + OVERSAMPLING, &mut no_passes()).unwrap();
         assert_eq!(pca.rank(), Some(3));
         let error = pca.errors(&frames, 3..=3, &mut no_passes()).unwrap()[0];
         assert!(error.max < 1e-9, "{error:?}");
         assert_eq!(pca.sufficient(1e-6), Some(3));
+    }
+
+    #[test]
+    fn frames_in_a_file_give_the_basis_of_frames_in_memory_bit_for_bit() {
+        let raw = sequence(300);
+        let vertices = raw[0].len();
+        let mut file = PositionFrames::new(vertices, raw.len(), 0).unwrap();
+        for frame in &raw {
+            file.push(frame.clone()).unwrap();
+        }
+        assert!(file.in_file());
+        let memory = PositionFrames::from(raw);
+        for choice in [BasisChoice::Auto, BasisChoice::Components(5)] {
+            let a = choose(&memory, choice, 1e-3, Progress::none()).unwrap();
+            let b = choose(&file, choice, 1e-3, Progress::none()).unwrap();
+            assert_eq!(a, b, "{choice:?}");
+        }
     }
 }

@@ -11,7 +11,8 @@ use super::normals::FrameNormals;
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real, Vector3};
-use crate::model::mesh::{Aabb, TriangleMesh};
+use crate::model::mesh::TriangleMesh;
+use crate::model::PositionFrames;
 use crate::progress::Progress;
 use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
@@ -126,12 +127,13 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
     options.validate()?;
     basis::check_frames(mesh)?;
     let frames = &mesh.frames;
-    let diagonal = Aabb::from_points(frames.iter().flatten()).diagonal();
+    let diagonal = frames.bounds()?.diagonal();
     let (basis, error) = basis::choose(frames, options.basis, options.max_basis_error * diagonal, progress)?;
     let relative = |e: Real| if diagonal > 0.0 { e / diagonal } else { 0.0 };
-    let normals = options.normals.then(|| FrameNormals::new(&mesh.base.triangles, &frames[0]));
+    let first = frames.get(0)?.into_owned();
+    let normals = options.normals.then(|| FrameNormals::new(&mesh.base.triangles, &first));
     let base = TriangleMesh {
-        positions: frames[0].clone(),
+        positions: first,
         triangles: mesh.base.triangles.clone(),
         uvs: mesh.base.uvs.clone(),
         normals: normals.as_ref().map(|n| n.base.iter().map(to_f32).collect()),
@@ -145,7 +147,7 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
     };
     let glb = glb_with(&base, animation.as_ref(), &scene, GlbExtras::default())?;
     let (error_max, error_mean) = if options.compress {
-        quantised_error(frames, &base, animation.as_ref())
+        quantised_error(frames, &base, animation.as_ref())?
     } else {
         (error.max, error.mean)
     };
@@ -165,13 +167,14 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
 
 /// Max and mean distance between the captured frames and the positions a
 /// compressed file decodes to at each frame's keyed weights.
-fn quantised_error(frames: &[Vec<Point3>], base: &TriangleMesh, animation: Option<&MorphAnimation>) -> (Real, Real) {
+fn quantised_error(frames: &PositionFrames, base: &TriangleMesh, animation: Option<&MorphAnimation>) -> Result<(Real, Real)> {
     let q = Quantizer::new(&base.positions, animation);
     let qbase: Vec<[i16; 3]> = base.positions.iter().map(|p| q.position(p)).collect();
     let qdeltas: Vec<Vec<[i16; 3]>> =
         animation.map(|a| a.position_deltas.iter().map(|d| d.iter().map(|v| q.delta(v)).collect()).collect()).unwrap_or_default();
     let (mut max, mut sum, mut n) = (0.0 as Real, 0.0 as Real, 0usize);
     for (f, frame) in frames.iter().enumerate() {
+        let frame = frame?;
         let weights: &[f32] = animation.map_or(&[], |a| &a.weights[f]);
         for (v, p) in frame.iter().enumerate() {
             let mut acc = [0.0f64; 3];
@@ -192,8 +195,9 @@ fn quantised_error(frames: &[Vec<Point3>], base: &TriangleMesh, animation: Optio
             n += 1;
         }
     }
-    (max, if n > 0 { sum / n as Real } else { 0.0 })
+    Ok((max, if n > 0 { sum / n as Real } else { 0.0 }))
 }
+
 
 /// The quantisation of a compressed file (KHR_mesh_quantization): positions
 /// and position deltas as normalized SHORT in one common uniform scale (the
@@ -272,12 +276,13 @@ fn byte4(v: &[f32; 3]) -> [i8; 4] {
 /// for a compact basis, whose weights vary smoothly), and the last frame's
 /// weights again at F / fps: without that key the clip ends where the last
 /// frame begins, and a looping player never shows it.
-fn morph_animation(frames: &[Vec<Point3>], basis: &MorphBasis, normals: Option<&FrameNormals>, fps: f32, progress: Progress) -> Result<MorphAnimation> {
-    let vertices = frames[0].len();
+fn morph_animation(frames: &PositionFrames, basis: &MorphBasis, normals: Option<&FrameNormals>, fps: f32, progress: Progress) -> Result<MorphAnimation> {
+    let first = frames.get(0)?;
+    let vertices = first.len();
     let position_deltas =
-        basis.combine(frames.len(), vertices, |g| frames[g].iter().zip(&frames[0]).map(|(p, p0)| p - p0).collect(), progress)?;
+        basis.combine(frames.len(), vertices, |g| Ok(frames.get(g)?.iter().zip(first.iter()).map(|(p, p0)| p - p0).collect()), progress)?;
     let normal_deltas = normals
-        .map(|n| basis.combine(frames.len(), vertices, |g| n.of(&frames[g]).iter().zip(&n.base).map(|(a, b)| a - b).collect(), progress))
+        .map(|n| basis.combine(frames.len(), vertices, |g| Ok(n.of(&frames.get(g)?).iter().zip(&n.base).map(|(a, b)| a - b).collect()), progress))
         .transpose()?;
     Ok(MorphAnimation {
         position_deltas,

@@ -62,13 +62,17 @@ pub fn write_obj_sequence(dir: &Path, mesh: &DynamicMesh, name: &str) -> Result<
     let paths: Vec<PathBuf> = (0..mesh.frames.len()).map(|f| dir.join(format!("frame_{f:0width$}.obj"))).collect();
     // Each frame's own normals (welded at UV seams, as the GLB's), so every
     // file is smooth-shaded where it is imported.
-    let normals = super::normals::FrameNormals::new(&mesh.base.triangles, &mesh.frames[0]);
+    let normals = super::normals::FrameNormals::new(&mesh.base.triangles, &mesh.frames.get(0)?);
     let normals = &normals;
     let files = paths
         .iter()
-        .zip(&mesh.frames)
-        .map(|(path, positions)| {
-            let fill = move |w: &mut _| write_named_obj(w, &mesh.base, positions, name, Some(&normals.of(positions)));
+        .enumerate()
+        .map(|(f, path)| {
+            // Each frame is read as its file is written: one in memory at a time.
+            let fill = move |w: &mut _| {
+                let positions = mesh.frames.get(f).map_err(std::io::Error::other)?;
+                write_named_obj(w, &mesh.base, &positions, name, Some(&normals.of(&positions)))
+            };
             (path.as_path(), Box::new(fill) as crate::files::Fill)
         })
         .collect();

@@ -52,13 +52,14 @@ pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32, name: &str) -> Resul
     let too_many = |what| Error::InvalidInput(format!("too many {what} for a PC2 file"));
     let points = i32::try_from(kept.len()).map_err(|_| too_many("vertices"))?;
     let samples = i32::try_from(mesh.frames.len()).map_err(|_| too_many("frames"))?;
+    let first = mesh.frames.get(0)?;
     let obj = TriangleMesh {
-        positions: kept.iter().map(|&v| mesh.frames[0][v]).collect(),
+        positions: kept.iter().map(|&v| first[v]).collect(),
         triangles: base.triangles.iter().map(|t| t.map(|v| index[v as usize])).collect(),
         uvs: base.uvs.as_ref().map(|uv| kept.iter().map(|&v| uv[v]).collect()),
         ..Default::default()
     };
-    let all_normals = FrameNormals::new(&base.triangles, &mesh.frames[0]).base;
+    let all_normals = FrameNormals::new(&base.triangles, &first).base;
     let normals: Vec<_> = kept.iter().map(|&v| all_normals[v]).collect();
     let cache = path.file_name().unwrap_or_default().to_string_lossy();
     let write_cache = |w: &mut BufWriter<File>| {
@@ -68,7 +69,8 @@ pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32, name: &str) -> Resul
         w.write_all(&0f32.to_le_bytes())?;
         w.write_all(&1f32.to_le_bytes())?;
         w.write_all(&samples.to_le_bytes())?;
-        for frame in &mesh.frames {
+        for frame in mesh.frames.iter() {
+            let frame = frame.map_err(std::io::Error::other)?;
             for &v in &kept {
                 for c in frame[v].iter() {
                     w.write_all(&(*c as f32).to_le_bytes())?;

@@ -16,7 +16,7 @@ use crate::files::write_atomic_all;
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
-use crate::model::mesh::{Aabb, TriangleMesh};
+use crate::model::mesh::TriangleMesh;
 use std::io::Write as _;
 use std::path::Path;
 
@@ -214,10 +214,11 @@ pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Resul
     if sidecar == path || mesh_path == path {
         return Err(Error::write(path, "the texture would overwrite its JSON sidecar or its mesh; name it .exr"));
     }
-    let frames = &mesh.frames;
+    // The texture holds every frame, so they are all read here.
+    let frames = &mesh.frames.to_vec()?;
     let layout = options.layout(frames[0].len(), frames.len())?;
     let file_name = |p: &Path| p.file_name().unwrap_or_default().to_string_lossy().into_owned();
-    let bounds = Aabb::from_points(frames.iter().flatten());
+    let bounds = mesh.frames.bounds()?;
     let info = VatInfo {
         software: concat!("voltrack ", env!("CARGO_PKG_VERSION")).into(),
         texture: file_name(path),
@@ -263,14 +264,14 @@ pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Resul
 /// texture, TEXCOORD_1 addressing the texels, and [`MESH_MARK`] with the
 /// companion files' names in the asset's `extras`.
 fn mesh_bytes(mesh: &DynamicMesh, layout: &VatLayout, options: &VatOptions, texture: &str, sidecar: &str) -> Result<Vec<u8>> {
-    let frame0 = &mesh.frames[0];
-    let normals = FrameNormals::new(&mesh.base.triangles, frame0).base;
+    let frame0 = mesh.frames.get(0)?;
+    let normals = FrameNormals::new(&mesh.base.triangles, &frame0).base;
     let uv1: Vec<[f32; 2]> = (0..layout.vertices).map(|v| layout.uv(v)).collect();
     // glTF numbers UV sets from 0: a mesh without UVs of its own repeats the
     // texel addresses there.
     let uvs = mesh.base.uvs.clone().unwrap_or_else(|| uv1.clone());
     let base = TriangleMesh {
-        positions: frame0.clone(),
+        positions: frame0.into_owned(),
         triangles: mesh.base.triangles.clone(),
         normals: Some(normals.iter().map(|n| [n.x as f32, n.y as f32, n.z as f32]).collect()),
         texture: mesh.base.uvs.as_ref().and(mesh.base.texture.clone()),

@@ -213,7 +213,8 @@ pub fn fit_to_input(mesh: &DynamicMesh, source: &dyn FrameSource, diagonal: Real
     let mut next = if total > 0 { Some(read(0)) } else { None };
     for f in 0..total {
         let input = next.take().expect("read ahead")?;
-        let result = Surface { positions: &mesh.frames[f], triangles: &mesh.base.triangles };
+        let positions = mesh.frames.get(f)?;
+        let result = Surface { positions: &positions, triangles: &mesh.base.triangles };
         let (fit, following) = rayon::join(|| surface_fit(result, Surface::from(&input), diagonal), || (f + 1 < total).then(|| read(f + 1)));
         next = following;
         frames.push(fit);

@@ -6,6 +6,7 @@ pub mod frames;
 pub mod grid;
 pub mod metadata;
 pub mod mesh;
+pub mod positions;
 pub mod rigid;
 pub(crate) mod rng;
 pub mod trajectories;
@@ -14,6 +15,7 @@ pub use frames::{Frame, FrameSource};
 pub use grid::{GridSpec, Occupancy, OccupancyRuns, GRID_MARGIN, MAX_RESOLUTION};
 pub use mesh::{Aabb, TriangleMesh};
 pub use metadata::{TrajectoryMetadata, METADATA_ATTRIBUTE};
+pub use positions::PositionFrames;
 pub use rigid::{fit_rigid, rotation_from_covariance, Rigid, RigidFits};
 pub use trajectories::Trajectories;
 

@@ -1,0 +1,295 @@
+//! The vertex positions of an animated mesh, frame by frame: in memory, or in
+//! a temporary file of the process's own when the sequence would not fit the
+//! memory allowed, so that deforming, fitting and exporting a long capture
+//! holds a few frames at a time instead of all of them.
+//!
+//! Positions are stored as the f64 they are computed in, so a sequence kept
+//! in a file reads back bit for bit and every output is the same either way.
+
+use crate::error::{Error, Result};
+use crate::math::Point3;
+use crate::model::mesh::Aabb;
+use std::borrow::Cow;
+use std::fs::File;
+use std::ops::Range;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Bytes one vertex position takes, in memory and in the file.
+pub const POSITION_BYTES: usize = 24;
+
+/// Every frame's vertex positions. Frames are appended in order
+/// ([`push`](Self::push)) and may be replaced ([`replace`](Self::replace));
+/// reading one ([`get`](Self::get), [`rows`](Self::rows)) borrows it from
+/// memory or reads it from the file.
+#[derive(Debug)]
+pub struct PositionFrames {
+    storage: Storage,
+    len: usize,
+}
+
+#[derive(Debug)]
+enum Storage {
+    /// Frames held as vectors (of any length, which
+    /// [`crate::export::basis::check_frames`] checks).
+    Memory(Vec<Vec<Point3>>),
+    /// Frames of `vertices` positions each, frame f at byte
+    /// f × vertices × [`POSITION_BYTES`].
+    File { scratch: Scratch, vertices: usize },
+}
+
+/// A temporary file only this process uses. On Unix its name is removed as
+/// soon as it is open, so nothing is left behind whatever ends the process;
+/// elsewhere it is removed when dropped.
+#[derive(Debug)]
+struct Scratch {
+    file: File,
+    /// Where it is, for messages.
+    path: PathBuf,
+}
+
+impl Scratch {
+    fn create() -> Result<Self> {
+        static COUNTER: AtomicUsize = AtomicUsize::new(0);
+        let dir = std::env::temp_dir();
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let path = dir.join(format!(".voltrack-positions-{}-{n}", std::process::id()));
+        // create_new: never opens a file that is already there.
+        let file = std::fs::OpenOptions::new().read(true).write(true).create_new(true).open(&path).map_err(|e| {
+            Error::io(&path, std::io::Error::new(e.kind(), format!("cannot create a temporary file for the mesh's frames ({e}); set TMPDIR to a writable folder")))
+        })?;
+        #[cfg(unix)]
+        let _ = std::fs::remove_file(&path);
+        Ok(Scratch { file, path })
+    }
+
+    fn read_at(&self, buf: &mut [u8], offset: u64) -> Result<()> {
+        #[cfg(unix)]
+        let done = std::os::unix::fs::FileExt::read_exact_at(&self.file, buf, offset);
+        #[cfg(windows)]
+        let done = {
+            use std::os::windows::fs::FileExt;
+            let (mut buf, mut offset) = (buf, offset);
+            let mut done = Ok(());
+            while !buf.is_empty() {
+                match self.file.seek_read(buf, offset) {
+                    Ok(0) => {
+                        done = Err(std::io::ErrorKind::UnexpectedEof.into());
+                        break;
+                    }
+                    Ok(n) => {
+                        buf = &mut buf[n..];
+                        offset += n as u64;
+                    }
+                    Err(e) => {
+                        done = Err(e);
+                        break;
+                    }
+                }
+            }
+            done
+        };
+        done.map_err(|e| Error::io(&self.path, e))
+    }
+
+    fn write_at(&self, buf: &[u8], offset: u64) -> Result<()> {
+        #[cfg(unix)]
+        let done = std::os::unix::fs::FileExt::write_all_at(&self.file, buf, offset);
+        #[cfg(windows)]
+        let done = {
+            use std::os::windows::fs::FileExt;
+            let (mut buf, mut offset) = (buf, offset);
+            let mut done = Ok(());
+            while !buf.is_empty() {
+                match self.file.seek_write(buf, offset) {
+                    Ok(n) => {
+                        buf = &buf[n..];
+                        offset += n as u64;
+                    }
+                    Err(e) => {
+                        done = Err(e);
+                        break;
+                    }
+                }
+            }
+            done
+        };
+        done.map_err(|e| Error::io(&self.path, e))
+    }
+}
+
+#[cfg(not(unix))]
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.path);
+    }
+}
+
+impl PositionFrames {
+    /// An empty sequence for `frames` frames of `vertices` positions, kept in
+    /// memory when they take at most `memory` bytes ([`POSITION_BYTES`] per
+    /// vertex and frame), in a temporary file otherwise.
+    pub fn new(vertices: usize, frames: usize, memory: usize) -> Result<Self> {
+        let bytes = vertices.saturating_mul(frames).saturating_mul(POSITION_BYTES);
+        let storage = if bytes <= memory {
+            Storage::Memory(Vec::with_capacity(frames))
+        } else {
+            log::debug!("the mesh's {frames} frames ({:.0} MiB) are kept in a temporary file", bytes as f64 / (1 << 20) as f64);
+            Storage::File { scratch: Scratch::create()?, vertices }
+        };
+        Ok(PositionFrames { storage, len: 0 })
+    }
+
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Whether the frames are in a temporary file rather than in memory.
+    pub fn in_file(&self) -> bool {
+        matches!(self.storage, Storage::File { .. })
+    }
+
+    /// Appends a frame; in a file, it must have as many positions as the
+    /// sequence was made for.
+    pub fn push(&mut self, frame: Vec<Point3>) -> Result<()> {
+        match &mut self.storage {
+            Storage::Memory(frames) => frames.push(frame),
+            Storage::File { scratch, vertices } => {
+                check_length(*vertices, &frame, self.len)?;
+                scratch.write_at(&encode(&frame), offset(*vertices, self.len, 0))?;
+            }
+        }
+        self.len += 1;
+        Ok(())
+    }
+
+    /// Replaces frame `f` (`f < len()`) by one of the same length.
+    pub fn replace(&mut self, f: usize, frame: Vec<Point3>) -> Result<()> {
+        assert!(f < self.len, "frame {f} of {}", self.len);
+        match &mut self.storage {
+            Storage::Memory(frames) => {
+                check_length(frames[f].len(), &frame, f)?;
+                frames[f] = frame;
+            }
+            Storage::File { scratch, vertices } => {
+                check_length(*vertices, &frame, f)?;
+                scratch.write_at(&encode(&frame), offset(*vertices, f, 0))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Frame `f` (`f < len()`).
+    pub fn get(&self, f: usize) -> Result<Cow<'_, [Point3]>> {
+        match &self.storage {
+            Storage::Memory(frames) => Ok(Cow::Borrowed(&frames[f])),
+            Storage::File { vertices, .. } => self.rows(f, 0..*vertices),
+        }
+    }
+
+    /// Positions `range` of frame `f` (`f < len()`, the range within the
+    /// frame): a block of vertices, read without the rest of the frame.
+    pub fn rows(&self, f: usize, range: Range<usize>) -> Result<Cow<'_, [Point3]>> {
+        assert!(f < self.len, "frame {f} of {}", self.len);
+        match &self.storage {
+            Storage::Memory(frames) => Ok(Cow::Borrowed(&frames[f][range])),
+            Storage::File { scratch, vertices } => {
+                assert!(range.end <= *vertices, "positions {range:?} of {vertices}");
+                let mut bytes = vec![0u8; range.len() * POSITION_BYTES];
+                scratch.read_at(&mut bytes, offset(*vertices, f, range.start))?;
+                Ok(Cow::Owned(decode(&bytes)))
+            }
+        }
+    }
+
+    /// Every frame, in order, read one at a time.
+    pub fn iter(&self) -> impl Iterator<Item = Result<Cow<'_, [Point3]>>> + '_ {
+        (0..self.len).map(|f| self.get(f))
+    }
+
+    /// The box around every position of every frame.
+    pub fn bounds(&self) -> Result<Aabb> {
+        let mut all = Aabb::empty();
+        for frame in self.iter() {
+            frame?.iter().for_each(|p| all.grow(p));
+        }
+        Ok(all)
+    }
+
+    /// All frames as vectors (for short sequences and tests).
+    pub fn to_vec(&self) -> Result<Vec<Vec<Point3>>> {
+        self.iter().map(|f| f.map(Cow::into_owned)).collect()
+    }
+}
+
+impl From<Vec<Vec<Point3>>> for PositionFrames {
+    /// Frames already in memory, kept there.
+    fn from(frames: Vec<Vec<Point3>>) -> Self {
+        PositionFrames { len: frames.len(), storage: Storage::Memory(frames) }
+    }
+}
+
+impl FromIterator<Vec<Point3>> for PositionFrames {
+    /// Frames collected in memory.
+    fn from_iter<I: IntoIterator<Item = Vec<Point3>>>(frames: I) -> Self {
+        PositionFrames::from(frames.into_iter().collect::<Vec<_>>())
+    }
+}
+
+fn check_length(vertices: usize, frame: &[Point3], f: usize) -> Result<()> {
+    if frame.len() != vertices {
+        return Err(Error::InvalidInput(format!("frame {f} has {} vertices, the mesh {vertices}", frame.len())));
+    }
+    Ok(())
+}
+
+fn offset(vertices: usize, f: usize, first: usize) -> u64 {
+    ((f * vertices + first) * POSITION_BYTES) as u64
+}
+
+fn encode(frame: &[Point3]) -> Vec<u8> {
+    frame.iter().flat_map(|p| [p.x, p.y, p.z]).flat_map(f64::to_le_bytes).collect()
+}
+
+fn decode(bytes: &[u8]) -> Vec<Point3> {
+    bytes
+        .chunks_exact(POSITION_BYTES)
+        .map(|b| {
+            let c = |k: usize| f64::from_le_bytes(b[8 * k..8 * k + 8].try_into().expect("8 bytes"));
+            Point3::new(c(0), c(1), c(2))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(f: usize, n: usize) -> Vec<Point3> {
+        (0..n).map(|v| Point3::new(f as f64 + 0.1, v as f64 * 1e-3, -(v as f64).sqrt() / 7.0)).collect()
+    }
+
+    #[test]
+    fn a_file_reads_back_what_memory_holds() {
+        let (n, frames) = (37, 5);
+        let mut memory = PositionFrames::new(n, frames, usize::MAX).unwrap();
+        let mut file = PositionFrames::new(n, frames, 0).unwrap();
+        assert!(!memory.in_file() && file.in_file());
+        for f in 0..frames {
+            memory.push(frame(f, n)).unwrap();
+            file.push(frame(f, n)).unwrap();
+        }
+        memory.replace(3, frame(9, n)).unwrap();
+        file.replace(3, frame(9, n)).unwrap();
+        assert_eq!(memory.to_vec().unwrap(), file.to_vec().unwrap());
+        assert_eq!(file.get(3).unwrap().as_ref(), &frame(9, n)[..]);
+        assert_eq!(file.rows(4, 10..20).unwrap().as_ref(), &frame(4, n)[10..20]);
+        assert!(file.push(frame(0, n + 1)).is_err());
+        assert!(file.replace(0, frame(0, n - 1)).is_err());
+        assert_eq!(file.len(), frames);
+    }
+}
