@@ -6,7 +6,8 @@
 //! `VOLTRACK_MIN_AFFINITY` and `VOLTRACK_BLEND=linear` override the affinity
 //! the mesh is bound with and the blending; `VOLTRACK_CONFORM_ITERATIONS`,
 //! `_STIFFNESS`, `_POINT_WEIGHT`, `_MAX_DISTANCE` and `_NORMAL_COSINE` the fit
-//! to the input surfaces.
+//! to the input surfaces; `VOLTRACK_MESH_MEMORY` (MiB) the positions kept in
+//! memory before the frames go to a temporary file.
 
 use voltrack::params::{Blending, ConformParams, DeformParams, RefineParams};
 use voltrack::voxel::VoxelParams;
@@ -29,6 +30,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     refine.rho_gp = env("VOLTRACK_RHO_GP").unwrap_or(refine.rho_gp);
     refine.rho_gm = env("VOLTRACK_RHO_GM").unwrap_or(refine.rho_gm);
     params.min_affinity = env("VOLTRACK_MIN_AFFINITY").unwrap_or(params.min_affinity);
+    if let Some(mib) = env("VOLTRACK_MESH_MEMORY") {
+        params.memory = (mib * (1 << 20) as f64) as usize;
+    }
     if std::env::var("VOLTRACK_BLEND").is_ok_and(|b| b == "linear") {
         params.blending = Blending::Linear;
     }

@@ -305,13 +305,15 @@ pub struct DeformParams {
     /// vertex and frame); a longer sequence's frames go to a temporary file
     /// (in `TMPDIR`) and are read back a few at a time by conforming and
     /// export, so memory stops growing with the frames. The output is the
-    /// same either way. Default [`DYNAMIC_MESH_MEMORY`] (64 MiB); any value.
+    /// same either way. Default [`DYNAMIC_MESH_MEMORY`] (16 MiB); any value.
     pub memory: usize,
 }
 
-/// [`DeformParams::memory`]'s default: 64 MiB, some 2,700 frames of a
-/// 1,000-vertex mesh or 45 of a 60,000-vertex one.
-pub const DYNAMIC_MESH_MEMORY: usize = 64 << 20;
+/// [`DeformParams::memory`]'s default: 16 MiB, some 700 frames of a
+/// 1,000-vertex mesh or 11 of a 60,000-vertex one. Reading frames back from
+/// the file costs little (the system keeps them cached while memory allows),
+/// so the limit is low: memory then stops growing with the frames early.
+pub const DYNAMIC_MESH_MEMORY: usize = 16 << 20;
 
 impl DeformParams {
     /// Checks every field's range.

@@ -137,6 +137,22 @@ impl MorphBasis {
         self.mix.len()
     }
 
+    /// Target `k` alone from per-frame vectors, summed as [`combine`](Self::combine)
+    /// sums it (the same f64 operations in the same order, so the same f32):
+    /// reads only the frames the target mixes, when it is needed.
+    pub(crate) fn target<V>(&self, k: usize, vertices: usize, vectors: V) -> Result<Vec<[f32; 3]>>
+    where
+        V: Fn(usize) -> Result<Vec<Vector3>>,
+    {
+        let mut sum = vec![Vector3::zeros(); vertices];
+        for &(g, a) in &self.mix[k] {
+            for (s, x) in sum.iter_mut().zip(&vectors(g)?) {
+                *s += a * x;
+            }
+        }
+        Ok(sum.iter().map(|s| [s.x as f32, s.y as f32, s.z as f32]).collect())
+    }
+
     /// Applies the mix to per-frame vectors: target j, vertex v =
     /// Σ_(g, a) ∈ `mix[j]` a · `vectors(g)[v]`, summed in f64 in frame order
     /// (deterministic) and rounded to f32, as the exported files store them.

@@ -13,9 +13,11 @@ use crate::error::{Error, Result};
 use crate::math::{Point3, Real, Vector3};
 use crate::model::mesh::TriangleMesh;
 use crate::model::PositionFrames;
-use crate::progress::Progress;
+use crate::progress::{Progress, Stage};
+use rayon::prelude::*;
 use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -139,7 +141,16 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
         normals: normals.as_ref().map(|n| n.base.iter().map(to_f32).collect()),
         texture: mesh.base.texture.clone(),
     };
-    let animation = (basis.targets() > 0).then(|| morph_animation(frames, &basis, normals.as_ref(), options.fps, progress)).transpose()?;
+    // Per-frame targets are read from the frames as the file is written, so
+    // a long sequence's are never all in memory; a compact basis's few
+    // targets and a compressed file's quantised ones are computed first.
+    let deltas = if basis.components.is_none() && !options.compress {
+        let first = base.positions.clone();
+        MorphDeltas::Computed(ComputedDeltas { frames, basis: &basis, first, normals: normals.as_ref() })
+    } else {
+        stored_deltas(frames, &basis, normals.as_ref(), progress)?
+    };
+    let animation = (basis.targets() > 0).then(|| morph_animation(deltas, frames.len(), &basis, options.fps));
     let scene = SceneInfo {
         name: options.name.clone(),
         timing: Some(Timing { fps: options.fps, frames: frames.len() }),
@@ -151,10 +162,15 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
     } else {
         (error.max, error.mean)
     };
-    drop(animation);
-    let chunk = |len: usize| 8 + len.next_multiple_of(4);
-    let bytes = 12 + chunk(glb.json.len()) + glb.bin.as_ref().map_or(0, |b| chunk(b.len()));
-    crate::files::write_atomic(path, |w| glb.to_writer(w).map_err(|e| std::io::Error::other(e.to_string())))?;
+    let bytes = glb.length()?;
+    // An interruption or a frame that cannot be read while writing is
+    // returned as itself, not as a failure to write `path`.
+    let mut failed = None;
+    let written = crate::files::write_atomic(path, |w| glb.write(w, animation.as_ref(), progress, &mut failed));
+    if let Some(e) = failed {
+        return Err(e);
+    }
+    written?;
     Ok(GltfExportReport {
         targets: basis.targets(),
         basis: basis.components,
@@ -168,10 +184,12 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
 /// Max and mean distance between the captured frames and the positions a
 /// compressed file decodes to at each frame's keyed weights.
 fn quantised_error(frames: &PositionFrames, base: &TriangleMesh, animation: Option<&MorphAnimation>) -> Result<(Real, Real)> {
-    let q = Quantizer::new(&base.positions, animation);
+    let q = Quantizer::new(&base.positions, animation)?;
     let qbase: Vec<[i16; 3]> = base.positions.iter().map(|p| q.position(p)).collect();
-    let qdeltas: Vec<Vec<[i16; 3]>> =
-        animation.map(|a| a.position_deltas.iter().map(|d| d.iter().map(|v| q.delta(v)).collect()).collect()).unwrap_or_default();
+    let qdeltas: Vec<Vec<[i16; 3]>> = match animation {
+        Some(a) => (0..a.targets()).map(|k| Ok(a.positions(k)?.iter().map(|v| q.delta(v)).collect())).collect::<Result<_>>()?,
+        None => Vec::new(),
+    };
     let (mut max, mut sum, mut n) = (0.0 as Real, 0.0 as Real, 0usize);
     for (f, frame) in frames.iter().enumerate() {
         let frame = frame?;
@@ -222,7 +240,7 @@ const SHORT: f64 = 32767.0;
 const POSITION_BITS: i32 = 14;
 
 impl Quantizer {
-    fn new(positions: &[Point3], animation: Option<&MorphAnimation>) -> Self {
+    fn new(positions: &[Point3], animation: Option<&MorphAnimation>) -> Result<Self> {
         let (lo, hi) = bounds_of(&positions.iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect::<Vec<_>>());
         let center = [0, 1, 2].map(|k| ((lo[k] as f64 + hi[k] as f64) / 2.0) as f32);
         let mut extent = 0.0f64;
@@ -231,16 +249,18 @@ impl Quantizer {
                 extent = extent.max((c - center[k] as f64).abs());
             }
         }
-        for d in animation.iter().flat_map(|a| &a.position_deltas).flatten() {
-            for c in d {
-                extent = extent.max(c.abs() as f64);
+        if let Some(a) = animation {
+            for k in 0..a.targets() {
+                for c in a.positions(k)?.iter().flatten() {
+                    extent = extent.max(c.abs() as f64);
+                }
             }
         }
         // Rounded up to f32 (what the node holds) and a hair more, so that
         // no value falls outside [-1, 1] after the f32 rounding.
         let steps = (1i32 << (POSITION_BITS - 1)) as f64 - 1.0;
         let scale = if extent > 0.0 && extent.is_finite() { (extent * (1.0 + 1e-6) * SHORT / steps) as f32 } else { 1.0 };
-        Quantizer { center, scale }
+        Ok(Quantizer { center, scale })
     }
 
     fn short(&self, x: f64) -> i16 {
@@ -270,28 +290,51 @@ fn byte4(v: &[f32; 3]) -> [i8; 4] {
     [b(v[0]), b(v[1]), b(v[2]), 0]
 }
 
-/// The morph animation of `basis`: position targets from the displacements,
-/// normal targets from the normals' change since frame 0, weights keyed at
-/// f / fps (STEP for per-frame targets, each frame shown as captured; LINEAR
-/// for a compact basis, whose weights vary smoothly), and the last frame's
-/// weights again at F / fps: without that key the clip ends where the last
-/// frame begins, and a looping player never shows it.
-fn morph_animation(frames: &PositionFrames, basis: &MorphBasis, normals: Option<&FrameNormals>, fps: f32, progress: Progress) -> Result<MorphAnimation> {
-    let first = frames.get(0)?;
-    let vertices = first.len();
-    let position_deltas =
-        basis.combine(frames.len(), vertices, |g| Ok(frames.get(g)?.iter().zip(first.iter()).map(|(p, p0)| p - p0).collect()), progress)?;
-    let normal_deltas = normals
-        .map(|n| basis.combine(frames.len(), vertices, |g| Ok(n.of(&frames.get(g)?).iter().zip(&n.base).map(|(a, b)| a - b).collect()), progress))
-        .transpose()?;
-    Ok(MorphAnimation {
-        position_deltas,
-        normal_deltas,
+/// The morph animation of `basis` with its targets' `deltas`: weights keyed
+/// at f / fps (STEP for per-frame targets, each frame shown as captured;
+/// LINEAR for a compact basis, whose weights vary smoothly), and the last
+/// frame's weights again at F / fps: without that key the clip ends where
+/// the last frame begins, and a looping player never shows it.
+fn morph_animation<'a>(deltas: MorphDeltas<'a>, frames: usize, basis: &MorphBasis, fps: f32) -> MorphAnimation<'a> {
+    MorphAnimation {
+        deltas,
         weights: basis.weights.iter().chain(basis.weights.last()).map(|w| w.iter().map(|&x| x as f32).collect()).collect(),
-        times: (0..=frames.len()).map(|f| (f as f64 / fps as f64) as f32).collect(),
+        times: (0..=frames).map(|f| (f as f64 / fps as f64) as f32).collect(),
         interpolation: if basis.components.is_some() { Interpolation::Linear } else { Interpolation::Step },
         target_names: basis.names.clone(),
-    })
+    }
+}
+
+/// Every target of `basis` computed at once, one pass over the frames:
+/// position targets from the displacements, normal targets from the
+/// normals' change since frame 0.
+fn stored_deltas(frames: &PositionFrames, basis: &MorphBasis, normals: Option<&FrameNormals>, progress: Progress) -> Result<MorphDeltas<'static>> {
+    let first = frames.get(0)?;
+    let vertices = first.len();
+    let positions =
+        basis.combine(frames.len(), vertices, |g| Ok(frames.get(g)?.iter().zip(first.iter()).map(|(p, p0)| p - p0).collect()), progress)?;
+    let normals = normals
+        .map(|n| basis.combine(frames.len(), vertices, |g| Ok(n.of(&frames.get(g)?).iter().zip(&n.base).map(|(a, b)| a - b).collect()), progress))
+        .transpose()?;
+    Ok(MorphDeltas::Stored { positions, normals })
+}
+
+/// Morph targets computed from the frames one at a time, when asked for.
+pub struct ComputedDeltas<'a> {
+    frames: &'a PositionFrames,
+    basis: &'a MorphBasis,
+    first: Vec<Point3>,
+    normals: Option<&'a FrameNormals<'a>>,
+}
+
+/// The deltas of a [`MorphAnimation`]'s targets.
+pub enum MorphDeltas<'a> {
+    /// In memory: POSITION deltas, one per vertex, per target (at least one
+    /// target); NORMAL deltas per target, relative to the mesh's normals
+    /// (which must then be present), as many as `positions` when given.
+    Stored { positions: Vec<Vec<[f32; 3]>>, normals: Option<Vec<Vec<[f32; 3]>>> },
+    /// Computed from a dynamic mesh's frames as they are written.
+    Computed(ComputedDeltas<'a>),
 }
 
 fn to_f32(v: &Vector3) -> [f32; 3] {
@@ -306,14 +349,9 @@ pub enum Interpolation {
 }
 
 /// Morph-target animation of a mesh: at keyframe k the positions are
-/// `base + Σ_t weights[k][t] · position_deltas[t]`, likewise the normals.
-#[derive(Clone, Debug)]
-pub struct MorphAnimation {
-    /// POSITION deltas, one per vertex, per target (at least one target).
-    pub position_deltas: Vec<Vec<[f32; 3]>>,
-    /// NORMAL deltas per target, relative to the mesh's normals (which must
-    /// then be present), same length as `position_deltas` when given.
-    pub normal_deltas: Option<Vec<Vec<[f32; 3]>>>,
+/// `base + Σ_t weights[k][t] · positions(t)`, likewise the normals.
+pub struct MorphAnimation<'a> {
+    pub deltas: MorphDeltas<'a>,
     /// One weight vector (one entry per target) per keyframe; the first is
     /// also the mesh's default weights, what viewers show unanimated.
     pub weights: Vec<Vec<f32>>,
@@ -323,21 +361,67 @@ pub struct MorphAnimation {
     pub target_names: Vec<String>,
 }
 
-impl MorphAnimation {
+impl MorphAnimation<'_> {
+    /// Number of targets.
+    pub fn targets(&self) -> usize {
+        match &self.deltas {
+            MorphDeltas::Stored { positions, .. } => positions.len(),
+            MorphDeltas::Computed(c) => c.basis.targets(),
+        }
+    }
+
+    /// Whether the targets have NORMAL deltas.
+    pub fn has_normals(&self) -> bool {
+        match &self.deltas {
+            MorphDeltas::Stored { normals, .. } => normals.is_some(),
+            MorphDeltas::Computed(c) => c.normals.is_some(),
+        }
+    }
+
+    /// Target k's POSITION deltas.
+    pub fn positions(&self, k: usize) -> Result<Cow<'_, [[f32; 3]]>> {
+        match &self.deltas {
+            MorphDeltas::Stored { positions, .. } => Ok(Cow::Borrowed(&positions[k])),
+            MorphDeltas::Computed(c) => {
+                let target = c.basis.target(k, c.first.len(), |g| Ok(c.frames.get(g)?.iter().zip(&c.first).map(|(p, p0)| p - p0).collect()))?;
+                Ok(Cow::Owned(target))
+            }
+        }
+    }
+
+    /// Target k's NORMAL deltas (an error when it has none).
+    pub fn normals(&self, k: usize) -> Result<Cow<'_, [[f32; 3]]>> {
+        match &self.deltas {
+            MorphDeltas::Stored { normals: Some(n), .. } => Ok(Cow::Borrowed(&n[k])),
+            MorphDeltas::Computed(ComputedDeltas { frames, basis, first, normals: Some(n) }) => {
+                let target = basis.target(k, first.len(), |g| Ok(n.of(&frames.get(g)?).iter().zip(&n.base).map(|(a, b)| a - b).collect()))?;
+                Ok(Cow::Owned(target))
+            }
+            _ => Err(Error::InvalidInput("morph animation: no normal deltas".into())),
+        }
+    }
+
     /// Checks the sizes against `mesh` and each other, and the times.
     fn check(&self, mesh: &TriangleMesh) -> Result<()> {
-        let (targets, vertices) = (self.position_deltas.len(), mesh.positions.len());
+        let (targets, vertices) = (self.targets(), mesh.positions.len());
         let bad = |what: &str| Err(Error::InvalidInput(format!("morph animation: {what}")));
         if targets == 0 {
             return bad("no targets");
         }
-        let sized = |d: &[Vec<[f32; 3]>]| d.len() == targets && d.iter().all(|t| t.len() == vertices);
-        if !sized(&self.position_deltas) {
-            return bad("a position target does not have one delta per vertex");
+        if self.has_normals() && mesh.normals.is_none() {
+            return bad("normal deltas without base normals");
         }
-        if let Some(n) = &self.normal_deltas {
-            if mesh.normals.is_none() || !sized(n) {
-                return bad("normal deltas without base normals, or not one per vertex and target");
+        match &self.deltas {
+            MorphDeltas::Stored { positions, normals } => {
+                let sized = |d: &[Vec<[f32; 3]>]| d.len() == targets && d.iter().all(|t| t.len() == vertices);
+                if !sized(positions) || normals.as_ref().is_some_and(|n| !sized(n)) {
+                    return bad("a target does not have one delta per vertex");
+                }
+            }
+            MorphDeltas::Computed(c) => {
+                if c.first.len() != vertices {
+                    return bad("the frames do not have one position per vertex");
+                }
             }
         }
         if self.weights.is_empty() || self.weights.len() != self.times.len() || self.weights.iter().any(|w| w.len() != targets) {
@@ -356,7 +440,7 @@ impl MorphAnimation {
 /// Accumulates binary data and the views/accessors describing it.
 struct Builder {
     root: json::Root,
-    bin: Vec<u8>,
+    bin: Bin,
     /// Store the vertex, index and weight data meshopt-encoded
     /// ([`SceneInfo::compress`]).
     compress: bool,
@@ -474,16 +558,16 @@ impl Builder {
     /// Appends `bytes` to the binary chunk at the next 4-byte boundary;
     /// returns where they start.
     fn append(&mut self, bytes: &[u8]) -> usize {
-        self.pad();
-        let offset = self.bin.len();
-        self.bin.extend_from_slice(bytes);
-        offset
+        self.bin.append(bytes)
     }
 
-    fn pad(&mut self) {
-        while !self.bin.len().is_multiple_of(4) {
-            self.bin.push(0);
-        }
+    /// A VEC3 float accessor of target `target`'s NORMAL (or POSITION)
+    /// deltas, `count` of them, whose bytes are computed when the file is written.
+    fn deferred_vec3(&mut self, target: usize, normals: bool, count: usize, bounds: Option<(Vec<f32>, Vec<f32>)>) -> json::Index<json::Accessor> {
+        let len = 12 * count;
+        let offset = self.bin.defer(target, normals, len);
+        let view = self.view_at(offset, len, Some(json::buffer::Target::ArrayBuffer));
+        self.accessor_in(view, count, json::accessor::ComponentType::F32, json::accessor::Type::Vec3, false, bounds)
     }
 
     /// A view of data stored as the file is: meshopt-encoded (elements of
@@ -498,9 +582,14 @@ impl Builder {
 
     fn view(&mut self, bytes: &[u8], target: Option<json::buffer::Target>) -> json::Index<json::buffer::View> {
         let offset = self.append(bytes);
+        self.view_at(offset, bytes.len(), target)
+    }
+
+    /// A view of `len` bytes of the binary chunk at `offset`.
+    fn view_at(&mut self, offset: usize, len: usize, target: Option<json::buffer::Target>) -> json::Index<json::buffer::View> {
         self.root.push(json::buffer::View {
             buffer: json::Index::new(0),
-            byte_length: USize64::from(bytes.len()),
+            byte_length: USize64::from(len),
             byte_offset: Some(USize64::from(offset)),
             byte_stride: None,
             name: None,
@@ -621,12 +710,156 @@ pub(crate) struct GlbExtras<'a> {
 
 /// [`glb_bytes`] with `extras` added.
 pub(crate) fn glb_bytes_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo, extras: GlbExtras) -> Result<Vec<u8>> {
-    glb_with(mesh, animation, scene, extras)?.to_vec().map_err(|e| Error::InvalidInput(e.to_string()))
+    let glb = glb_with(mesh, animation, scene, extras)?;
+    let mut out = Vec::with_capacity(glb.length()? as usize);
+    let mut failed = None;
+    let written = glb.write(&mut out, animation, Progress::none(), &mut failed);
+    match failed {
+        Some(e) => Err(e),
+        None => written.map(|()| out).map_err(|e| Error::InvalidInput(e.to_string())),
+    }
 }
 
-/// The GLB of [`glb_bytes_with`], its JSON and binary chunks apart: written
-/// straight to a file, they need no third copy of the vertex data.
-fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo, extras: GlbExtras) -> Result<gltf::binary::Glb<'static>> {
+/// A GLB's JSON chunk and what its binary chunk holds: written straight to a
+/// file, with the morph targets' deltas filled in as they are written.
+struct GlbParts {
+    json: Vec<u8>,
+    bin: Bin,
+}
+
+impl GlbParts {
+    /// The file's length in bytes; an error past the 4 GiB the format's
+    /// 32-bit length field can say.
+    fn length(&self) -> Result<u64> {
+        let length = 12 + 8 + self.json.len().next_multiple_of(4) as u64 + 8 + (self.bin.len as u64).next_multiple_of(4);
+        if length > u32::MAX as u64 {
+            return Err(Error::InvalidInput(format!(
+                "the GLB would take {:.1} GiB, beyond the 4 GiB a GLB can hold: choose a compact basis (--basis K), --compress or another format",
+                length as f64 / (1u64 << 30) as f64
+            )));
+        }
+        Ok(length)
+    }
+
+    /// Writes the file as glTF's binary container lays it out (the same bytes
+    /// as `gltf::binary::Glb::to_writer`); the targets' deltas come from
+    /// `animation`, which must be the one the parts were made with. What
+    /// stops it other than the writer's own error (a stop request, a frame
+    /// that cannot be read) is put in `failed`.
+    fn write(&self, w: &mut impl std::io::Write, animation: Option<&MorphAnimation>, progress: Progress, failed: &mut Option<Error>) -> std::io::Result<()> {
+        self.write_or_fail(w, animation, progress).map_err(|e| match e {
+            Failure::Write(e) => e,
+            Failure::Other(e) => {
+                let io = std::io::Error::other(e.to_string());
+                *failed = Some(e);
+                io
+            }
+        })
+    }
+
+    fn write_or_fail(&self, w: &mut impl std::io::Write, animation: Option<&MorphAnimation>, progress: Progress) -> std::result::Result<(), Failure> {
+        let length = self.length()? as u32;
+        let io = Failure::Write;
+        let json_len = self.json.len().next_multiple_of(4);
+        let bin_len = self.bin.len.next_multiple_of(4);
+        let mut head = Vec::with_capacity(20);
+        head.extend_from_slice(b"glTF");
+        head.extend_from_slice(&2u32.to_le_bytes());
+        head.extend_from_slice(&length.to_le_bytes());
+        head.extend_from_slice(&(json_len as u32).to_le_bytes());
+        head.extend_from_slice(b"JSON");
+        w.write_all(&head).map_err(io)?;
+        w.write_all(&self.json).map_err(io)?;
+        w.write_all(&vec![b' '; json_len - self.json.len()]).map_err(io)?;
+        w.write_all(&(bin_len as u32).to_le_bytes()).map_err(io)?;
+        w.write_all(b"BIN\0").map_err(io)?;
+        let deferred = self.bin.parts.iter().filter(|p| matches!(p, Part::Deferred { .. })).count();
+        let mut done = 0;
+        for part in &self.bin.parts {
+            match part {
+                Part::Bytes(bytes) => w.write_all(bytes).map_err(io)?,
+                Part::Deferred { target, normals, len } => {
+                    if progress.cancelled() {
+                        return Err(Error::Interrupted { saved: None }.into());
+                    }
+                    let anim = animation.ok_or_else(|| Error::InvalidInput("morph deltas without their animation".into()))?;
+                    let deltas = if *normals { anim.normals(*target)? } else { anim.positions(*target)? };
+                    let bytes = f32_bytes(deltas.iter().flatten().copied());
+                    if bytes.len() != *len {
+                        return Err(Error::InvalidInput(format!("morph target {target} changed size while it was written")).into());
+                    }
+                    w.write_all(&bytes).map_err(io)?;
+                    done += 1;
+                    progress.report(Stage::Export, done, deferred);
+                }
+            }
+        }
+        w.write_all(&vec![0; bin_len - self.bin.len]).map_err(io)
+    }
+}
+
+/// Why [`GlbParts::write`] stopped: its writer failed, or something else did.
+enum Failure {
+    Write(std::io::Error),
+    Other(Error),
+}
+
+impl From<Error> for Failure {
+    fn from(e: Error) -> Self {
+        Failure::Other(e)
+    }
+}
+
+/// The binary chunk: bytes held, and morph deltas left to compute when the
+/// file is written (their place and length are known before).
+#[derive(Default)]
+struct Bin {
+    parts: Vec<Part>,
+    len: usize,
+}
+
+enum Part {
+    Bytes(Vec<u8>),
+    /// Target `target`'s NORMAL (or POSITION) deltas as f32, `len` bytes.
+    Deferred { target: usize, normals: bool, len: usize },
+}
+
+impl Bin {
+    /// Appends `bytes` at the next 4-byte boundary; returns where they start.
+    fn append(&mut self, bytes: &[u8]) -> usize {
+        self.pad();
+        let offset = self.len;
+        self.append_unpadded(bytes);
+        offset
+    }
+
+    /// Reserves `len` bytes for deltas written later; returns where they start.
+    fn defer(&mut self, target: usize, normals: bool, len: usize) -> usize {
+        self.pad();
+        let offset = self.len;
+        self.parts.push(Part::Deferred { target, normals, len });
+        self.len += len;
+        offset
+    }
+
+    fn pad(&mut self) {
+        let padding = self.len.next_multiple_of(4) - self.len;
+        if padding > 0 {
+            self.append_unpadded(&[0; 3][..padding]);
+        }
+    }
+
+    fn append_unpadded(&mut self, bytes: &[u8]) {
+        match self.parts.last_mut() {
+            Some(Part::Bytes(b)) => b.extend_from_slice(bytes),
+            _ => self.parts.push(Part::Bytes(bytes.to_vec())),
+        }
+        self.len += bytes.len();
+    }
+}
+
+/// The JSON and binary parts of [`glb_bytes_with`]'s file.
+fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo, extras: GlbExtras) -> Result<GlbParts> {
     crate::model::check_name(&scene.name)?;
     if let Some(anim) = animation {
         anim.check(mesh)?;
@@ -636,11 +869,11 @@ fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &Sce
         return Err(Error::InvalidInput("a second UV set needs a first, and one UV per vertex".into()));
     }
     let timing = scene.timing.as_ref().map(raw_json).transpose()?;
-    let mut b = Builder { root: json::Root::default(), bin: Vec::new(), compress: scene.compress, fallback_len: 0, meshopt: Vec::new() };
+    let mut b = Builder { root: json::Root::default(), bin: Bin::default(), compress: scene.compress, fallback_len: 0, meshopt: Vec::new() };
     b.root.asset.generator = Some(format!("voltrack {}", env!("CARGO_PKG_VERSION")));
     b.root.asset.extras = extras.asset;
     let array = Some(json::buffer::Target::ArrayBuffer);
-    let quantizer = scene.compress.then(|| Quantizer::new(&mesh.positions, animation));
+    let quantizer = scene.compress.then(|| Quantizer::new(&mesh.positions, animation)).transpose()?;
     let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
     let mut attributes = BTreeMap::new();
     let position_accessor = match &quantizer {
@@ -670,17 +903,24 @@ fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &Sce
     let mut extras = None;
     let mut weights = None;
     if let Some(anim) = animation {
-        let mut t = Vec::with_capacity(anim.position_deltas.len());
-        for (k, d) in anim.position_deltas.iter().enumerate() {
+        let mut t = Vec::with_capacity(anim.targets());
+        // POSITION needs its bounds in the JSON, before the deltas are written.
+        let bounds: Vec<_> = match quantizer {
+            Some(_) => Vec::new(),
+            None => (0..anim.targets()).into_par_iter().map(|k| Ok(bounds_of(&anim.positions(k)?))).collect::<Result<_>>()?,
+        };
+        for k in 0..anim.targets() {
             let target = match &quantizer {
                 Some(q) => {
-                    let normals = anim.normal_deltas.as_ref().map(|n| b.byte3(&n[k])).transpose()?;
-                    let positions = b.short3(&d.iter().map(|v| q.delta(v)).collect::<Vec<_>>(), true)?;
+                    let normals = if anim.has_normals() { Some(b.byte3(&anim.normals(k)?)?) } else { None };
+                    let positions = b.short3(&anim.positions(k)?.iter().map(|v| q.delta(v)).collect::<Vec<_>>(), true)?;
                     json::mesh::MorphTarget { positions: Some(positions), normals, tangents: None }
                 }
                 None => {
-                    let normals = anim.normal_deltas.as_ref().map(|n| b.vec3(&n[k], false, array));
-                    json::mesh::MorphTarget { positions: Some(b.vec3(d, true, array)), normals, tangents: None }
+                    let vertices = mesh.positions.len();
+                    let normals = anim.has_normals().then(|| b.deferred_vec3(k, true, vertices, None));
+                    let positions = b.deferred_vec3(k, false, vertices, Some(bounds[k].clone()));
+                    json::mesh::MorphTarget { positions: Some(positions), normals, tangents: None }
                 }
             };
             t.push(target);
@@ -718,8 +958,8 @@ fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &Sce
     if let Some(anim) = animation {
         add_weight_animation(&mut b, anim, node, &scene.name, timing)?;
     }
-    b.pad();
-    b.root.push(json::Buffer { byte_length: USize64::from(b.bin.len()), name: None, uri: None, extensions: None, extras: Default::default() });
+    b.bin.pad();
+    b.root.push(json::Buffer { byte_length: USize64::from(b.bin.len), name: None, uri: None, extensions: None, extras: Default::default() });
     let mut json_bytes = if scene.compress {
         let used = ["EXT_meshopt_compression", "KHR_mesh_quantization"].map(String::from).to_vec();
         b.root.extensions_used = used.clone();
@@ -744,11 +984,7 @@ fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &Sce
     while json_bytes.len() % 4 != 0 {
         json_bytes.push(b' ');
     }
-    Ok(gltf::binary::Glb {
-        header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 },
-        json: json_bytes.into(),
-        bin: Some(b.bin.into()),
-    })
+    Ok(GlbParts { json: json_bytes, bin: b.bin })
 }
 
 fn add_weight_animation(

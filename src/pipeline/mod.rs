@@ -42,7 +42,12 @@ impl Quality {
 
 /// Measures trajectories against the voxelised sequence they track.
 pub fn measure(traj: &Trajectories, seq: &VoxelSequence) -> Quality {
-    let counts: Vec<Vec<u32>> = SequenceCells::new(seq).update(traj, false).into_iter().map(|s| s.count).collect();
+    let mut cells = SequenceCells::new(seq);
+    let counts: Vec<Vec<u32>> = (0..traj.frames)
+        .step_by(crate::refine::global::FRAME_BLOCK)
+        .flat_map(|start| cells.update_frames(traj, start..(start + crate::refine::global::FRAME_BLOCK).min(traj.frames), false))
+        .map(|s| s.count)
+        .collect();
     measure_with_counts(traj, &counts)
 }
 

@@ -3,6 +3,7 @@
 //! motions fitted with it, then ω from the largest motion dissimilarity.
 
 use super::cells::SequenceCells;
+use super::global::FRAME_BLOCK;
 use crate::math::Real;
 use crate::params::sigma_for;
 use crate::track::affinity::{motion_dissimilarity2, within_reach};
@@ -66,17 +67,21 @@ pub(crate) fn max_distance_affinity(traj: &Trajectories, rho_gp: Real, mu: Real)
 pub fn global_affinity(traj: &Trajectories, seq: &VoxelSequence, cells: &mut SequenceCells, rho_gp: Real, rho_gm: Real, mu: Real) -> SparseAffinity {
     let omega_max = max_distance_affinity(traj, rho_gp, mu);
     let sigma = sigma_for(rho_gm);
-    let stats = cells.update(traj, true);
     let mut worst: Vec<Vec<Real>> = omega_max.lists.iter().map(|l| vec![0.0; l.len()]).collect();
-    for f in 1..traj.frames {
-        let motions = omega_max.fit_frames(traj, f - 1, f);
-        let moments = cell_moments(&stats[f], &seq.grid);
-        worst.par_iter_mut().enumerate().for_each(|(i, row)| {
-            let Some(cell) = &moments[i] else { return };
-            for (k, &(j, _)) in omega_max.lists[i].iter().enumerate() {
-                row[k] = row[k].max(motion_dissimilarity2(cell, &motions[i], &motions[j as usize]));
-            }
-        });
+    // A block of frames' cell moments at a time, not the whole sequence's.
+    for start in (1..traj.frames).step_by(FRAME_BLOCK) {
+        let end = (start + FRAME_BLOCK).min(traj.frames);
+        let stats = cells.update_frames(traj, start..end, true);
+        for f in start..end {
+            let motions = omega_max.fit_frames(traj, f - 1, f);
+            let moments = cell_moments(&stats[f - start], &seq.grid);
+            worst.par_iter_mut().enumerate().for_each(|(i, row)| {
+                let Some(cell) = &moments[i] else { return };
+                for (k, &(j, _)) in omega_max.lists[i].iter().enumerate() {
+                    row[k] = row[k].max(motion_dissimilarity2(cell, &motions[i], &motions[j as usize]));
+                }
+            });
+        }
     }
     let lists = omega_max
         .lists

@@ -15,6 +15,7 @@ use crate::params::KEPT_CELL_FRAMES;
 use crate::spatial::cells::{Assignment, CellStats, CenterIndex, NO_OWNER};
 use crate::voxel::VoxelSequence;
 use rayon::prelude::*;
+use std::ops::Range;
 
 
 pub struct SequenceCells<'a> {
@@ -50,19 +51,26 @@ impl<'a> SequenceCells<'a> {
 
     /// Each frame's cell sums for the centers in `traj` (frames in parallel).
     pub fn update(&mut self, traj: &Trajectories, with_moments: bool) -> Vec<CellStats> {
+        self.update_frames(traj, 0..self.seq.frames.len(), with_moments)
+    }
+
+    /// The cell sums of frames `range` (in parallel), the same as
+    /// [`update`](Self::update) gives for them: a long sequence is visited a
+    /// block of frames at a time, so that only a block's sums are held.
+    pub fn update_frames(&mut self, traj: &Trajectories, range: Range<usize>, with_moments: bool) -> Vec<CellStats> {
         let seq = self.seq;
         let fresh = |f: usize| Assignment::new(&seq.grid, &seq.frames[f].indices(), vec![NO_OWNER; seq.frames[f].len()]);
-        let mut stats: Vec<CellStats> = self
-            .frames
+        let kept = range.start.min(self.frames.len())..range.end.min(self.frames.len());
+        let mut stats: Vec<CellStats> = self.frames[kept.clone()]
             .par_iter_mut()
-            .zip(self.last.par_iter_mut())
-            .zip(self.indices.par_iter_mut())
+            .zip(self.last[kept.clone()].par_iter_mut())
+            .zip(self.indices[kept.clone()].par_iter_mut())
             .enumerate()
-            .map(|(f, ((cells, last), index))| {
-                let now = traj.frame(f);
+            .map(|(k, ((cells, last), index))| {
+                let now = traj.frame(kept.start + k);
                 // A change in the number of centers invalidates the bounds.
                 if cells.is_none() || last.len() != now.len() {
-                    *cells = Some(fresh(f));
+                    *cells = Some(fresh(kept.start + k));
                     last.clear();
                     *index = None;
                 }
@@ -77,7 +85,7 @@ impl<'a> SequenceCells<'a> {
                 stats
             })
             .collect();
-        let rest: Vec<CellStats> = (self.frames.len()..seq.frames.len())
+        let rest: Vec<CellStats> = (range.start.max(kept.end)..range.end)
             .into_par_iter()
             .map(|f| fresh(f).update(&CenterIndex::new(traj.frame(f)), &[], with_moments))
             .collect();

@@ -27,52 +27,68 @@ pub struct Iteration {
     pub lambda: Real,
 }
 
+/// Frames evaluated together: only a block's cell sums and predictions are
+/// held at once, so the evaluation's memory beyond the gradient does not grow
+/// with the sequence.
+pub(crate) const FRAME_BLOCK: usize = 32;
+
 /// Evaluates Ê at `traj`: Voronoi centroids x̄ of every frame, forward
 /// predictions p^f = A^f(c^{f-1}) and backward q^f = (A^{f+1})⁻¹(c^{f+1}),
 /// where A^f is each center's motion from f-1 to f fitted under `omega`.
+/// Frames are visited in blocks of [`FRAME_BLOCK`]; the result is the same
+/// as over all at once.
 pub fn evaluate(traj: &Trajectories, grid: &GridSpec, cells: &mut SequenceCells, omega: &SparseAffinity, beta_hat: Real) -> Evaluation {
     let (frames, n) = (traj.frames, traj.centers);
-    let stats = cells.update(traj, false);
-    // The motion A^f carries frame f-1 to f; only what it predicts is kept,
-    // 48 bytes per center and frame instead of the motion's 96: forward[f-1]
-    // is A^f(c^{f-1}), backward[f-1] is (A^f)⁻¹(c^f).
-    let (forward, backward): (Vec<Vec<Point3>>, Vec<Vec<Point3>>) = (1..frames)
-        .into_par_iter()
-        .map(|f| {
-            let motions = omega.fit_frames(traj, f - 1, f);
-            let forward = motions.iter().enumerate().map(|(i, a)| a.apply(&traj.get(f - 1, i))).collect();
-            let backward = motions.iter().enumerate().map(|(i, a)| a.inverse().apply(&traj.get(f, i))).collect();
-            (forward, backward)
-        })
-        .unzip();
     let mut gradient = vec![Vector3::zeros(); frames * n];
-    // Each frame's gradient written in place; its energy terms summed after, in frame order.
-    let per_frame: Vec<(Real, Real)> = gradient
-        .par_chunks_mut(n.max(1))
-        .enumerate()
-        .map(|(f, grad)| {
-            let (mut smooth, mut data) = (0.0, 0.0);
-            for (i, g) in grad.iter_mut().enumerate() {
-                let c = traj.get(f, i);
-                if let Some(x) = stats[f].centroid(i, grid) {
-                    let r = c - x;
-                    data += 0.5 * r.norm_squared();
-                    *g += beta_hat * r;
+    let mut per_frame: Vec<(Real, Real)> = Vec::with_capacity(frames);
+    for (b, block) in gradient.chunks_mut(FRAME_BLOCK * n.max(1)).enumerate() {
+        let start = b * FRAME_BLOCK;
+        let end = (start + FRAME_BLOCK).min(frames);
+        let stats = cells.update_frames(traj, start..end, false);
+        // The motions A^f this block's frames need (f - 1 to f, f from
+        // `first`), of which only what they predict is kept: forward[k] is
+        // A^f(c^{f-1}), backward[k] is (A^f)⁻¹(c^f), f = first + k.
+        let first = start.max(1);
+        let (forward, backward): (Vec<Vec<Point3>>, Vec<Vec<Point3>>) = (first..(end + 1).min(frames))
+            .into_par_iter()
+            .map(|f| {
+                let motions = omega.fit_frames(traj, f - 1, f);
+                let forward = motions.iter().enumerate().map(|(i, a)| a.apply(&traj.get(f - 1, i))).collect();
+                let backward = motions.iter().enumerate().map(|(i, a)| a.inverse().apply(&traj.get(f, i))).collect();
+                (forward, backward)
+            })
+            .unzip();
+        // Each frame's gradient written in place; its energy terms summed
+        // after, in frame order.
+        let terms: Vec<(Real, Real)> = block
+            .par_chunks_mut(n.max(1))
+            .enumerate()
+            .map(|(k, grad)| {
+                let f = start + k;
+                let (mut smooth, mut data) = (0.0, 0.0);
+                for (i, g) in grad.iter_mut().enumerate() {
+                    let c = traj.get(f, i);
+                    if let Some(x) = stats[k].centroid(i, grid) {
+                        let r = c - x;
+                        data += 0.5 * r.norm_squared();
+                        *g += beta_hat * r;
+                    }
+                    if f >= 1 {
+                        let r = c - forward[f - first][i];
+                        smooth += 0.5 * r.norm_squared();
+                        *g += r;
+                    }
+                    if f + 1 < frames {
+                        let r = c - backward[f + 1 - first][i];
+                        smooth += 0.5 * r.norm_squared();
+                        *g += r;
+                    }
                 }
-                if f >= 1 {
-                    let r = c - forward[f - 1][i];
-                    smooth += 0.5 * r.norm_squared();
-                    *g += r;
-                }
-                if f + 1 < frames {
-                    let r = c - backward[f][i];
-                    smooth += 0.5 * r.norm_squared();
-                    *g += r;
-                }
-            }
-            (smooth, data)
-        })
-        .collect();
+                (smooth, data)
+            })
+            .collect();
+        per_frame.extend(terms);
+    }
     let mut smooth = 0.0;
     let mut data = 0.0;
     for (s, d) in per_frame {
