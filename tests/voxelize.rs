@@ -176,7 +176,14 @@ fn occupancy_runs_give_back_the_voxels() {
             state % 3 == 0
         })
         .collect();
-    let cases = [voxelize(&torus, &grid), Occupancy { indices: scattered }, Occupancy::default(), Occupancy { indices: vec![0, 1, 2, grid.len() as u32 - 1] }];
+    // The last case's gaps need every byte of the encoding.
+    let cases = [
+        voxelize(&torus, &grid),
+        Occupancy { indices: scattered },
+        Occupancy::default(),
+        Occupancy { indices: vec![0, 1, 2, grid.len() as u32 - 1] },
+        Occupancy { indices: vec![127, 128, 16_511, 2_113_663, u32::MAX - 2, u32::MAX - 1] },
+    ];
     for occ in cases {
         let runs = OccupancyRuns::from(&occ);
         assert_eq!(runs.len(), occ.len());
@@ -187,4 +194,6 @@ fn occupancy_runs_give_back_the_voxels() {
     // A solid's rows are long: far fewer runs than voxels.
     let solid = OccupancyRuns::from(voxelize(&voltrack::fixtures::cube(Point3::origin(), 1.0), &grid));
     assert!(solid.runs() * 8 <= solid.len(), "{} runs for {} voxels", solid.runs(), solid.len());
+    // Gaps and lengths of a few hundred voxels take a byte or two each.
+    assert!(solid.bytes() <= 3 * solid.runs(), "{} bytes for {} runs", solid.bytes(), solid.runs());
 }

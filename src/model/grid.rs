@@ -118,7 +118,11 @@ impl Occupancy {
 /// on it.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct OccupancyRuns {
-    runs: Vec<[u32; 2]>,
+    /// Each run as two LEB128 varints, its gap from the previous run's end
+    /// and its length: mostly one or two bytes each, where two `u32` would
+    /// take 8, so a long sequence's frames take a third of the memory.
+    encoded: Vec<u8>,
+    runs: usize,
     count: usize,
 }
 
@@ -130,13 +134,39 @@ impl OccupancyRuns {
     pub fn is_empty(&self) -> bool {
         self.count == 0
     }
-    /// Runs stored (8 bytes each).
+    /// Runs stored.
     pub fn runs(&self) -> usize {
-        self.runs.len()
+        self.runs
+    }
+    /// Bytes the runs take.
+    pub fn bytes(&self) -> usize {
+        self.encoded.len()
+    }
+    /// The runs as (first index, length), ascending.
+    fn decoded(&self) -> impl Iterator<Item = (u32, u32)> + '_ {
+        let mut bytes = self.encoded.iter();
+        let mut next = move || {
+            let mut value = 0u32;
+            for shift in (0..35).step_by(7) {
+                let b = *bytes.next()?;
+                value |= ((b & 0x7f) as u32) << shift;
+                if b & 0x80 == 0 {
+                    break;
+                }
+            }
+            Some(value)
+        };
+        let mut end = 0u32;
+        std::iter::from_fn(move || {
+            let first = end + next()?;
+            let len = next()?;
+            end = first + len;
+            Some((first, len))
+        })
     }
     /// The occupied voxels' linear indices, ascending.
     pub fn iter(&self) -> impl Iterator<Item = u32> + '_ {
-        self.runs.iter().flat_map(|&[first, len]| first..first + len)
+        self.decoded().flat_map(|(first, len)| first..first + len)
     }
     /// The occupied voxels' linear indices, ascending, as one list.
     pub fn indices(&self) -> Vec<u32> {
@@ -150,6 +180,14 @@ impl OccupancyRuns {
     }
 }
 
+fn put_varint(out: &mut Vec<u8>, mut value: u32) {
+    while value >= 0x80 {
+        out.push((value as u8 & 0x7f) | 0x80);
+        value >>= 7;
+    }
+    out.push(value as u8);
+}
+
 impl From<&Occupancy> for OccupancyRuns {
     /// `occ`'s indices must ascend, as every [`Occupancy`]'s do.
     fn from(occ: &Occupancy) -> Self {
@@ -160,8 +198,15 @@ impl From<&Occupancy> for OccupancyRuns {
                 _ => runs.push([i, 1]),
             }
         }
-        runs.shrink_to_fit();
-        OccupancyRuns { runs, count: occ.indices.len() }
+        let mut encoded = Vec::with_capacity(3 * runs.len());
+        let mut end = 0;
+        for &[first, len] in &runs {
+            put_varint(&mut encoded, first - end);
+            put_varint(&mut encoded, len);
+            end = first + len;
+        }
+        encoded.shrink_to_fit();
+        OccupancyRuns { encoded, runs: runs.len(), count: occ.indices.len() }
     }
 }
 

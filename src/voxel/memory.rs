@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use crate::model::mesh::{Aabb, TriangleMesh};
 
 /// Bytes held per occupied voxel of every frame through the run: its share
-/// of the frame's runs ([`crate::model::OccupancyRuns`], 8 bytes a run;
+/// of the frame's runs ([`crate::model::OccupancyRuns`], 2 to 10 bytes a run;
 /// a run holds many voxels in a solid, one in the worst case of scattered
 /// voxels, so this is generous for captures).
 const BYTES_PER_VOXEL: f64 = 2.0;

@@ -184,8 +184,8 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
         })
         .collect::<Result<_>>()?;
     let voxelize_seconds = start.elapsed().as_secs_f64();
-    let (voxels, runs) = frames.iter().fold((0, 0), |(v, r), f| (v + f.len(), r + f.runs()));
-    log::info!("{voxels} occupied voxels in {runs} runs ({:.1} MiB kept)", (8 * runs) as f64 / (1u64 << 20) as f64);
+    let (voxels, runs, bytes) = frames.iter().fold((0, 0, 0), |(v, r, b), f| (v + f.len(), r + f.runs(), b + f.bytes()));
+    log::info!("{voxels} occupied voxels in {runs} runs ({:.1} MiB kept)", bytes as f64 / (1u64 << 20) as f64);
     Ok(VoxelSequence { grid, frames, names, bounds, first_mesh: Some(first_mesh), read_seconds, voxelize_seconds })
 }
 
