@@ -45,7 +45,7 @@ pub fn measure(traj: &Trajectories, seq: &VoxelSequence) -> Quality {
     let mut cells = SequenceCells::new(seq);
     let counts: Vec<Vec<u32>> = (0..traj.frames)
         .step_by(crate::refine::global::FRAME_BLOCK)
-        .flat_map(|start| cells.update_frames(traj, start..(start + crate::refine::global::FRAME_BLOCK).min(traj.frames), false))
+        .flat_map(|start| cells.update_frames(traj, 0, start..(start + crate::refine::global::FRAME_BLOCK).min(traj.frames), false))
         .map(|s| s.count)
         .collect();
     measure_with_counts(traj, &counts)

@@ -71,7 +71,7 @@ pub fn global_affinity(traj: &Trajectories, seq: &VoxelSequence, cells: &mut Seq
     // A block of frames' cell moments at a time, not the whole sequence's.
     for start in (1..traj.frames).step_by(FRAME_BLOCK) {
         let end = (start + FRAME_BLOCK).min(traj.frames);
-        let stats = cells.update_frames(traj, start..end, true);
+        let stats = cells.update_frames(traj, 0, start..end, true);
         for f in start..end {
             let motions = omega_max.fit_frames(traj, f - 1, f);
             let moments = cell_moments(&stats[f - start], &seq.grid);

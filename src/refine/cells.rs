@@ -51,13 +51,15 @@ impl<'a> SequenceCells<'a> {
 
     /// Each frame's cell sums for the centers in `traj` (frames in parallel).
     pub fn update(&mut self, traj: &Trajectories, with_moments: bool) -> Vec<CellStats> {
-        self.update_frames(traj, 0..self.seq.frames.len(), with_moments)
+        self.update_frames(traj, 0, 0..self.seq.frames.len(), with_moments)
     }
 
     /// The cell sums of frames `range` (in parallel), the same as
     /// [`update`](Self::update) gives for them: a long sequence is visited a
     /// block of frames at a time, so that only a block's sums are held.
-    pub fn update_frames(&mut self, traj: &Trajectories, range: Range<usize>, with_moments: bool) -> Vec<CellStats> {
+    /// `traj` holds the centers of frames `offset..`: its frame k is the
+    /// sequence's frame `offset + k`.
+    pub fn update_frames(&mut self, traj: &Trajectories, offset: usize, range: Range<usize>, with_moments: bool) -> Vec<CellStats> {
         let seq = self.seq;
         let fresh = |f: usize| Assignment::new(&seq.grid, &seq.frames[f].indices(), vec![NO_OWNER; seq.frames[f].len()]);
         let kept = range.start.min(self.frames.len())..range.end.min(self.frames.len());
@@ -67,7 +69,7 @@ impl<'a> SequenceCells<'a> {
             .zip(self.indices[kept.clone()].par_iter_mut())
             .enumerate()
             .map(|(k, ((cells, last), index))| {
-                let now = traj.frame(kept.start + k);
+                let now = traj.frame(kept.start + k - offset);
                 // A change in the number of centers invalidates the bounds.
                 if cells.is_none() || last.len() != now.len() {
                     *cells = Some(fresh(kept.start + k));
@@ -87,7 +89,7 @@ impl<'a> SequenceCells<'a> {
             .collect();
         let rest: Vec<CellStats> = (range.start.max(kept.end)..range.end)
             .into_par_iter()
-            .map(|f| fresh(f).update(&CenterIndex::new(traj.frame(f)), &[], with_moments))
+            .map(|f| fresh(f).update(&CenterIndex::new(traj.frame(f - offset)), &[], with_moments))
             .collect();
         stats.extend(rest);
         stats

@@ -38,13 +38,33 @@ pub(crate) const FRAME_BLOCK: usize = 32;
 /// Frames are visited in blocks of [`FRAME_BLOCK`]; the result is the same
 /// as over all at once.
 pub fn evaluate(traj: &Trajectories, grid: &GridSpec, cells: &mut SequenceCells, omega: &SparseAffinity, beta_hat: Real) -> Evaluation {
+    evaluate_moved(traj, None, grid, cells, omega, beta_hat)
+}
+
+/// [`evaluate`] at `traj` moved by −λ `step` (`moved` = (step, λ), one
+/// vector per center and frame), as if at the trajectories
+/// `p − step · λ`, which are made a block of frames at a time: the line
+/// search then holds no second copy of all trajectories.
+fn evaluate_moved(traj: &Trajectories, moved: Option<(&[Vector3], Real)>, grid: &GridSpec, cells: &mut SequenceCells, omega: &SparseAffinity, beta_hat: Real) -> Evaluation {
     let (frames, n) = (traj.frames, traj.centers);
     let mut gradient = vec![Vector3::zeros(); frames * n];
     let mut per_frame: Vec<(Real, Real)> = Vec::with_capacity(frames);
     for (b, block) in gradient.chunks_mut(FRAME_BLOCK * n.max(1)).enumerate() {
         let start = b * FRAME_BLOCK;
         let end = (start + FRAME_BLOCK).min(frames);
-        let stats = cells.update_frames(traj, start..end, false);
+        // The frames this block reads: its own and one on either side.
+        let lo = start.saturating_sub(1);
+        let hi = (end + 1).min(frames);
+        let local;
+        let (traj, offset) = match moved {
+            None => (traj, 0),
+            Some((step, lambda)) => {
+                let positions = traj.positions[lo * n..hi * n].iter().zip(&step[lo * n..hi * n]).map(|(p, g)| p - g * lambda).collect();
+                local = Trajectories { frames: hi - lo, centers: n, positions };
+                (&local, lo)
+            }
+        };
+        let stats = cells.update_frames(traj, offset, start..end, false);
         // The motions A^f this block's frames need (f - 1 to f, f from
         // `first`), of which only what they predict is kept: forward[k] is
         // A^f(c^{f-1}), backward[k] is (A^f)⁻¹(c^f), f = first + k.
@@ -52,9 +72,9 @@ pub fn evaluate(traj: &Trajectories, grid: &GridSpec, cells: &mut SequenceCells,
         let (forward, backward): (Vec<Vec<Point3>>, Vec<Vec<Point3>>) = (first..(end + 1).min(frames))
             .into_par_iter()
             .map(|f| {
-                let motions = omega.fit_frames(traj, f - 1, f);
-                let forward = motions.iter().enumerate().map(|(i, a)| a.apply(&traj.get(f - 1, i))).collect();
-                let backward = motions.iter().enumerate().map(|(i, a)| a.inverse().apply(&traj.get(f, i))).collect();
+                let motions = omega.fit_frames(traj, f - 1 - offset, f - offset);
+                let forward = motions.iter().enumerate().map(|(i, a)| a.apply(&traj.get(f - 1 - offset, i))).collect();
+                let backward = motions.iter().enumerate().map(|(i, a)| a.inverse().apply(&traj.get(f - offset, i))).collect();
                 (forward, backward)
             })
             .unzip();
@@ -67,7 +87,7 @@ pub fn evaluate(traj: &Trajectories, grid: &GridSpec, cells: &mut SequenceCells,
                 let f = start + k;
                 let (mut smooth, mut data) = (0.0, 0.0);
                 for (i, g) in grad.iter_mut().enumerate() {
-                    let c = traj.get(f, i);
+                    let c = traj.get(f - offset, i);
                     if let Some(x) = stats[k].centroid(i, grid) {
                         let r = c - x;
                         data += 0.5 * r.norm_squared();
@@ -120,23 +140,22 @@ pub fn optimise(
         let mut lambda = lambda0;
         let mut accepted = None;
         for _ in 0..=max_halvings {
-            let mut trial = traj.clone();
-            for (p, g) in trial.positions.iter_mut().zip(&current.gradient) {
-                *p -= g * lambda;
-            }
-            let e = evaluate(&trial, grid, cells, omega, beta_hat);
+            let e = evaluate_moved(traj, Some((&current.gradient, lambda)), grid, cells, omega, beta_hat);
             if e.energy < current.energy {
-                accepted = Some((trial, e));
+                accepted = Some(e);
                 break;
             }
             lambda *= 0.5;
         }
-        let Some((trial, e)) = accepted else {
+        let Some(e) = accepted else {
             on_iteration(it + 1, traj, &history);
             log::debug!("global optimisation: no step lowers the energy after {it} iterations");
             break;
         };
-        *traj = trial;
+        // The step evaluated, taken in place (the same values the trial had).
+        for (p, g) in traj.positions.iter_mut().zip(&current.gradient) {
+            *p -= g * lambda;
+        }
         history.push(Iteration { energy: e.energy, smooth: e.smooth, data: e.data, lambda });
         current = e;
         if !on_iteration(it + 1, traj, &history) {
