@@ -131,6 +131,20 @@ fn output_locations_that_take_no_file_are_refused_before_reading() {
 }
 
 #[test]
+fn a_temporary_folder_that_takes_no_file_is_refused_before_reading() {
+    // A long sequence's mesh goes to a temporary file: a TMPDIR that takes
+    // none must fail now, not after tracking.
+    let dir = Scratch::new("early", "tmpdir");
+    poisoned_sequence(&dir);
+    let missing = dir.0.join("no_such_folder");
+    let out = Command::new(BIN).args(["convert", "seq", "-r", "32", "-n", "20", "-o", "x.glb"]).env("TMPDIR", &missing).current_dir(&dir.0).output().unwrap();
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("no_such_folder") && err.contains("TMPDIR") && !err.contains("frame_5"), "{err}");
+    assert!(!dir.0.join("x.glb").exists());
+}
+
+#[test]
 fn a_resolution_that_cannot_fit_in_memory_is_refused_with_one_that_fits() {
     let dir = Scratch::new("early", "refuse-memory");
     bar_sequence(&dir);

@@ -46,6 +46,9 @@ struct Scratch {
     file: File,
     /// Where it is, for messages.
     path: PathBuf,
+    /// Seeking and reading are two calls without Unix's positioned I/O.
+    #[cfg(not(unix))]
+    lock: std::sync::Mutex<()>,
 }
 
 impl Scratch {
@@ -60,61 +63,36 @@ impl Scratch {
         })?;
         #[cfg(unix)]
         let _ = std::fs::remove_file(&path);
-        Ok(Scratch { file, path })
+        Ok(Scratch {
+            file,
+            path,
+            #[cfg(not(unix))]
+            lock: Default::default(),
+        })
     }
 
     fn read_at(&self, buf: &mut [u8], offset: u64) -> Result<()> {
         #[cfg(unix)]
         let done = std::os::unix::fs::FileExt::read_exact_at(&self.file, buf, offset);
-        #[cfg(windows)]
-        let done = {
-            use std::os::windows::fs::FileExt;
-            let (mut buf, mut offset) = (buf, offset);
-            let mut done = Ok(());
-            while !buf.is_empty() {
-                match self.file.seek_read(buf, offset) {
-                    Ok(0) => {
-                        done = Err(std::io::ErrorKind::UnexpectedEof.into());
-                        break;
-                    }
-                    Ok(n) => {
-                        buf = &mut buf[n..];
-                        offset += n as u64;
-                    }
-                    Err(e) => {
-                        done = Err(e);
-                        break;
-                    }
-                }
-            }
-            done
-        };
+        #[cfg(not(unix))]
+        let done = self.at(offset, |mut f| std::io::Read::read_exact(&mut f, buf));
         done.map_err(|e| Error::io(&self.path, e))
     }
 
     fn write_at(&self, buf: &[u8], offset: u64) -> Result<()> {
         #[cfg(unix)]
         let done = std::os::unix::fs::FileExt::write_all_at(&self.file, buf, offset);
-        #[cfg(windows)]
-        let done = {
-            use std::os::windows::fs::FileExt;
-            let (mut buf, mut offset) = (buf, offset);
-            let mut done = Ok(());
-            while !buf.is_empty() {
-                match self.file.seek_write(buf, offset) {
-                    Ok(n) => {
-                        buf = &buf[n..];
-                        offset += n as u64;
-                    }
-                    Err(e) => {
-                        done = Err(e);
-                        break;
-                    }
-                }
-            }
-            done
-        };
+        #[cfg(not(unix))]
+        let done = self.at(offset, |mut f| std::io::Write::write_all(&mut f, buf));
         done.map_err(|e| Error::io(&self.path, e))
+    }
+
+    /// Seeks to `offset` and runs `op`, one caller at a time.
+    #[cfg(not(unix))]
+    fn at(&self, offset: u64, op: impl FnOnce(&File) -> std::io::Result<()>) -> std::io::Result<()> {
+        let _one = self.lock.lock().unwrap_or_else(|e| e.into_inner());
+        std::io::Seek::seek(&mut &self.file, std::io::SeekFrom::Start(offset))?;
+        op(&self.file)
     }
 }
 
@@ -138,6 +116,13 @@ impl PositionFrames {
             Storage::File { scratch: Scratch::create()?, vertices }
         };
         Ok(PositionFrames { storage, len: 0 })
+    }
+
+    /// Checks that a temporary file for the frames can be made, so that a
+    /// temporary folder that takes none fails before any work, not when a
+    /// long sequence's mesh needs it.
+    pub fn check_temporary_folder() -> Result<()> {
+        Scratch::create().map(drop).map_err(|e| Error::InvalidParameter(e.to_string()))
     }
 
     pub fn len(&self) -> usize {

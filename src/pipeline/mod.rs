@@ -196,6 +196,7 @@ impl Default for ConvertOptions {
 /// needs them.
 pub fn convert(source: &dyn FrameSource, options: &ConvertOptions, progress: Progress) -> Result<Conversion> {
     let checkpoint = options.checkpoint.as_ref();
+    crate::model::PositionFrames::check_temporary_folder()?;
     let sequence = voxelize_sequence(source, &options.voxel, progress)?;
     let first = sequence.first_mesh.clone().ok_or_else(|| {
         Error::InvalidInput(format!("{}: voxel input has no mesh to deform; convert needs meshes", sequence.names[0]))
