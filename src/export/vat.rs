@@ -214,8 +214,10 @@ pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Resul
     if sidecar == path || mesh_path == path {
         return Err(Error::write(path, "the texture would overwrite its JSON sidecar or its mesh; name it .exr"));
     }
-    // The texture holds every frame, so they are all read here.
-    let frames = &mesh.frames.to_vec()?;
+    // The texture holds every frame, so they are all read here, as the f32
+    // it stores (half the memory of the positions' f64, the same texels).
+    let frames: Vec<Vec<[f32; 3]>> =
+        mesh.frames.iter().map(|f| f.map(|f| f.iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect())).collect::<Result<_>>()?;
     let layout = options.layout(frames[0].len(), frames.len())?;
     let file_name = |p: &Path| p.file_name().unwrap_or_default().to_string_lossy().into_owned();
     let bounds = mesh.frames.bounds()?;
@@ -246,7 +248,7 @@ pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Resul
     };
     let mut attrs = serde_json::Map::new();
     attrs.insert("vat".into(), serde_json::to_value(&info).map_err(|e| Error::write(&sidecar, e))?);
-    let pixel = |x: usize, y: usize| layout.vertex_at(x, y).map_or_else(Point3::origin, |(v, f)| frames[f][v]);
+    let pixel = |x: usize, y: usize| layout.vertex_at(x, y).map_or_else(Point3::origin, |(v, f)| frames[f][v].map(f64::from).into());
     let texture = encode_points_exr(path, "vertex animation", layout.width, layout.height, pixel, attrs)?;
     let glb = mesh_bytes(mesh, &layout, options, &info.texture, &file_name(&sidecar))?;
     let text = serde_json::to_string_pretty(&info).map_err(|e| Error::write(&sidecar, e))?;
