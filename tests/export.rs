@@ -640,6 +640,28 @@ fn an_interrupt_stops_the_compact_basis() {
     }
 }
 
+#[test]
+fn an_interrupt_stops_per_frame_targets_while_they_are_computed_or_written() {
+    let dir = Scratch::new("export", "interrupt-per-frame");
+    let memory = torus(60, wobble);
+    let file = in_file(&memory);
+    let path = dir.join("stopped.glb");
+    for mesh in [&memory, &file] {
+        let sink = StopAfter::new(usize::MAX);
+        write_dynamic_glb(&path, mesh, &options(BasisChoice::PerFrame), Progress(Some(&sink))).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        let polls = sink.polls();
+        // One poll per target for the bounds, one per delta written.
+        assert!(polls >= 2 * 59, "{polls} polls");
+        for after in [0, polls / 4, polls / 2, polls - 1] {
+            let sink = StopAfter::new(after);
+            let err = write_dynamic_glb(&path, mesh, &options(BasisChoice::PerFrame), Progress(Some(&sink))).unwrap_err();
+            assert!(matches!(err, voltrack::Error::Interrupted { saved: None }), "stop at poll {after} of {polls}: {err}");
+            assert!(!path.exists(), "a file after an interrupt at poll {after}");
+        }
+    }
+}
+
 fn i32_at(bytes: &[u8], at: usize) -> i32 {
     i32::from_le_bytes(bytes[at..at + 4].try_into().unwrap())
 }

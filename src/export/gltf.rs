@@ -13,7 +13,7 @@ use crate::error::{Error, Result};
 use crate::math::{Point3, Real, Vector3};
 use crate::model::mesh::TriangleMesh;
 use crate::model::PositionFrames;
-use crate::progress::{Progress, Stage};
+use crate::progress::{Counter, Progress, Stage};
 use rayon::prelude::*;
 use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
@@ -156,7 +156,7 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
         timing: Some(Timing { fps: options.fps, frames: frames.len() }),
         compress: options.compress,
     };
-    let glb = glb_with(&base, animation.as_ref(), &scene, GlbExtras::default())?;
+    let glb = glb_with(&base, animation.as_ref(), &scene, GlbExtras::default(), progress)?;
     let (error_max, error_mean) = if options.compress {
         quantised_error(frames, &base, animation.as_ref())?
     } else {
@@ -710,7 +710,7 @@ pub(crate) struct GlbExtras<'a> {
 
 /// [`glb_bytes`] with `extras` added.
 pub(crate) fn glb_bytes_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo, extras: GlbExtras) -> Result<Vec<u8>> {
-    let glb = glb_with(mesh, animation, scene, extras)?;
+    let glb = glb_with(mesh, animation, scene, extras, Progress::none())?;
     let mut out = Vec::with_capacity(glb.length()? as usize);
     let mut failed = None;
     let written = glb.write(&mut out, animation, Progress::none(), &mut failed);
@@ -859,7 +859,9 @@ impl Bin {
 }
 
 /// The JSON and binary parts of [`glb_bytes_with`]'s file.
-fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo, extras: GlbExtras) -> Result<GlbParts> {
+/// Computing the targets' bounds is reported to `progress` (one step a
+/// target) and stops when it asks.
+fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo, extras: GlbExtras, progress: Progress) -> Result<GlbParts> {
     crate::model::check_name(&scene.name)?;
     if let Some(anim) = animation {
         anim.check(mesh)?;
@@ -907,7 +909,20 @@ fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &Sce
         // POSITION needs its bounds in the JSON, before the deltas are written.
         let bounds: Vec<_> = match quantizer {
             Some(_) => Vec::new(),
-            None => (0..anim.targets()).into_par_iter().map(|k| Ok(bounds_of(&anim.positions(k)?))).collect::<Result<_>>()?,
+            None => {
+                let counter = Counter::new(progress, Stage::Export, anim.targets());
+                (0..anim.targets())
+                    .into_par_iter()
+                    .map(|k| {
+                        if progress.cancelled() {
+                            return Err(Error::Interrupted { saved: None });
+                        }
+                        let bounds = bounds_of(&anim.positions(k)?);
+                        counter.tick();
+                        Ok(bounds)
+                    })
+                    .collect::<Result<_>>()?
+            }
         };
         for k in 0..anim.targets() {
             let target = match &quantizer {
