@@ -30,8 +30,7 @@ pub struct PositionFrames {
 
 #[derive(Debug)]
 enum Storage {
-    /// Frames held as vectors (of any length, which
-    /// [`crate::export::basis::check_frames`] checks).
+    /// Frames held as vectors (of any length: the writers check them).
     Memory(Vec<Vec<Point3>>),
     /// Frames of `vertices` positions each, frame f at byte
     /// f × vertices × [`POSITION_BYTES`].
