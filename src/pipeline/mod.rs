@@ -43,11 +43,8 @@ impl Quality {
 /// Measures trajectories against the voxelised sequence they track.
 pub fn measure(traj: &Trajectories, seq: &VoxelSequence) -> Quality {
     let mut cells = SequenceCells::new(seq);
-    let counts: Vec<Vec<u32>> = (0..traj.frames)
-        .step_by(crate::refine::global::FRAME_BLOCK)
-        .flat_map(|start| cells.update_frames(traj, 0, start..(start + crate::refine::global::FRAME_BLOCK).min(traj.frames), false))
-        .map(|s| s.count)
-        .collect();
+    let counts: Vec<Vec<u32>> =
+        crate::refine::cells::frame_blocks(0..traj.frames).flat_map(|block| cells.update_frames(traj, 0, block, false)).map(|s| s.count).collect();
     measure_with_counts(traj, &counts)
 }
 

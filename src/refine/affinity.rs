@@ -2,8 +2,7 @@
 //! (method.md §7): ω_max from the largest distance over all frames, rigid
 //! motions fitted with it, then ω from the largest motion dissimilarity.
 
-use super::cells::SequenceCells;
-use super::global::FRAME_BLOCK;
+use super::cells::{frame_blocks, SequenceCells};
 use crate::math::Real;
 use crate::params::sigma_for;
 use crate::track::affinity::{motion_dissimilarity2, within_reach};
@@ -69,12 +68,11 @@ pub fn global_affinity(traj: &Trajectories, seq: &VoxelSequence, cells: &mut Seq
     let sigma = sigma_for(rho_gm);
     let mut worst: Vec<Vec<Real>> = omega_max.lists.iter().map(|l| vec![0.0; l.len()]).collect();
     // A block of frames' cell moments at a time, not the whole sequence's.
-    for start in (1..traj.frames).step_by(FRAME_BLOCK) {
-        let end = (start + FRAME_BLOCK).min(traj.frames);
-        let stats = cells.update_frames(traj, 0, start..end, true);
-        for f in start..end {
+    for block in frame_blocks(1..traj.frames) {
+        let stats = cells.update_frames(traj, 0, block.clone(), true);
+        for f in block.clone() {
             let motions = omega_max.fit_frames(traj, f - 1, f);
-            let moments = cell_moments(&stats[f - start], &seq.grid);
+            let moments = cell_moments(&stats[f - block.start], &seq.grid);
             worst.par_iter_mut().enumerate().for_each(|(i, row)| {
                 let Some(cell) = &moments[i] else { return };
                 for (k, &(j, _)) in omega_max.lists[i].iter().enumerate() {

@@ -18,6 +18,16 @@ use rayon::prelude::*;
 use std::ops::Range;
 
 
+/// Frames visited together by [`SequenceCells::update_frames`]'s callers:
+/// only a block's cell sums (and what is derived from them) are held at once.
+pub const FRAME_BLOCK: usize = 32;
+
+/// `frames` cut into consecutive blocks of at most [`FRAME_BLOCK`] frames.
+pub fn frame_blocks(frames: Range<usize>) -> impl Iterator<Item = Range<usize>> {
+    let end = frames.end;
+    frames.step_by(FRAME_BLOCK).map(move |start| start..(start + FRAME_BLOCK).min(end))
+}
+
 pub struct SequenceCells<'a> {
     seq: &'a VoxelSequence,
     /// The kept assignments (the first `cached_frames` frames), created on

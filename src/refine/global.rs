@@ -2,7 +2,7 @@
 //! Ê = Ês + β̂ Êu over all frames at once, with a halving line search.
 
 use super::affinity::SparseAffinity;
-use super::cells::SequenceCells;
+use super::cells::{SequenceCells, FRAME_BLOCK};
 use crate::math::{Point3, Real, Vector3};
 use crate::model::Trajectories;
 use crate::model::GridSpec;
@@ -26,11 +26,6 @@ pub struct Iteration {
     /// Step accepted (0 for the starting point).
     pub lambda: Real,
 }
-
-/// Frames evaluated together: only a block's cell sums and predictions are
-/// held at once, so the evaluation's memory beyond the gradient does not grow
-/// with the sequence.
-pub(crate) const FRAME_BLOCK: usize = 32;
 
 /// Evaluates Ê at `traj`: Voronoi centroids x̄ of every frame, forward
 /// predictions p^f = A^f(c^{f-1}) and backward q^f = (A^{f+1})⁻¹(c^{f+1}),
