@@ -221,6 +221,23 @@ pub struct RefineParams {
     /// Lengths in the input's units instead of fractions of the bounding
     /// box's longest side. Default false.
     pub absolute_units: bool,
+    /// Bytes of gradient (24 per center and frame) the global optimisation
+    /// keeps in memory; past it, a long sequence's gradients (the step's and
+    /// the trial's) go to temporary files (in `TMPDIR`) written and read a
+    /// block of frames at a time. The result is the same either way, so it
+    /// is not recorded with it. Default [`REFINE_GRADIENT_MEMORY`] (16 MiB);
+    /// any value.
+    #[serde(skip, default = "refine_gradient_memory")]
+    pub memory: usize,
+}
+
+/// [`RefineParams::memory`]'s default: 16 MiB, some 700 frames of 1,000
+/// centers. Each gradient is written once and read twice per evaluation,
+/// which costs little beside assigning every frame's cells.
+pub const REFINE_GRADIENT_MEMORY: usize = 16 << 20;
+
+fn refine_gradient_memory() -> usize {
+    REFINE_GRADIENT_MEMORY
 }
 
 impl Default for RefineParams {
@@ -237,6 +254,7 @@ impl Default for RefineParams {
             max_halvings: 20,
             mu: 0.001,
             absolute_units: false,
+            memory: REFINE_GRADIENT_MEMORY,
         }
     }
 }

@@ -33,7 +33,7 @@ fn accepted_iterations_lower_the_energy_monotonically() {
     let scale = p.length_scale(&seq.bounds);
     let mut cells = SequenceCells::new(&seq);
     let omega = global_affinity(&traj, &seq, &mut cells, p.rho_gp * scale, p.rho_gm * scale, p.mu);
-    let history = optimise(&mut traj, &seq.grid, &mut cells, &omega, p.beta_hat, p.lambda, 10, p.max_halvings, |_, _, _| true);
+    let history = optimise(&mut traj, &seq.grid, &mut cells, &omega, p.beta_hat, p.lambda, 10, p.max_halvings, p.memory, |_, _, _| true).unwrap();
     assert!(history.len() >= 2, "at least one step was accepted");
     for w in history.windows(2) {
         assert!(w[1].energy < w[0].energy, "energy rose: {} -> {}", w[0].energy, w[1].energy);
@@ -95,30 +95,31 @@ fn removal_spreads_over_batches() {
 }
 
 /// The global optimisation keeps the assignments of only some frames between
-/// updates, so that memory does not grow with the sequence; the others are
-/// assigned afresh. Both must give the same cells at every step, and so the
-/// same optimised trajectories, bit for bit.
+/// updates, and its gradients in memory only up to a size, so that memory
+/// does not grow with the sequence; the other frames are assigned afresh and
+/// the gradients go to a temporary file. Every way must give the same cells
+/// at every step, and so the same optimised trajectories, bit for bit.
 #[test]
-fn kept_and_fresh_assignments_give_the_same_optimisation() {
+fn kept_and_fresh_assignments_and_gradients_in_a_file_give_the_same_optimisation() {
     let seq = two_bodies(7, 40);
     let tracked = track(&seq, &TrackParams { centers: 40, ..Default::default() }, Default::default()).unwrap();
     let p = RefineParams::default();
     let scale = p.length_scale(&seq.bounds);
-    let run = |kept: usize| {
+    let run = |kept: usize, memory: usize| {
         let mut traj = tracked.trajectories.clone();
         let mut cells = SequenceCells::with_cache(&seq, kept);
         assert_eq!(cells.cached_frames(), kept.min(7));
         let omega = global_affinity(&traj, &seq, &mut cells, p.rho_gp * scale, p.rho_gm * scale, p.mu);
-        let history = optimise(&mut traj, &seq.grid, &mut cells, &omega, p.beta_hat, p.lambda, 8, p.max_halvings, |_, _, _| true);
+        let history = optimise(&mut traj, &seq.grid, &mut cells, &omega, p.beta_hat, p.lambda, 8, p.max_halvings, memory, |_, _, _| true).unwrap();
         let energies: Vec<u64> = history.iter().map(|h| h.energy.to_bits()).collect();
         (traj, omega, energies)
     };
-    let all = run(usize::MAX);
+    let all = run(usize::MAX, usize::MAX);
     assert!(all.2.len() >= 3, "some steps were accepted: {:?}", all.2);
-    for kept in [0, 1, 4] {
-        let some = run(kept);
+    for (kept, memory) in [(0, usize::MAX), (1, usize::MAX), (4, usize::MAX), (usize::MAX, 0), (1, 0)] {
+        let some = run(kept, memory);
         assert_eq!(some.1, all.1, "affinity with {kept} frames kept");
-        assert_eq!(some.2, all.2, "energies with {kept} frames kept");
-        assert_eq!(some.0, all.0, "trajectories with {kept} frames kept");
+        assert_eq!(some.2, all.2, "energies with {kept} frames kept, gradients in memory up to {memory} bytes");
+        assert_eq!(some.0, all.0, "trajectories with {kept} frames kept, gradients in memory up to {memory} bytes");
     }
 }

@@ -5,9 +5,11 @@
 //!
 //! Positions are stored as the f64 they are computed in, so a sequence kept
 //! in a file reads back bit for bit and every output is the same either way.
+//! The same store ([`FrameStore`]) holds the global optimisation's gradients,
+//! one vector per center and frame.
 
 use crate::error::{Error, Result};
-use crate::math::Point3;
+use crate::math::{Point3, Real, Vector3};
 use crate::model::mesh::Aabb;
 use std::borrow::Cow;
 use std::fs::File;
@@ -15,23 +17,50 @@ use std::ops::Range;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// Bytes one vertex position takes, in memory and in the file.
+/// Bytes one vertex position (or any [`Triple`]) takes, in memory and in the file.
 pub const POSITION_BYTES: usize = 24;
 
-/// Every frame's vertex positions. Frames are appended in order
-/// ([`push`](Self::push)) and may be replaced ([`replace`](Self::replace));
-/// reading one ([`get`](Self::get), [`rows`](Self::rows)) borrows it from
-/// memory or reads it from the file.
+/// What a [`FrameStore`] holds: three reals, a point or a vector.
+pub trait Triple: Copy + std::fmt::Debug + PartialEq {
+    fn to_array(self) -> [Real; 3];
+    fn from_array(a: [Real; 3]) -> Self;
+}
+
+impl Triple for Point3 {
+    fn to_array(self) -> [Real; 3] {
+        [self.x, self.y, self.z]
+    }
+    fn from_array(a: [Real; 3]) -> Self {
+        Point3::new(a[0], a[1], a[2])
+    }
+}
+
+impl Triple for Vector3 {
+    fn to_array(self) -> [Real; 3] {
+        [self.x, self.y, self.z]
+    }
+    fn from_array(a: [Real; 3]) -> Self {
+        Vector3::new(a[0], a[1], a[2])
+    }
+}
+
+/// Every frame's vertex positions.
+pub type PositionFrames = FrameStore<Point3>;
+
+/// A sequence of frames of `T`s (positions, or vectors). Frames are appended
+/// in order ([`push`](Self::push)) and may be replaced
+/// ([`replace`](Self::replace)); reading one ([`get`](Self::get),
+/// [`rows`](Self::rows)) borrows it from memory or reads it from the file.
 #[derive(Debug)]
-pub struct PositionFrames {
-    storage: Storage,
+pub struct FrameStore<T: Triple> {
+    storage: Storage<T>,
     len: usize,
 }
 
 #[derive(Debug)]
-enum Storage {
+enum Storage<T> {
     /// Frames held as vectors (of any length: the writers check them).
-    Memory(Vec<Vec<Point3>>),
+    Memory(Vec<Vec<T>>),
     /// Frames of `vertices` positions each, frame f at byte
     /// f × vertices × [`POSITION_BYTES`].
     File { scratch: Scratch, vertices: usize },
@@ -55,10 +84,10 @@ impl Scratch {
         static COUNTER: AtomicUsize = AtomicUsize::new(0);
         let dir = std::env::temp_dir();
         let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let path = dir.join(format!(".voltrack-positions-{}-{n}", std::process::id()));
+        let path = dir.join(format!(".voltrack-frames-{}-{n}", std::process::id()));
         // create_new: never opens a file that is already there.
         let file = std::fs::OpenOptions::new().read(true).write(true).create_new(true).open(&path).map_err(|e| {
-            Error::io(&path, std::io::Error::new(e.kind(), format!("cannot create a temporary file for the mesh's frames ({e}); set TMPDIR to a writable folder")))
+            Error::io(&path, std::io::Error::new(e.kind(), format!("cannot create a temporary file for a long sequence's frames ({e}); set TMPDIR to a writable folder")))
         })?;
         #[cfg(unix)]
         let _ = std::fs::remove_file(&path);
@@ -102,19 +131,19 @@ impl Drop for Scratch {
     }
 }
 
-impl PositionFrames {
-    /// An empty sequence for `frames` frames of `vertices` positions, kept in
-    /// memory when they take at most `memory` bytes ([`POSITION_BYTES`] per
-    /// vertex and frame), in a temporary file otherwise.
+impl<T: Triple> FrameStore<T> {
+    /// An empty sequence for `frames` frames of `vertices` positions (or
+    /// vectors), kept in memory when they take at most `memory` bytes
+    /// ([`POSITION_BYTES`] per vertex and frame), in a temporary file otherwise.
     pub fn new(vertices: usize, frames: usize, memory: usize) -> Result<Self> {
         let bytes = vertices.saturating_mul(frames).saturating_mul(POSITION_BYTES);
         let storage = if bytes <= memory {
             Storage::Memory(Vec::with_capacity(frames))
         } else {
-            log::debug!("the mesh's {frames} frames ({:.0} MiB) are kept in a temporary file", bytes as f64 / (1 << 20) as f64);
+            log::debug!("{frames} frames of {vertices} ({:.0} MiB) are kept in a temporary file", bytes as f64 / (1 << 20) as f64);
             Storage::File { scratch: Scratch::create()?, vertices }
         };
-        Ok(PositionFrames { storage, len: 0 })
+        Ok(FrameStore { storage, len: 0 })
     }
 
     /// Checks that a temporary file for the frames can be made, so that a
@@ -139,7 +168,7 @@ impl PositionFrames {
 
     /// Appends a frame; in a file, it must have as many positions as the
     /// sequence was made for.
-    pub fn push(&mut self, frame: Vec<Point3>) -> Result<()> {
+    pub fn push(&mut self, frame: Vec<T>) -> Result<()> {
         match &mut self.storage {
             Storage::Memory(frames) => frames.push(frame),
             Storage::File { scratch, vertices } => {
@@ -152,7 +181,7 @@ impl PositionFrames {
     }
 
     /// Replaces frame `f` (`f < len()`) by one of the same length.
-    pub fn replace(&mut self, f: usize, frame: Vec<Point3>) -> Result<()> {
+    pub fn replace(&mut self, f: usize, frame: Vec<T>) -> Result<()> {
         assert!(f < self.len, "frame {f} of {}", self.len);
         match &mut self.storage {
             Storage::Memory(frames) => {
@@ -168,7 +197,7 @@ impl PositionFrames {
     }
 
     /// Frame `f` (`f < len()`).
-    pub fn get(&self, f: usize) -> Result<Cow<'_, [Point3]>> {
+    pub fn get(&self, f: usize) -> Result<Cow<'_, [T]>> {
         match &self.storage {
             Storage::Memory(frames) => Ok(Cow::Borrowed(&frames[f])),
             Storage::File { vertices, .. } => self.rows(f, 0..*vertices),
@@ -177,7 +206,7 @@ impl PositionFrames {
 
     /// Positions `range` of frame `f` (`f < len()`, the range within the
     /// frame): a block of vertices, read without the rest of the frame.
-    pub fn rows(&self, f: usize, range: Range<usize>) -> Result<Cow<'_, [Point3]>> {
+    pub fn rows(&self, f: usize, range: Range<usize>) -> Result<Cow<'_, [T]>> {
         assert!(f < self.len, "frame {f} of {}", self.len);
         match &self.storage {
             Storage::Memory(frames) => Ok(Cow::Borrowed(&frames[f][range])),
@@ -191,10 +220,17 @@ impl PositionFrames {
     }
 
     /// Every frame, in order, read one at a time.
-    pub fn iter(&self) -> impl Iterator<Item = Result<Cow<'_, [Point3]>>> + '_ {
+    pub fn iter(&self) -> impl Iterator<Item = Result<Cow<'_, [T]>>> + '_ {
         (0..self.len).map(|f| self.get(f))
     }
 
+    /// All frames as vectors (for short sequences and tests).
+    pub fn to_vec(&self) -> Result<Vec<Vec<T>>> {
+        self.iter().map(|f| f.map(Cow::into_owned)).collect()
+    }
+}
+
+impl PositionFrames {
     /// The box around every position of every frame.
     pub fn bounds(&self) -> Result<Aabb> {
         let mut all = Aabb::empty();
@@ -203,28 +239,23 @@ impl PositionFrames {
         }
         Ok(all)
     }
-
-    /// All frames as vectors (for short sequences and tests).
-    pub fn to_vec(&self) -> Result<Vec<Vec<Point3>>> {
-        self.iter().map(|f| f.map(Cow::into_owned)).collect()
-    }
 }
 
-impl From<Vec<Vec<Point3>>> for PositionFrames {
+impl<T: Triple> From<Vec<Vec<T>>> for FrameStore<T> {
     /// Frames already in memory, kept there.
-    fn from(frames: Vec<Vec<Point3>>) -> Self {
-        PositionFrames { len: frames.len(), storage: Storage::Memory(frames) }
+    fn from(frames: Vec<Vec<T>>) -> Self {
+        FrameStore { len: frames.len(), storage: Storage::Memory(frames) }
     }
 }
 
-impl FromIterator<Vec<Point3>> for PositionFrames {
+impl<T: Triple> FromIterator<Vec<T>> for FrameStore<T> {
     /// Frames collected in memory.
-    fn from_iter<I: IntoIterator<Item = Vec<Point3>>>(frames: I) -> Self {
-        PositionFrames::from(frames.into_iter().collect::<Vec<_>>())
+    fn from_iter<I: IntoIterator<Item = Vec<T>>>(frames: I) -> Self {
+        FrameStore::from(frames.into_iter().collect::<Vec<_>>())
     }
 }
 
-fn check_length(vertices: usize, frame: &[Point3], f: usize) -> Result<()> {
+fn check_length<T>(vertices: usize, frame: &[T], f: usize) -> Result<()> {
     if frame.len() != vertices {
         return Err(Error::InvalidInput(format!("frame {f} has {} vertices, the mesh {vertices}", frame.len())));
     }
@@ -235,16 +266,16 @@ fn offset(vertices: usize, f: usize, first: usize) -> u64 {
     ((f * vertices + first) * POSITION_BYTES) as u64
 }
 
-fn encode(frame: &[Point3]) -> Vec<u8> {
-    frame.iter().flat_map(|p| [p.x, p.y, p.z]).flat_map(f64::to_le_bytes).collect()
+fn encode<T: Triple>(frame: &[T]) -> Vec<u8> {
+    frame.iter().flat_map(|p| p.to_array()).flat_map(f64::to_le_bytes).collect()
 }
 
-fn decode(bytes: &[u8]) -> Vec<Point3> {
+fn decode<T: Triple>(bytes: &[u8]) -> Vec<T> {
     bytes
         .chunks_exact(POSITION_BYTES)
         .map(|b| {
             let c = |k: usize| f64::from_le_bytes(b[8 * k..8 * k + 8].try_into().expect("8 bytes"));
-            Point3::new(c(0), c(1), c(2))
+            T::from_array([c(0), c(1), c(2)])
         })
         .collect()
 }

@@ -2,10 +2,10 @@
 //! Ê = Ês + β̂ Êu over all frames at once, with a halving line search.
 
 use super::affinity::SparseAffinity;
-use super::cells::{SequenceCells, FRAME_BLOCK};
+use super::cells::{frame_blocks, SequenceCells};
+use crate::error::Result;
 use crate::math::{Point3, Real, Vector3};
-use crate::model::Trajectories;
-use crate::model::GridSpec;
+use crate::model::{FrameStore, GridSpec, Trajectories};
 use rayon::prelude::*;
 
 /// Ê at one set of trajectories, with what its gradient needs.
@@ -13,8 +13,9 @@ pub struct Evaluation {
     pub energy: Real,
     pub smooth: Real,
     pub data: Real,
-    /// ∇Ês + β̂ ∇Êu with predictions and centroids held fixed, frame-major.
-    pub gradient: Vec<Vector3>,
+    /// ∇Ês + β̂ ∇Êu with predictions and centroids held fixed, one frame of
+    /// vectors per frame (in a temporary file past the memory allowed).
+    pub gradient: FrameStore<Vector3>,
 }
 
 /// One accepted or final step of the optimisation.
@@ -30,23 +31,31 @@ pub struct Iteration {
 /// Evaluates Ê at `traj`: Voronoi centroids x̄ of every frame, forward
 /// predictions p^f = A^f(c^{f-1}) and backward q^f = (A^{f+1})⁻¹(c^{f+1}),
 /// where A^f is each center's motion from f-1 to f fitted under `omega`.
-/// Frames are visited in blocks of [`FRAME_BLOCK`]; the result is the same
-/// as over all at once.
-pub fn evaluate(traj: &Trajectories, grid: &GridSpec, cells: &mut SequenceCells, omega: &SparseAffinity, beta_hat: Real) -> Evaluation {
-    evaluate_moved(traj, None, grid, cells, omega, beta_hat)
+/// Frames are visited in blocks of [`FRAME_BLOCK`](super::cells::FRAME_BLOCK); the result is the same
+/// as over all at once. The gradient is kept in memory up to `memory` bytes
+/// ([`RefineParams::memory`](crate::params::RefineParams::memory)), in a
+/// temporary file past it; errors are that file's.
+pub fn evaluate(traj: &Trajectories, grid: &GridSpec, cells: &mut SequenceCells, omega: &SparseAffinity, beta_hat: Real, memory: usize) -> Result<Evaluation> {
+    evaluate_moved(traj, None, grid, cells, omega, beta_hat, memory)
 }
 
-/// [`evaluate`] at `traj` moved by −λ `step` (`moved` = (step, λ), one
-/// vector per center and frame), as if at the trajectories
-/// `p − step · λ`, which are made a block of frames at a time: the line
-/// search then holds no second copy of all trajectories.
-fn evaluate_moved(traj: &Trajectories, moved: Option<(&[Vector3], Real)>, grid: &GridSpec, cells: &mut SequenceCells, omega: &SparseAffinity, beta_hat: Real) -> Evaluation {
+/// [`evaluate`] at `traj` moved by −λ `step` (`moved` = (step, λ)), as if
+/// at the trajectories `p − step · λ`, which are made a block of frames at a
+/// time: the line search then holds no second copy of all trajectories.
+fn evaluate_moved(
+    traj: &Trajectories,
+    moved: Option<(&FrameStore<Vector3>, Real)>,
+    grid: &GridSpec,
+    cells: &mut SequenceCells,
+    omega: &SparseAffinity,
+    beta_hat: Real,
+    memory: usize,
+) -> Result<Evaluation> {
     let (frames, n) = (traj.frames, traj.centers);
-    let mut gradient = vec![Vector3::zeros(); frames * n];
+    let mut gradient = FrameStore::new(n, frames, memory)?;
     let mut per_frame: Vec<(Real, Real)> = Vec::with_capacity(frames);
-    for (b, block) in gradient.chunks_mut(FRAME_BLOCK * n.max(1)).enumerate() {
-        let start = b * FRAME_BLOCK;
-        let end = (start + FRAME_BLOCK).min(frames);
+    for block in frame_blocks(0..frames) {
+        let (start, end) = (block.start, block.end);
         // The frames this block reads: its own and one on either side.
         let lo = start.saturating_sub(1);
         let hi = (end + 1).min(frames);
@@ -54,7 +63,11 @@ fn evaluate_moved(traj: &Trajectories, moved: Option<(&[Vector3], Real)>, grid: 
         let (traj, offset) = match moved {
             None => (traj, 0),
             Some((step, lambda)) => {
-                let positions = traj.positions[lo * n..hi * n].iter().zip(&step[lo * n..hi * n]).map(|(p, g)| p - g * lambda).collect();
+                let mut positions = Vec::with_capacity((hi - lo) * n);
+                for f in lo..hi {
+                    let g = step.get(f)?;
+                    positions.extend(traj.frame(f).iter().zip(g.iter()).map(|(p, g)| p - g * lambda));
+                }
                 local = Trajectories { frames: hi - lo, centers: n, positions };
                 (&local, lo)
             }
@@ -73,36 +86,41 @@ fn evaluate_moved(traj: &Trajectories, moved: Option<(&[Vector3], Real)>, grid: 
                 (forward, backward)
             })
             .unzip();
-        // Each frame's gradient written in place; its energy terms summed
-        // after, in frame order.
-        let terms: Vec<(Real, Real)> = block
-            .par_chunks_mut(n.max(1))
-            .enumerate()
-            .map(|(k, grad)| {
-                let f = start + k;
+        // Each frame's gradient and energy terms, in parallel; the terms are
+        // summed after, in frame order.
+        let terms: Vec<(Vec<Vector3>, Real, Real)> = block
+            .into_par_iter()
+            .map(|f| {
                 let (mut smooth, mut data) = (0.0, 0.0);
-                for (i, g) in grad.iter_mut().enumerate() {
-                    let c = traj.get(f - offset, i);
-                    if let Some(x) = stats[k].centroid(i, grid) {
-                        let r = c - x;
-                        data += 0.5 * r.norm_squared();
-                        *g += beta_hat * r;
-                    }
-                    if f >= 1 {
-                        let r = c - forward[f - first][i];
-                        smooth += 0.5 * r.norm_squared();
-                        *g += r;
-                    }
-                    if f + 1 < frames {
-                        let r = c - backward[f + 1 - first][i];
-                        smooth += 0.5 * r.norm_squared();
-                        *g += r;
-                    }
-                }
-                (smooth, data)
+                let grad = (0..n)
+                    .map(|i| {
+                        let mut g = Vector3::zeros();
+                        let c = traj.get(f - offset, i);
+                        if let Some(x) = stats[f - start].centroid(i, grid) {
+                            let r = c - x;
+                            data += 0.5 * r.norm_squared();
+                            g += beta_hat * r;
+                        }
+                        if f >= 1 {
+                            let r = c - forward[f - first][i];
+                            smooth += 0.5 * r.norm_squared();
+                            g += r;
+                        }
+                        if f + 1 < frames {
+                            let r = c - backward[f + 1 - first][i];
+                            smooth += 0.5 * r.norm_squared();
+                            g += r;
+                        }
+                        g
+                    })
+                    .collect();
+                (grad, smooth, data)
             })
             .collect();
-        per_frame.extend(terms);
+        for (grad, smooth, data) in terms {
+            gradient.push(grad)?;
+            per_frame.push((smooth, data));
+        }
     }
     let mut smooth = 0.0;
     let mut data = 0.0;
@@ -110,14 +128,15 @@ fn evaluate_moved(traj: &Trajectories, moved: Option<(&[Vector3], Real)>, grid: 
         smooth += s;
         data += d;
     }
-    Evaluation { energy: smooth + beta_hat * data, smooth, data, gradient }
+    Ok(Evaluation { energy: smooth + beta_hat * data, smooth, data, gradient })
 }
 
 /// Gradient descent with λ halved until the energy drops; stops after
 /// `max_iterations`, when no halving helps, or when `on_iteration` (called
 /// with the iterations done, the trajectories and the history so far, to
 /// report or save them) returns false. Returns the energy before and after
-/// every accepted step.
+/// every accepted step. The gradients are kept as [`evaluate`] says
+/// (`memory`); errors are their temporary files'.
 pub fn optimise(
     traj: &mut Trajectories,
     grid: &GridSpec,
@@ -127,15 +146,16 @@ pub fn optimise(
     lambda0: Real,
     max_iterations: usize,
     max_halvings: usize,
+    memory: usize,
     mut on_iteration: impl FnMut(usize, &Trajectories, &[Iteration]) -> bool,
-) -> Vec<Iteration> {
-    let mut current = evaluate(traj, grid, cells, omega, beta_hat);
+) -> Result<Vec<Iteration>> {
+    let mut current = evaluate(traj, grid, cells, omega, beta_hat, memory)?;
     let mut history = vec![Iteration { energy: current.energy, smooth: current.smooth, data: current.data, lambda: 0.0 }];
     for it in 0..max_iterations {
         let mut lambda = lambda0;
         let mut accepted = None;
         for _ in 0..=max_halvings {
-            let e = evaluate_moved(traj, Some((&current.gradient, lambda)), grid, cells, omega, beta_hat);
+            let e = evaluate_moved(traj, Some((&current.gradient, lambda)), grid, cells, omega, beta_hat, memory)?;
             if e.energy < current.energy {
                 accepted = Some(e);
                 break;
@@ -148,8 +168,11 @@ pub fn optimise(
             break;
         };
         // The step evaluated, taken in place (the same values the trial had).
-        for (p, g) in traj.positions.iter_mut().zip(&current.gradient) {
-            *p -= g * lambda;
+        for f in 0..traj.frames {
+            let step = current.gradient.get(f)?;
+            for (p, g) in traj.frame_mut(f).iter_mut().zip(step.iter()) {
+                *p -= g * lambda;
+            }
         }
         history.push(Iteration { energy: e.energy, smooth: e.smooth, data: e.data, lambda });
         current = e;
@@ -157,5 +180,5 @@ pub fn optimise(
             break;
         }
     }
-    history
+    Ok(history)
 }

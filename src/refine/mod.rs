@@ -115,6 +115,7 @@ pub fn refine_with_checkpoints(traj: &Trajectories, seq: &VoxelSequence, params:
             params.lambda,
             params.max_iterations.saturating_sub(done_before),
             params.max_halvings,
+            params.memory,
             |it, now, history| {
                 progress.report(Stage::Refine, done + it, steps);
                 if progress.cancelled() {
@@ -131,7 +132,7 @@ pub fn refine_with_checkpoints(traj: &Trajectories, seq: &VoxelSequence, params:
                 }
                 true
             },
-        );
+        )?;
         if let Some(e) = save_error {
             return Err(e);
         }
