@@ -36,7 +36,7 @@ fn main() {
         "{dir}: {} frames, {} vertices, {} centers, threads {}",
         conv.mesh.frames.len(),
         conv.mesh.base.positions.len(),
-        conv.refined.as_ref().map_or(conv.tracked.trajectories.centers, |r| r.trajectories.centers),
+        conv.trajectories.centers,
         rayon::current_num_threads()
     );
     for (stage, s) in &stages {

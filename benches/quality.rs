@@ -68,11 +68,11 @@ fn main() {
         let variants = [("removal only (20)", 20, 1, false), ("n_rem 20, n_go 1", 20, 1, true), ("n_rem 4, n_go 5", 20, 5, true), ("n_rem 1, n_go 20", 20, 20, true)];
         for (variant, remove, batches, optimise) in variants {
             let params = RefineParams { remove: Some(remove), batches, optimise, ..Default::default() };
-            let refined = voltrack::refine::refine(forward, &seq, &params, Default::default()).expect("refining");
+            let refined = voltrack::refine::refine(forward.clone(), &seq, &params, Default::default()).expect("refining");
             let q = measure(&refined.trajectories, &seq);
-            let iterations: Vec<String> = refined.batches.iter().map(|b| (b.len().saturating_sub(1)).to_string()).collect();
+            let iterations: Vec<String> = refined.refinement.batches.iter().map(|b| (b.len().saturating_sub(1)).to_string()).collect();
             let iterations = if iterations.is_empty() { "-".into() } else { iterations.join("+") };
-            table2.push(row(variant, &q, refined.trajectories.centers, refined.seconds, iterations));
+            table2.push(row(variant, &q, refined.trajectories.centers, refined.refinement.seconds, iterations));
             irregular.push(format!("{name} {variant}: {}", top(&q, 20)));
             println!("{}", table2.last().unwrap());
         }

@@ -387,8 +387,9 @@ fn interrupted_while_conforming_names_the_finished_tracking_and_resumes() {
 /// Everything a refinement returns but its timing, floats as bits.
 fn refined_bits(r: &RefineResult) -> (Vec<u64>, Vec<usize>, Vec<usize>, Vec<Vec<[u64; 4]>>) {
     let positions = r.trajectories.positions.iter().flat_map(|p| p.coords.iter().map(|c| c.to_bits()).collect::<Vec<_>>()).collect();
-    let histories = r.batches.iter().map(|h| h.iter().map(|i| [i.energy, i.smooth, i.data, i.lambda].map(f64::to_bits)).collect()).collect();
-    (positions, r.removed.clone(), r.kept.clone(), histories)
+    let r2 = &r.refinement;
+    let histories = r2.batches.iter().map(|h| h.iter().map(|i| [i.energy, i.smooth, i.data, i.lambda].map(f64::to_bits)).collect()).collect();
+    (positions, r2.removed.clone(), r2.kept.clone(), histories)
 }
 
 fn tracked_bar() -> (voltrack::voxel::VoxelSequence, TrackResult) {
@@ -406,14 +407,15 @@ fn tracked_bar() -> (voltrack::voxel::VoxelSequence, TrackResult) {
 fn interrupted_and_resumed_refinement_equals_an_uninterrupted_run() {
     let (seq, tracked) = tracked_bar();
     let params = RefineParams { batches: 3, max_iterations: 6, ..Default::default() };
-    let whole = refine(&tracked.trajectories, &seq, &params, Progress::none()).unwrap();
-    assert!(whole.batches.iter().all(|h| h.len() > 2), "every batch takes steps: {:?}", whole.batches.iter().map(Vec::len).collect::<Vec<_>>());
+    let whole = refine(tracked.trajectories.clone(), &seq, &params, Progress::none()).unwrap();
+    let batches = &whole.refinement.batches;
+    assert!(batches.iter().all(|h| h.len() > 2), "every batch takes steps: {:?}", batches.iter().map(Vec::len).collect::<Vec<_>>());
     for (first, second) in [(2, None), (6, Some(9)), (15, None), (1, Some(2))] {
         let dir = Scratch::new("checkpoint", &format!("refine-{first}"));
         let ckpt = Checkpointing { dir: dir.join("state"), ..Checkpointing::new("") };
         let stop = |after: usize, ckpt: &Checkpointing| {
             let sink = StopAfter { stage: Stage::Refine, after, stop: AtomicBool::new(false) };
-            match refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(ckpt), Progress(Some(&sink))) {
+            match refine_with_checkpoints(tracked.trajectories.clone(), &seq, &params, Some(ckpt), Progress(Some(&sink))) {
                 Err(e @ Error::Interrupted { saved: Some(Saved { refine: Some((done, 3)), .. }) }) => {
                     assert_eq!(done, (after - 1) / params.max_iterations, "stopped at step {after}");
                     let message = e.to_string();
@@ -429,9 +431,9 @@ fn interrupted_and_resumed_refinement_equals_an_uninterrupted_run() {
         if let Some(second) = second {
             stop(second, &resume);
         }
-        let resumed = refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&resume), Progress::none()).unwrap();
+        let resumed = refine_with_checkpoints(tracked.trajectories.clone(), &seq, &params, Some(&resume), Progress::none()).unwrap();
         assert!(refined_bits(&resumed) == refined_bits(&whole), "stopped at {first} then {second:?}: the resumed refinement differs");
-        let again = refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&resume), Progress::none()).unwrap();
+        let again = refine_with_checkpoints(tracked.trajectories.clone(), &seq, &params, Some(&resume), Progress::none()).unwrap();
         assert!(refined_bits(&again) == refined_bits(&whole), "resuming the finished refinement changed it");
         assert!(dir.files().iter().all(|f| !f.contains("partial")), "no temporary file left: {:?}", dir.files());
     }
@@ -444,7 +446,7 @@ fn interrupted_and_resumed_refinement_equals_an_uninterrupted_run() {
 fn a_refinement_killed_within_a_batch_resumes_from_its_last_save() {
     let (seq, tracked) = tracked_bar();
     let params = RefineParams { batches: 2, max_iterations: 6, ..Default::default() };
-    let whole = refine(&tracked.trajectories, &seq, &params, Progress::none()).unwrap();
+    let whole = refine(tracked.trajectories.clone(), &seq, &params, Progress::none()).unwrap();
     let dir = Scratch::new("checkpoint", "refine-killed");
     let ckpt = Checkpointing { dir: dir.join("state"), refine_save_seconds: 0.0, ..Checkpointing::new("") };
     /// Copies the refinement checkpoint aside when step `at` is reported:
@@ -459,10 +461,10 @@ fn a_refinement_killed_within_a_batch_resumes_from_its_last_save() {
     }
     for at in [3, 8] {
         let kept_aside = dir.join(&format!("at-{at}.ckpt"));
-        let full = refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&ckpt), Progress(Some(&CopyAt(at, &ckpt, kept_aside.clone())))).unwrap();
+        let full = refine_with_checkpoints(tracked.trajectories.clone(), &seq, &params, Some(&ckpt), Progress(Some(&CopyAt(at, &ckpt, kept_aside.clone())))).unwrap();
         assert!(refined_bits(&full) == refined_bits(&whole), "saving changed the refinement");
         std::fs::rename(&kept_aside, ckpt.refine_path()).unwrap();
-        let resumed = refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&Checkpointing { resume: true, ..ckpt.clone() }), Progress::none()).unwrap();
+        let resumed = refine_with_checkpoints(tracked.trajectories.clone(), &seq, &params, Some(&Checkpointing { resume: true, ..ckpt.clone() }), Progress::none()).unwrap();
         assert!(refined_bits(&resumed) == refined_bits(&whole), "killed at step {at}: the resumed refinement differs");
     }
 }
@@ -476,11 +478,11 @@ fn a_refinement_checkpoint_of_another_run_or_a_damaged_one_is_refused() {
     let dir = Scratch::new("checkpoint", "refine-refused");
     let ckpt = Checkpointing { dir: dir.join("state"), ..Checkpointing::new("") };
     let sink = StopAfter { stage: Stage::Refine, after: 5, stop: AtomicBool::new(false) };
-    assert!(refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&ckpt), Progress(Some(&sink))).is_err());
+    assert!(refine_with_checkpoints(tracked.trajectories.clone(), &seq, &params, Some(&ckpt), Progress(Some(&sink))).is_err());
     let resume = Checkpointing { resume: true, ..ckpt.clone() };
     let saved = std::fs::read(ckpt.refine_path()).unwrap();
     let refused = |traj: &voltrack::model::Trajectories, params: &RefineParams, what: &str| -> String {
-        let message = match refine_with_checkpoints(traj, &seq, params, Some(&resume), Progress::none()) {
+        let message = match refine_with_checkpoints(traj.clone(), &seq, params, Some(&resume), Progress::none()) {
             Ok(_) => panic!("{what}: resumed"),
             Err(e) => e.to_string(),
         };
@@ -502,14 +504,14 @@ fn a_refinement_checkpoint_of_another_run_or_a_damaged_one_is_refused() {
         let mut damaged = saved.clone();
         damaged[at] ^= 0x10;
         std::fs::write(ckpt.refine_path(), &damaged).unwrap();
-        let message = match refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&resume), Progress::none()) {
+        let message = match refine_with_checkpoints(tracked.trajectories.clone(), &seq, &params, Some(&resume), Progress::none()) {
             Ok(_) => panic!("byte {at} flipped: resumed"),
             Err(e) => e.to_string(),
         };
         assert!(message.contains("refine.ckpt") && (message.contains("damaged") || message.contains("not a voltrack")), "byte {at}: {message}");
     }
     std::fs::write(ckpt.refine_path(), &saved).unwrap();
-    assert!(refine_with_checkpoints(&tracked.trajectories, &seq, &params, Some(&resume), Progress::none()).is_ok());
+    assert!(refine_with_checkpoints(tracked.trajectories.clone(), &seq, &params, Some(&resume), Progress::none()).is_ok());
 }
 
 /// A conversion interrupted in refinement names the folder holding the

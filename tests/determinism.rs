@@ -25,7 +25,7 @@ fn convert_bytes(threads: usize, dir: &Scratch) -> (Vec<u8>, Vec<u8>, voltrack::
         voltrack::export::gltf::write_dynamic_glb(&glb, &conv.mesh, &Default::default(), Default::default()).unwrap();
         let refined = conv.refined.as_ref().unwrap();
         let meta = voltrack::pipeline::trajectory_metadata(&conv.sequence, &voxel, &track, Some((&RefineParams::default(), &refined.removed)));
-        voltrack::export::exr::write_trajectories_exr(&exr, &refined.trajectories, &meta).unwrap();
+        voltrack::export::exr::write_trajectories_exr(&exr, &conv.trajectories, &meta).unwrap();
         (std::fs::read(glb).unwrap(), std::fs::read(exr).unwrap(), conv.coverage)
     })
 }

@@ -62,9 +62,10 @@ fn a_center_jumping_between_bodies_is_removed_first() {
     }
     let irregularity = voltrack::metrics::irregularity(&traj);
     assert_eq!(most_irregular(&irregularity, 1), vec![jumper]);
-    let res = refine(&traj, &seq, &RefineParams { remove: Some(1), batches: 1, ..Default::default() }, Default::default()).unwrap();
-    assert_eq!(res.removed, vec![jumper]);
+    let res = refine(traj.clone(), &seq, &RefineParams { remove: Some(1), batches: 1, ..Default::default() }, Default::default()).unwrap();
     assert_eq!(res.trajectories.centers, traj.centers - 1);
+    let res = res.refinement;
+    assert_eq!(res.removed, vec![jumper]);
     assert!(!res.kept.contains(&jumper));
     assert!(res.batches[0].len() >= 2);
 }
@@ -74,12 +75,13 @@ fn removal_spreads_over_batches() {
     let seq = two_bodies(4, 32);
     let tracked = track(&seq, &TrackParams { centers: 30, ..Default::default() }, Default::default()).unwrap();
     let res = refine(
-        &tracked.trajectories,
+        tracked.trajectories.clone(),
         &seq,
         &RefineParams { remove: Some(7), batches: 3, optimise: false, ..Default::default() },
         Default::default(),
     )
     .unwrap();
+    let (refined, res) = (res.trajectories, res.refinement);
     assert_eq!(res.removed.len(), 7);
     let mut sorted = res.removed.clone();
     sorted.sort();
@@ -88,8 +90,8 @@ fn removal_spreads_over_batches() {
     assert_eq!(res.kept.len(), 23);
     // Removal alone leaves the remaining trajectories untouched.
     for (k, &orig) in res.kept.iter().enumerate() {
-        for f in 0..res.trajectories.frames {
-            assert_eq!(res.trajectories.get(f, k), tracked.trajectories.get(f, orig));
+        for f in 0..refined.frames {
+            assert_eq!(refined.get(f, k), tracked.trajectories.get(f, orig));
         }
     }
 }

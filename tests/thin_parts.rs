@@ -37,7 +37,7 @@ fn convert_with(name: &str, resolution: usize, track: TrackParams) -> (Conversio
     let voxel = VoxelParams { resolution, ..Default::default() };
     let conv = voltrack::pipeline::convert(
         &files,
-        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: Default::default(), checkpoint: None, ..Default::default() },
+        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: Default::default(), checkpoint: None, measure_tracked: true, ..Default::default() },
         Progress::none(),
     )
         .unwrap();
@@ -56,10 +56,6 @@ fn leg_errors(traj: &Trajectories, voxel_size: Real) -> Vec<(Real, Real)> {
             (e.iter().sum::<Real>() / e.len() as Real, e.iter().copied().fold(0.0, Real::max))
         })
         .collect()
-}
-
-fn final_trajectories(conv: &Conversion) -> &Trajectories {
-    conv.refined.as_ref().map_or(&conv.tracked.trajectories, |r| &r.trajectories)
 }
 
 /// The swinging-leg frames voxelised in memory, and centers placed in frame
@@ -108,7 +104,7 @@ fn coverage_flags_a_leg_whose_centers_stayed_behind() {
 #[test]
 fn the_detector_flags_the_frames_where_the_tracker_loses_the_leg() {
     let (conv, measured) = convert_with("swinging_leg", 48, single_guess(150));
-    let errors = leg_errors(final_trajectories(&conv), conv.sequence.grid.voxel_size);
+    let errors = leg_errors(&conv.trajectories, conv.sequence.grid.voxel_size);
     let flagged: Vec<usize> = (0..SWINGING_LEG_FRAMES).filter(|f| conv.coverage.flagged.contains(f) || measured.fit_outliers.flagged.contains(f)).collect();
     for (f, (mean, max)) in errors.iter().enumerate() {
         eprintln!(
@@ -143,7 +139,7 @@ fn the_detector_flags_the_frames_where_the_tracker_loses_the_leg() {
 #[test]
 fn the_tracker_no_longer_loses_the_swinging_leg() {
     let (conv, _) = convert("swinging_leg", 48, 150);
-    let errors = leg_errors(final_trajectories(&conv), conv.sequence.grid.voxel_size);
+    let errors = leg_errors(&conv.trajectories, conv.sequence.grid.voxel_size);
     for (f, (mean, max)) in errors.iter().enumerate() {
         eprintln!("frame {f}: leg centers off by {mean:.1} (max {max:.1}) voxels");
     }
@@ -160,7 +156,7 @@ fn the_tracker_no_longer_loses_the_swinging_leg() {
 #[ignore = "issue 21: the tracker lags a fast thin part where it turns back"]
 fn the_tracker_keeps_the_swinging_leg() {
     let (conv, _) = convert("swinging_leg", 48, 150);
-    let errors = leg_errors(final_trajectories(&conv), conv.sequence.grid.voxel_size);
+    let errors = leg_errors(&conv.trajectories, conv.sequence.grid.voxel_size);
     for (f, (mean, max)) in errors.iter().enumerate() {
         eprintln!("frame {f}: leg centers off by {mean:.1} (max {max:.1}) voxels");
     }

@@ -172,21 +172,23 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
     let bars = bars::Bars::new();
     let (_, seq) = load(&input.input, &voxel, &bars)?;
     let tracked = voltrack::track::track_with_checkpoints(&seq, &params, checkpoint.as_ref(), bars.progress())?;
-    let before = pipeline::measure_with_counts(&tracked.trajectories, &tracked.cell_counts);
+    let voltrack::track::TrackResult { trajectories, timings, cell_counts, .. } = tracked;
+    let before = pipeline::measure_with_counts(&trajectories, &cell_counts);
+    drop(cell_counts);
     let (traj, refined, refine_params) = match refine {
         Some(r) => {
             let rp = r.params(track.absolute_units);
-            let res = pipeline::refine_tracked(&tracked.trajectories, &seq, &rp, checkpoint.as_ref(), bars.progress())?;
-            (res.trajectories.clone(), Some(res), Some(rp))
+            let res = pipeline::refine_tracked(trajectories, &seq, &rp, checkpoint.as_ref(), bars.progress())?;
+            (res.trajectories, Some(res.refinement), Some(rp))
         }
-        None => (tracked.trajectories.clone(), None, None),
+        None => (trajectories, None, None),
     };
     let meta = pipeline::trajectory_metadata(&seq, &voxel, &params, refine_params.as_ref().zip(refined.as_ref()).map(|(p, r)| (p, r.removed.as_slice())));
     voltrack::export::exr::write_trajectories_exr(&output, &traj, &meta)?;
     bars.finish();
     let after = refined.as_ref().map(|_| pipeline::measure(&traj, &seq));
     let coverage = pipeline::check_coverage(&traj, &seq, &CoverageParams::default())?;
-    let timings: Vec<_> = tracked.timings.iter().map(|t| serde_json::json!({"seconds": t.total, "iterations": t.iterations, "assign": t.assign, "fit": t.fit, "affinity": t.affinity, "dropped_iterations": t.dropped_iterations, "kept_guess": t.kept_guess})).collect();
+    let timing_json: Vec<_> = timings.iter().map(|t| serde_json::json!({"seconds": t.total, "iterations": t.iterations, "assign": t.assign, "fit": t.fit, "affinity": t.affinity, "dropped_iterations": t.dropped_iterations, "kept_guess": t.kept_guess})).collect();
     if json {
         return print_json(&serde_json::json!({
             "output": output,
@@ -196,14 +198,14 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
             "affinity": params.affinity,
             "pcac": before.pcac,
             "dfu": before.dfu,
-            "seconds": {"read": seq.read_seconds, "voxelize": seq.voxelize_seconds, "voxelize_per_frame": seq.voxelize_seconds / seq.frames.len() as f64, "track_per_frame": timings},
+            "seconds": {"read": seq.read_seconds, "voxelize": seq.voxelize_seconds, "voxelize_per_frame": seq.voxelize_seconds / seq.frames.len() as f64, "track_per_frame": timing_json},
             "refined": refined.as_ref().zip(after.as_ref()).map(|(r, q)| serde_json::json!({"removed": r.removed, "after": quality_json(q), "energy": r.batches, "seconds": r.seconds})),
             "coverage": coverage,
         }));
     }
-    let tracking: f64 = tracked.timings.iter().skip(1).map(|t| t.total).sum();
+    let tracking: f64 = timings.iter().skip(1).map(|t| t.total).sum();
     println!("{} frames, {} centers, resolution {}, affinity {:?}", seq.frames.len(), params.centers, voxel.resolution, params.affinity);
-    println!("voxelised in {:.2} s; frame 0 placed in {:.2} s; tracked in {:.2} s ({:.3} s/frame)", seq.voxelize_seconds, tracked.timings[0].total, tracking, tracking / (seq.frames.len() - 1).max(1) as f64);
+    println!("voxelised in {:.2} s; frame 0 placed in {:.2} s; tracked in {:.2} s ({:.3} s/frame)", seq.voxelize_seconds, timings[0].total, tracking, tracking / (seq.frames.len() - 1).max(1) as f64);
     println!("PCAC {:.4}  DFU {:.4}", before.pcac, before.dfu);
     if let (Some(r), Some(q)) = (&refined, &after) {
         println!("refined: removed {} centers in {:.1} s; PCAC {:.4}  DFU {:.4}", r.removed.len(), r.seconds, q.pcac, q.dfu);
@@ -288,11 +290,11 @@ fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: 
     let seq = load_tracked_input(&centers, &tracked, &input, &bars)?;
     let (traj, meta) = tracked;
     let before = pipeline::measure(&traj, &seq);
-    let res = voltrack::refine::refine(&traj, &seq, &params, bars.progress())?;
-    let after = pipeline::measure(&res.trajectories, &seq);
+    let voltrack::refine::RefineResult { trajectories, refinement: res } = voltrack::refine::refine(traj, &seq, &params, bars.progress())?;
+    let after = pipeline::measure(&trajectories, &seq);
     let mut meta = meta;
     pipeline::record_refinement(&mut meta, &params, &res.removed);
-    voltrack::export::exr::write_trajectories_exr(&output, &res.trajectories, &meta)?;
+    voltrack::export::exr::write_trajectories_exr(&output, &trajectories, &meta)?;
     bars.finish();
     if json {
         return print_json(&serde_json::json!({
@@ -401,6 +403,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
         conform: conform.clone(),
         coverage: CoverageParams::default(),
         checkpoint,
+        measure_tracked: args.report.is_some(),
     };
     let conv = pipeline::convert(&source, &options, bars.progress())?;
     let clock = std::time::Instant::now();
@@ -442,10 +445,9 @@ fn convert(args: ConvertArgs) -> Result<()> {
             vec![out.clone()]
         }
         OutputFormat::Exr => {
-            let traj = conv.refined.as_ref().map_or(&conv.tracked.trajectories, |r| &r.trajectories);
             let removed = conv.refined.as_ref().map(|r| r.removed.clone()).unwrap_or_default();
             let meta = pipeline::trajectory_metadata(&conv.sequence, &voxel, &track, refine.as_ref().map(|r| (r, removed.as_slice())));
-            voltrack::export::exr::write_trajectories_exr(out, traj, &meta)?;
+            voltrack::export::exr::write_trajectories_exr(out, &conv.trajectories, &meta)?;
             vec![out.clone()]
         }
         OutputFormat::Vat => {
@@ -484,7 +486,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
     };
     bars.finish();
     let size = output_size(out);
-    let traj = conv.refined.as_ref().map_or(&conv.tracked.trajectories, |r| &r.trajectories);
+    let traj = &conv.trajectories;
     let total: f64 = seconds.iter().map(|s| s.1).sum();
     // What carries the name and the frame rate, and where they are written.
     let named = matches!(format, OutputFormat::Glb | OutputFormat::Vat | OutputFormat::Pc2 | OutputFormat::ObjSequence);

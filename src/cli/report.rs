@@ -149,7 +149,7 @@ fn glance_html(input: &ReportInput) -> String {
     let m = input.measurements;
     let fit = m.fit.summary();
     let worst = m.fit.worst_frame();
-    let tracked_n = conv.tracked.trajectories.centers;
+    let tracked_n = conv.tracked.centers;
     let total: f64 = input.seconds.iter().map(|s| s.1).sum();
     let arrow = |a: Real, b: Option<Real>| match b {
         Some(b) => format!("{a:.4} &#8594; {b:.4}"),
@@ -163,7 +163,7 @@ fn glance_html(input: &ReportInput) -> String {
     ));
     h.push_str(&card(
         "Centers",
-        &conv.refined.as_ref().map_or(tracked_n.to_string(), |r| r.trajectories.centers.to_string()),
+        &conv.trajectories.centers.to_string(),
         &conv.refined.as_ref().map_or("tracked; not refined".into(), |r| format!("{tracked_n} tracked, {} irregular removed", r.removed.len())),
     ));
     let refined = m.refined.as_ref();
@@ -194,8 +194,8 @@ fn input_html(input: &ReportInput) -> String {
         (
             "Centers",
             match &conv.refined {
-                Some(r) => format!("{} tracked, {} after removing {} irregular", conv.tracked.trajectories.centers, r.trajectories.centers, r.removed.len()),
-                None => format!("{} (not refined)", conv.tracked.trajectories.centers),
+                Some(r) => format!("{} tracked, {} after removing {} irregular", conv.tracked.centers, conv.trajectories.centers, r.removed.len()),
+                None => format!("{} (not refined)", conv.tracked.centers),
             },
         ),
         (
@@ -439,8 +439,8 @@ fn tracking_html(input: &ReportInput) -> String {
     let m = input.measurements;
     let conv = input.conversion;
     let mut h = String::from("<section id=\"tracking\">\n<h2>Tracking quality</h2>\n");
-    let qualities: Vec<(&str, &Quality, usize)> = std::iter::once(("forward tracking", &m.tracked, conv.tracked.trajectories.centers))
-        .chain(m.refined.as_ref().zip(conv.refined.as_ref()).map(|(q, r)| ("after refinement", q, r.trajectories.centers)))
+    let qualities: Vec<(&str, &Quality, usize)> = std::iter::once(("forward tracking", &m.tracked, conv.tracked.centers))
+        .chain(m.refined.as_ref().zip(conv.refined.as_ref()).map(|(q, _)| ("after refinement", q, conv.trajectories.centers)))
         .collect();
     h.push_str("<table class=\"numbers\">\n<tr><th></th>");
     for (label, _, _) in &qualities {
@@ -504,7 +504,7 @@ fn tracking_html(input: &ReportInput) -> String {
 }
 
 /// The temporally global optimisation's energy, batch by batch.
-fn energy_html(refined: &voltrack::refine::RefineResult) -> String {
+fn energy_html(refined: &voltrack::refine::Refinement) -> String {
     let mut step = 0usize;
     let mut series = Vec::new();
     for (b, history) in refined.batches.iter().enumerate() {

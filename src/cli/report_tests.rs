@@ -36,7 +36,7 @@ fn report_of_a_conversion() {
     let deform = DeformParams::default();
     let conv = voltrack::pipeline::convert(
         &files,
-        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(refine.clone()), deform: deform.clone(), conform: Default::default(), checkpoint: None, ..Default::default() },
+        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(refine.clone()), deform: deform.clone(), conform: Default::default(), checkpoint: None, measure_tracked: true, ..Default::default() },
         Progress::none(),
     ).unwrap();
     let measured = Measurements::of(&conv, &files, Progress::none()).unwrap();
@@ -165,7 +165,7 @@ fn report_of_a_conversion() {
     // Without refinement: no refinement section, one curve per quality plot.
     let conv = voltrack::pipeline::convert(
         &files,
-        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: None, deform: deform.clone(), conform: Default::default(), checkpoint: None, ..Default::default() },
+        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: None, deform: deform.clone(), conform: Default::default(), checkpoint: None, measure_tracked: true, ..Default::default() },
         Progress::none(),
     ).unwrap();
     let measured = Measurements::of(&conv, &files, Progress::none()).unwrap();

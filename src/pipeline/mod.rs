@@ -9,10 +9,10 @@ use crate::model::FrameSource;
 use crate::metrics::{fit_outliers, fit_to_input, Coverage, FitOutliers, SequenceFit};
 use crate::params::{ConformParams, CoverageParams, DeformParams, RefineParams, TrackParams};
 use crate::progress::{Progress, Stage};
-use crate::refine::{global_affinity, refine_with_checkpoints, RefineResult, SequenceCells};
+use crate::refine::{global_affinity, refine_with_checkpoints, RefineResult, Refinement, SequenceCells};
 use crate::model::metadata::GridRecord;
 use crate::model::{GridSpec, TrajectoryMetadata, Trajectories};
-use crate::track::{track_with_checkpoints, Checkpointing, TrackResult};
+use crate::track::{track_with_checkpoints, Checkpointing, FrameTiming, TrackResult};
 use crate::voxel::{voxelize_sequence, VoxelParams, VoxelSequence};
 
 pub mod guard;
@@ -42,7 +42,7 @@ impl Quality {
 
 /// Measures trajectories against the voxelised sequence they track.
 pub fn measure(traj: &Trajectories, seq: &VoxelSequence) -> Quality {
-    let mut cells = SequenceCells::new(seq);
+    let mut cells = SequenceCells::single_pass(seq);
     let counts: Vec<Vec<u32>> =
         crate::refine::cells::frame_blocks(0..traj.frames).flat_map(|block| cells.update_frames(traj, 0, block, false)).map(|s| s.count).collect();
     measure_with_counts(traj, &counts)
@@ -107,11 +107,12 @@ pub fn check_grid(meta: &TrajectoryMetadata, grid: &GridSpec, traj: &Trajectorie
     Ok(())
 }
 
-/// What a [`Conversion`] does not hold yet: the qualities of its
+/// What a [`Conversion`] does not hold yet: the quality of its refined
 /// trajectories and the fit of its mesh to the input (what `--report` shows).
 #[derive(Clone, Debug)]
 pub struct Measurements {
-    /// PCAC, DFU and irregularity of the forward-tracked trajectories.
+    /// PCAC, DFU and irregularity of the forward-tracked trajectories
+    /// ([`Tracked::quality`]).
     pub tracked: Quality,
     /// The same after refinement (None when refinement was skipped).
     pub refined: Option<Quality>,
@@ -123,14 +124,16 @@ pub struct Measurements {
 }
 
 impl Measurements {
-    /// Measures `conv`: the forward-tracked trajectories from the tracker's
-    /// own cell counts, the refined ones by assigning cells in every frame
-    /// again, and the fit of the dynamic mesh to each input frame, read
-    /// again from `source` one at a time (progress is reported as
-    /// `Stage::Export`, one step per frame).
+    /// Measures `conv`, made with [`ConvertOptions::measure_tracked`] (the
+    /// forward-tracked trajectories were measured when tracked): the refined
+    /// trajectories by assigning cells in every frame again, and the fit of
+    /// the dynamic mesh to each input frame, read again from `source` one at
+    /// a time (progress is reported as `Stage::Export`, one step per frame).
     pub fn of(conv: &Conversion, source: &dyn FrameSource, progress: Progress) -> Result<Self> {
-        let tracked = measure_with_counts(&conv.tracked.trajectories, &conv.tracked.cell_counts);
-        let refined = conv.refined.as_ref().map(|r| measure(&r.trajectories, &conv.sequence));
+        let tracked = conv.tracked.quality.clone().ok_or_else(|| {
+            Error::InvalidParameter("the conversion did not measure its forward-tracked trajectories: set ConvertOptions::measure_tracked".into())
+        })?;
+        let refined = conv.refined.as_ref().map(|_| measure(&conv.trajectories, &conv.sequence));
         let (fit, fit_outliers) = Self::fit_of(conv, source, progress)?;
         Ok(Measurements { tracked, refined, fit, fit_outliers })
     }
@@ -145,11 +148,37 @@ impl Measurements {
     }
 }
 
+/// What forward tracking gave besides the trajectories, which refinement
+/// takes on: the tracked trajectories are not kept beside the refined ones.
+#[derive(Clone, Debug)]
+pub struct Tracked {
+    /// Centers tracked (before refinement removes any).
+    pub centers: usize,
+    /// PCAC, DFU and irregularity of the forward-tracked trajectories, when
+    /// [`ConvertOptions::measure_tracked`] asked for them.
+    pub quality: Option<Quality>,
+    /// Per frame; frame 0 is the Lloyd placement.
+    pub timings: Vec<FrameTiming>,
+}
+
+impl Tracked {
+    /// Splits `result`'s trajectories off, measuring them first if `measure`;
+    /// its cell counts are not kept.
+    pub fn split(result: TrackResult, measure: bool) -> (Self, Trajectories) {
+        let quality = measure.then(|| measure_with_counts(&result.trajectories, &result.cell_counts));
+        (Tracked { centers: result.trajectories.centers, quality, timings: result.timings }, result.trajectories)
+    }
+}
+
 /// Everything `convert` produces, with its timings.
 pub struct Conversion {
     pub sequence: VoxelSequence,
-    pub tracked: TrackResult,
-    pub refined: Option<RefineResult>,
+    /// The final trajectories: refined, or as tracked when refinement was
+    /// skipped.
+    pub trajectories: Trajectories,
+    pub tracked: Tracked,
+    /// What refinement did (None when skipped).
+    pub refined: Option<Refinement>,
     pub mesh: DynamicMesh,
     /// Input volume the final centers' cells do not reach, per frame, at
     /// [`ConvertOptions::coverage`]: frames where a part was lost.
@@ -171,6 +200,12 @@ pub struct ConvertOptions {
     pub coverage: CoverageParams,
     /// Saving tracking's state as it goes, and resuming from it. Default None.
     pub checkpoint: Option<Checkpointing>,
+    /// Measure the forward-tracked trajectories (PCAC, DFU, irregularity:
+    /// [`Tracked::quality`]) before refinement moves them, for
+    /// [`Measurements::of`] and the report. PCAC takes a dense
+    /// 3F × N matrix and its eigen-decomposition, which a conversion does
+    /// not otherwise need. Default false.
+    pub measure_tracked: bool,
 }
 
 impl Default for ConvertOptions {
@@ -183,6 +218,7 @@ impl Default for ConvertOptions {
             conform: ConformParams::default(),
             coverage: CoverageParams::default(),
             checkpoint: None,
+            measure_tracked: false,
         }
     }
 }
@@ -200,20 +236,20 @@ pub fn convert(source: &dyn FrameSource, options: &ConvertOptions, progress: Pro
     })?;
     let mut seconds = vec![(Stage::Read, sequence.read_seconds), (Stage::Voxelize, sequence.voxelize_seconds)];
     let clock = Instant::now();
-    let tracked = track_with_checkpoints(&sequence, &options.track, checkpoint, progress)?;
+    let (tracked, trajectories) = Tracked::split(track_with_checkpoints(&sequence, &options.track, checkpoint, progress)?, options.measure_tracked);
     seconds.push((Stage::Track, clock.elapsed().as_secs_f64()));
-    let refined = match &options.refine {
-        Some(p) => Some(refine_tracked(&tracked.trajectories, &sequence, p, checkpoint, progress)?),
-        None => None,
+    let (trajectories, refined) = match &options.refine {
+        Some(p) => {
+            let r = refine_tracked(trajectories, &sequence, p, checkpoint, progress)?;
+            seconds.push((Stage::Refine, r.refinement.seconds));
+            (r.trajectories, Some(r.refinement))
+        }
+        None => (trajectories, None),
     };
-    if let Some(r) = &refined {
-        seconds.push((Stage::Refine, r.seconds));
-    }
-    let traj = refined.as_ref().map_or(&tracked.trajectories, |r| &r.trajectories);
-    let coverage = check_coverage(traj, &sequence, &options.coverage)?;
+    let coverage = check_coverage(&trajectories, &sequence, &options.coverage)?;
     let clock = Instant::now();
     progress.report(Stage::Deform, 0, 1);
-    let mesh = deform_sequence(&first, traj, &sequence, options.refine.as_ref(), &options.deform)?;
+    let mesh = deform_sequence(&first, &trajectories, &sequence, options.refine.as_ref(), &options.deform)?;
     progress.report(Stage::Deform, 1, 1);
     seconds.push((Stage::Deform, clock.elapsed().as_secs_f64()));
     let clock = Instant::now();
@@ -221,7 +257,7 @@ pub fn convert(source: &dyn FrameSource, options: &ConvertOptions, progress: Pro
     if options.conform.iterations > 0 {
         seconds.push((Stage::Conform, clock.elapsed().as_secs_f64()));
     }
-    Ok(Conversion { sequence, tracked, refined, mesh, coverage, seconds })
+    Ok(Conversion { sequence, trajectories, tracked, refined, mesh, coverage, seconds })
 }
 
 /// [`crate::metrics::coverage`] of the final trajectories, logging the
@@ -236,7 +272,7 @@ pub fn check_coverage(traj: &Trajectories, seq: &VoxelSequence, params: &Coverag
 
 /// [`refine_with_checkpoints`] after [`track_with_checkpoints`], saving and
 /// resuming through the same checkpoint folder.
-pub fn refine_tracked(traj: &Trajectories, seq: &VoxelSequence, params: &RefineParams, checkpoint: Option<&Checkpointing>, progress: Progress) -> Result<RefineResult> {
+pub fn refine_tracked(traj: Trajectories, seq: &VoxelSequence, params: &RefineParams, checkpoint: Option<&Checkpointing>, progress: Progress) -> Result<RefineResult> {
     refine_with_checkpoints(traj, seq, params, checkpoint, progress)
 }
 
@@ -263,6 +299,6 @@ pub fn deform_sequence(
 ) -> Result<DynamicMesh> {
     let rp = refine_params.cloned().unwrap_or_default();
     let scale = rp.length_scale(&seq.bounds);
-    let omega = global_affinity(traj, seq, &mut SequenceCells::new(seq), rp.rho_gp * scale, rp.rho_gm * scale, rp.mu);
+    let omega = global_affinity(traj, seq, &mut SequenceCells::single_pass(seq), rp.rho_gp * scale, rp.rho_gm * scale, rp.mu);
     deform(first, traj, &omega, deform_params)
 }

@@ -48,6 +48,13 @@ impl<'a> SequenceCells<'a> {
         Self::with_cache(seq, KEPT_CELL_FRAMES)
     }
 
+    /// For one pass over the frames: keeps no assignment, since none would
+    /// be used again (the cells are the same, and the kept frames' memory is
+    /// not taken).
+    pub fn single_pass(seq: &'a VoxelSequence) -> Self {
+        Self::with_cache(seq, 0)
+    }
+
     /// Keeps the assignments of the first `cached_frames` frames (0: none).
     pub fn with_cache(seq: &'a VoxelSequence, cached_frames: usize) -> Self {
         let kept = cached_frames.min(seq.frames.len());

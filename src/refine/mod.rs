@@ -21,11 +21,17 @@ use crate::model::Trajectories;
 use crate::voxel::VoxelSequence;
 use std::time::Instant;
 
-/// What refinement did.
+/// What refinement gives: the remaining centers' trajectories and what it did.
 #[derive(Clone, Debug)]
 pub struct RefineResult {
     /// The remaining centers' trajectories, in their original order.
     pub trajectories: Trajectories,
+    pub refinement: Refinement,
+}
+
+/// What refinement did.
+#[derive(Clone, Debug)]
+pub struct Refinement {
     /// Original indices of the removed centers, in removal order.
     pub removed: Vec<usize>,
     /// Original index of each remaining center.
@@ -36,8 +42,9 @@ pub struct RefineResult {
 }
 
 /// Removes `params.total_removed(N)` irregular centers in `params.batches`
-/// batches, optimising globally after each.
-pub fn refine(traj: &Trajectories, seq: &VoxelSequence, params: &RefineParams, progress: Progress) -> Result<RefineResult> {
+/// batches, optimising globally after each. The trajectories are moved in
+/// and refined in place: a long sequence's are not held twice.
+pub fn refine(traj: Trajectories, seq: &VoxelSequence, params: &RefineParams, progress: Progress) -> Result<RefineResult> {
     refine_with_checkpoints(traj, seq, params, None, progress)
 }
 
@@ -46,28 +53,28 @@ pub fn refine(traj: &Trajectories, seq: &VoxelSequence, params: &RefineParams, p
 /// cancelled through `progress` (then returning [`Error::Interrupted`]); with
 /// `checkpoint.resume` it continues from the saved state. The result is
 /// bit-identical to an uninterrupted [`refine`].
-pub fn refine_with_checkpoints(traj: &Trajectories, seq: &VoxelSequence, params: &RefineParams, checkpoint: Option<&Checkpointing>, progress: Progress) -> Result<RefineResult> {
+pub fn refine_with_checkpoints(traj: Trajectories, seq: &VoxelSequence, params: &RefineParams, checkpoint: Option<&Checkpointing>, progress: Progress) -> Result<RefineResult> {
     params.validate(traj.centers)?;
     let start = Instant::now();
     let scale = params.length_scale(&seq.bounds);
-    let total = params.total_removed(traj.centers);
+    let (frames, total) = (traj.frames, params.total_removed(traj.centers));
     // Where to save, and the fingerprint the file carries.
-    let saving = checkpoint.map(|c| (c, checkpoint::fingerprint(traj, seq, params)));
+    let saving = checkpoint.map(|c| (c, checkpoint::fingerprint(&traj, seq, params)));
     let restored = match saving {
         Some((c, fp)) if c.resume && c.refine_path().exists() => {
-            let r = checkpoint::load(c, fp, traj, params.batches)?;
+            let r = checkpoint::load(c, fp, &traj, params.batches)?;
             log::info!("resuming refinement from {} after {} of {} batches", c.refine_path().display(), r.batches_done, params.batches);
             Some(r)
         }
         _ => None,
     };
-    let (first, mut current, mut kept, mut removed, mut batches, mut in_progress, earlier) = match restored {
-        Some(r) => (r.batches_done, r.trajectories, r.kept, r.removed, r.finished, r.current, r.seconds),
-        None => (0, traj.clone(), (0..traj.centers).collect(), Vec::new(), Vec::new(), None, 0.0),
+    let (first, mut kept, mut current, mut removed, mut batches, mut in_progress, earlier) = match restored {
+        Some(r) => (r.batches_done, r.kept, r.trajectories, r.removed, r.finished, r.current, r.seconds),
+        None => (0, (0..traj.centers).collect(), traj, Vec::new(), Vec::new(), None, 0.0),
     };
     let seconds = |start: &Instant| earlier + start.elapsed().as_secs_f64();
     let interrupted = |batches_done: usize| {
-        Error::Interrupted { saved: checkpoint.map(|c| Saved { path: c.path(), frames: traj.frames, refine: Some((batches_done, params.batches)) }) }
+        Error::Interrupted { saved: checkpoint.map(|c| Saved { path: c.path(), frames, refine: Some((batches_done, params.batches)) }) }
     };
     let mut cells = SequenceCells::new(seq);
     let per_batch = params.max_iterations.max(1);
@@ -147,7 +154,7 @@ pub fn refine_with_checkpoints(traj: &Trajectories, seq: &VoxelSequence, params:
         save(saving, Snapshot { batches_done: b + 1, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: None, seconds: seconds(&start) })?;
     }
     progress.report(Stage::Refine, steps, steps);
-    Ok(RefineResult { trajectories: current, removed, kept, batches, seconds: seconds(&start) })
+    Ok(RefineResult { trajectories: current, refinement: Refinement { removed, kept, batches, seconds: seconds(&start) } })
 }
 
 /// Saves `snapshot` where `saving` says, if anywhere.
