@@ -311,12 +311,19 @@ fn morph_animation<'a>(deltas: MorphDeltas<'a>, frames: usize, basis: &MorphBasi
 fn stored_deltas(frames: &PositionFrames, basis: &MorphBasis, normals: Option<&FrameNormals>, progress: Progress) -> Result<MorphDeltas<'static>> {
     let first = frames.get(0)?;
     let vertices = first.len();
-    let positions =
-        basis.combine(frames.len(), vertices, |g| Ok(frames.get(g)?.iter().zip(first.iter()).map(|(p, p0)| p - p0).collect()), progress)?;
-    let normals = normals
-        .map(|n| basis.combine(frames.len(), vertices, |g| Ok(n.of(&frames.get(g)?).iter().zip(&n.base).map(|(a, b)| a - b).collect()), progress))
-        .transpose()?;
+    let positions = basis.combine(frames.len(), vertices, |g| position_deltas(frames, &first, g), progress)?;
+    let normals = normals.map(|n| basis.combine(frames.len(), vertices, |g| normal_deltas(n, frames, g), progress)).transpose()?;
     Ok(MorphDeltas::Stored { positions, normals })
+}
+
+/// Frame `g`'s moves from frame 0 (`first`), per vertex.
+fn position_deltas(frames: &PositionFrames, first: &[Point3], g: usize) -> Result<Vec<Vector3>> {
+    Ok(frames.get(g)?.iter().zip(first).map(|(p, p0)| p - p0).collect())
+}
+
+/// Frame `g`'s normals less the mesh's own, per vertex.
+fn normal_deltas(normals: &FrameNormals, frames: &PositionFrames, g: usize) -> Result<Vec<Vector3>> {
+    Ok(normals.of(&frames.get(g)?).iter().zip(&normals.base).map(|(a, b)| a - b).collect())
 }
 
 /// Morph targets computed from the frames one at a time, when asked for.
@@ -383,7 +390,7 @@ impl MorphAnimation<'_> {
         match &self.deltas {
             MorphDeltas::Stored { positions, .. } => Ok(Cow::Borrowed(&positions[k])),
             MorphDeltas::Computed(c) => {
-                let target = c.basis.target(k, c.first.len(), |g| Ok(c.frames.get(g)?.iter().zip(&c.first).map(|(p, p0)| p - p0).collect()))?;
+                let target = c.basis.target(k, c.first.len(), |g| position_deltas(c.frames, &c.first, g))?;
                 Ok(Cow::Owned(target))
             }
         }
@@ -394,7 +401,7 @@ impl MorphAnimation<'_> {
         match &self.deltas {
             MorphDeltas::Stored { normals: Some(n), .. } => Ok(Cow::Borrowed(&n[k])),
             MorphDeltas::Computed(ComputedDeltas { frames, basis, first, normals: Some(n) }) => {
-                let target = basis.target(k, first.len(), |g| Ok(n.of(&frames.get(g)?).iter().zip(&n.base).map(|(a, b)| a - b).collect()))?;
+                let target = basis.target(k, first.len(), |g| normal_deltas(n, frames, g))?;
                 Ok(Cow::Owned(target))
             }
             _ => Err(Error::InvalidInput("morph animation: no normal deltas".into())),
