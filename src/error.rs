@@ -55,12 +55,9 @@ impl std::fmt::Display for Saved {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self.refine {
             None => write!(f, "the first {} tracked frames are saved in {}", self.frames, self.path.display()),
-            Some((done, all)) => write!(
-                f,
-                "the {} tracked frames and the refinement ({done} of {all} batches done) are saved in {}",
-                self.frames,
-                self.path.parent().unwrap_or(&self.path).display()
-            ),
+            Some((done, all)) => {
+                write!(f, "the refinement ({done} of {all} batches done) is saved in {}", self.path.parent().unwrap_or(&self.path).display())
+            }
         }
     }
 }

@@ -384,6 +384,59 @@ fn interrupted_while_conforming_names_the_finished_tracking_and_resumes() {
     assert_eq!(resumed.mesh.frames.to_vec().unwrap(), whole.mesh.frames.to_vec().unwrap());
 }
 
+/// `voltrack refine --checkpoint`: killed (SIGKILL) or interrupted (SIGINT)
+/// once its refinement checkpoint exists, then rerun with --resume, writes
+/// the EXR an uninterrupted refine writes, byte for byte. As above, the
+/// signal may land after the end; both outcomes are checked.
+#[test]
+fn the_refine_command_killed_or_interrupted_resumes_to_the_same_bytes() {
+    let dir = Scratch::new("checkpoint", "refine-cli");
+    let input = dir.join("frames");
+    std::fs::create_dir(&input).unwrap();
+    for f in 0..24 {
+        write_obj(&input.join(format!("frame_{f:03}.obj")), &voltrack::fixtures::bending_bar(f % 16));
+    }
+    let out = |name: &str| dir.join(name).to_string_lossy().into_owned();
+    let input = input.to_string_lossy().into_owned();
+    let tracked = out("tracked.exr");
+    let ok = |args: &[&str]| {
+        let o = voltrack(args).env("RUST_LOG", "info").output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    ok(&["track", &input, "-r", "48", "-n", "100", "-o", &tracked]);
+    let base = |o: &str| -> Vec<String> { ["refine", &tracked, "--input", &input, "--batches", "4", "-o", o].map(String::from).to_vec() };
+    let whole = out("whole.exr");
+    ok(&base(&whole).iter().map(String::as_str).collect::<Vec<_>>());
+    let whole = std::fs::read(whole).unwrap();
+
+    for (signal, name) in [(None, "killed"), (Some("-INT"), "interrupted")] {
+        let state = dir.join(&format!("{name}-state"));
+        let target = out(&format!("{name}.exr"));
+        let mut args = base(&target);
+        args.extend(["--checkpoint".into(), state.to_string_lossy().into_owned()]);
+        let argv: Vec<&str> = args.iter().map(String::as_str).collect();
+        let stopped = stop_when_saved(&argv, &state.join("refine.ckpt"), signal);
+        let err = String::from_utf8_lossy(&stopped.stderr);
+        if stopped.status.success() {
+            println!("{name}: the refinement had finished before the signal");
+            assert!(std::fs::read(&target).unwrap() == whole, "{name}, not stopped: EXR differs from the uninterrupted run");
+            std::fs::remove_file(&target).unwrap();
+        } else {
+            assert!(!Path::new(&target).exists(), "{name}: no output from a stopped run");
+            if signal.is_some() {
+                assert_eq!(stopped.status.code(), Some(130), "{name}: exit status; {err}");
+                assert!(err.contains("--resume") && err.contains("batches done") && err.contains("state"), "{name}: {err}");
+            }
+            println!("{name}: stopped ({})", stopped.status);
+        }
+        args.push("--resume".into());
+        let log = ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+        assert!(log.contains("resuming refinement from"), "{name}: the rerun did not resume: {log}");
+        assert!(std::fs::read(&target).unwrap() == whole, "{name}, resumed: EXR differs from the uninterrupted run");
+    }
+}
+
 /// Everything a refinement returns but its timing, floats as bits.
 fn refined_bits(r: &RefineResult) -> (Vec<u64>, Vec<usize>, Vec<usize>, Vec<Vec<[u64; 4]>>) {
     let positions = r.trajectories.positions.iter().flat_map(|p| p.coords.iter().map(|c| c.to_bits()).collect::<Vec<_>>()).collect();

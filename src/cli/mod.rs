@@ -17,6 +17,7 @@ use voltrack::metrics::{Coverage, FitOutliers};
 use voltrack::params::CoverageParams;
 use voltrack::pipeline::{self, Quality};
 use voltrack::io::FrameFiles;
+use voltrack::checkpoint::Checkpointing;
 use voltrack::Stage;
 
 #[derive(Parser)]
@@ -70,6 +71,12 @@ enum Command {
         output: PathBuf,
         #[command(flatten)]
         refine_args: RefineArgs,
+        /// Save the refinement's state in this folder after every batch, once a minute within one, and on Ctrl-C, so an interrupted run can --resume
+        #[arg(long, value_name = "DIR")]
+        checkpoint: Option<PathBuf>,
+        /// Continue from the refinement saved in --checkpoint DIR (same command, same trajectories and input); start over if there is none yet
+        #[arg(long, requires = "checkpoint")]
+        resume: bool,
         #[arg(long)]
         json: bool,
     },
@@ -96,7 +103,10 @@ pub fn run() -> Result<()> {
         Command::Track { input, output, track, refine, refine_args, json } => {
             track_command(input, output, track, refine.then_some(refine_args), json)
         }
-        Command::Refine { centers, input, output, refine_args, json } => refine_command(centers, input, output, refine_args, json),
+        Command::Refine { centers, input, output, refine_args, checkpoint, resume, json } => {
+            let checkpoint = checkpoint.map(|dir| Checkpointing { resume, ..Checkpointing::new(dir) });
+            refine_command(centers, input, output, refine_args, checkpoint, json)
+        }
         Command::Metrics { centers, input, json, plot } => metrics(centers, input, json, plot),
     }
 }
@@ -281,16 +291,21 @@ fn plan_reading(inputs: &[PathBuf]) -> Result<voltrack::pipeline::OutputPlan> {
     Ok(voltrack::pipeline::OutputPlan::new().reading(inputs, &frames))
 }
 
-fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: RefineArgs, json: bool) -> Result<()> {
+fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: RefineArgs, checkpoint: Option<Checkpointing>, json: bool) -> Result<()> {
     let tracked = read_tracked(&centers)?;
     let params = args.params(tracked.1.absolute_units());
     params.validate(tracked.0.centers)?;
-    plan_reading(&input)?.reading_file(&centers).file(&output, "the output").check()?;
+    let mut plan = plan_reading(&input)?.reading_file(&centers).file(&output, "the output");
+    if let Some(c) = &checkpoint {
+        plan = plan.dir(&c.dir, "the checkpoint folder");
+    }
+    plan.check()?;
     let bars = bars::Bars::new();
     let seq = load_tracked_input(&centers, &tracked, &input, &bars)?;
     let (traj, meta) = tracked;
     let before = pipeline::measure(&traj, &seq);
-    let voltrack::refine::RefineResult { trajectories, refinement: res } = voltrack::refine::refine(traj, &seq, &params, bars.progress())?;
+    let voltrack::refine::RefineResult { trajectories, refinement: res } =
+        voltrack::refine::refine_with_checkpoints(traj, &seq, &params, checkpoint.as_ref(), bars.progress())?;
     let after = pipeline::measure(&trajectories, &seq);
     let mut meta = meta;
     pipeline::record_refinement(&mut meta, &params, &res.removed);
