@@ -119,7 +119,8 @@ fn voronoi_assignment_equals_a_linear_scan_while_centers_move() {
 }
 
 /// Every voxel's owner, from the fast path (Hamerly bounds and candidate
-/// lists on the carried index), from the k-d tree and from `nearest` with
+/// lists on the carried index; at step 0, assigned afresh, each voxel from
+/// the owner its scan neighbour got), from the k-d tree and from `nearest` with
 /// good, bad and no hints, on the carried and on a fresh index, is exactly
 /// the center [`linear_scan`] finds: the nearest, and on a tie the lowest
 /// index. Random centers almost never tie by accident, so every tenth center

@@ -559,6 +559,12 @@ impl Assignment {
                         n += !skip as usize;
                     }
                     let mut changed = Vec::new();
+                    // The owner last found in this chunk: a voxel without
+                    // one (assigned afresh) starts from its neighbour's in
+                    // the scan, which is nearly always its own or close, so
+                    // that the candidate lists settle it instead of the k-d
+                    // tree. The owner found is the same either way.
+                    let mut last = NO_OWNER;
                     for &(k, lo) in &pending[..n] {
                         let k = k as usize;
                         let o = own[k];
@@ -573,7 +579,8 @@ impl Assignment {
                                 continue;
                             }
                         }
-                        let (owner, d, second) = index.nearest2(&pos, o);
+                        let (owner, d, second) = index.nearest2(&pos, if o == NO_OWNER { last } else { o });
+                        last = owner;
                         if owner != o {
                             changed.push(((chunk * CHUNK + k) as u32, o));
                         }
