@@ -270,6 +270,35 @@ fn stop_when_saved(args: &[&str], ckpt: &Path, signal: Option<&str>) -> std::pro
     child.wait_with_output().unwrap()
 }
 
+/// Runs `args` with `--checkpoint` `state` (and `extra`), stops it with
+/// `signal` (None: SIGKILL) once `state/file` exists, and checks what must
+/// hold either way: finished, it wrote `whole` (then removed for the rerun);
+/// stopped, no output, and after SIGINT exit status 130 and a message that
+/// `interrupted` checks. Returns the arguments to resume with.
+fn stop_once_saved(mut args: Vec<String>, state: &Path, extra: &[&str], file: &str, signal: Option<&str>, target: &str, whole: &[u8], interrupted: impl Fn(&str)) -> Vec<String> {
+    args.extend(["--checkpoint".into(), state.to_string_lossy().into_owned()]);
+    args.extend(extra.iter().map(|a| a.to_string()));
+    let argv: Vec<&str> = args.iter().map(String::as_str).collect();
+    let stopped = stop_when_saved(&argv, &state.join(file), signal);
+    let err = String::from_utf8_lossy(&stopped.stderr);
+    if stopped.status.success() {
+        // The signal landed after the stage (or after the process ended).
+        println!("{target}: the run had finished the stage before the signal");
+        assert!(std::fs::read(target).unwrap() == whole, "{target}, not stopped: differs from the uninterrupted run");
+        std::fs::remove_file(target).unwrap();
+    } else {
+        assert!(!Path::new(target).exists(), "{target}: no output from a stopped run");
+        if signal.is_some() {
+            assert_eq!(stopped.status.code(), Some(130), "{target}: exit status; {err}");
+            assert!(err.contains("--resume"), "{target}: {err}");
+            interrupted(&err);
+        }
+        println!("{target}: stopped ({})", stopped.status);
+    }
+    args.push("--resume".into());
+    args
+}
+
 /// The command killed (SIGKILL) or interrupted (SIGINT, as Ctrl-C) once its
 /// checkpoint file exists, then rerun with --resume, writes an EXR
 /// byte-identical to an uninterrupted run's. The signal is sent after the
@@ -304,35 +333,16 @@ fn a_killed_or_interrupted_command_resumes_to_the_same_bytes() {
     for (signal, name) in [(None, "killed"), (Some("-INT"), "interrupted")] {
         let state: PathBuf = dir.join(&format!("{name}-state"));
         let target = out(&format!("{name}.exr"));
-        let mut args = base(&target);
-        args.extend(["--checkpoint".into(), state.to_string_lossy().into_owned(), "--checkpoint-every".into(), "1".into()]);
-        let argv: Vec<&str> = args.iter().map(String::as_str).collect();
-        let stopped = stop_when_saved(&argv, &state.join("track.ckpt"), signal);
-        let err = String::from_utf8_lossy(&stopped.stderr);
-        if stopped.status.success() {
-            // The signal landed after tracking (or after the process ended).
-            println!("{name}: the run had finished tracking before the signal");
-            assert!(std::fs::read(&target).unwrap() == whole, "{name}, not stopped: EXR differs from the uninterrupted run");
-            std::fs::remove_file(&target).unwrap();
-        } else {
-            assert!(!Path::new(&target).exists(), "{name}: no output from a stopped run");
-            if signal.is_some() {
-                assert_eq!(stopped.status.code(), Some(130), "{name}: exit status; {err}");
-                let k: usize = err
-                    .split("the first ")
-                    .nth(1)
-                    .and_then(|rest| rest.split(' ').next())
-                    .and_then(|k| k.parse().ok())
-                    .unwrap_or_else(|| panic!("{name}: no frame count in: {err}"));
-                assert!(err.contains("--resume") && err.contains("track.ckpt"), "{name}: {err}");
-                assert!((1..LONG).contains(&k), "{name}: {k} frames saved of {LONG}");
-                println!("{name}: stopped with {k} of {LONG} frames saved");
-            } else {
-                println!("{name}: killed ({})", stopped.status);
-            }
-        }
-
-        args.push("--resume".into());
+        let args = stop_once_saved(base(&target), &state, &["--checkpoint-every", "1"], "track.ckpt", signal, &target, &whole, |err| {
+            let k: usize = err
+                .split("the first ")
+                .nth(1)
+                .and_then(|rest| rest.split(' ').next())
+                .and_then(|k| k.parse().ok())
+                .unwrap_or_else(|| panic!("{name}: no frame count in: {err}"));
+            assert!(err.contains("track.ckpt"), "{name}: {err}");
+            assert!((1..LONG).contains(&k), "{name}: {k} frames saved of {LONG}");
+        });
         let log = run(&args);
         assert!(log.contains("resuming from") && !log.contains("starts from the first frame"), "{name}: the rerun did not resume: {log}");
         assert!(std::fs::read(&target).unwrap() == whole, "{name}, resumed: EXR differs from the uninterrupted run");
@@ -413,24 +423,9 @@ fn the_refine_command_killed_or_interrupted_resumes_to_the_same_bytes() {
     for (signal, name) in [(None, "killed"), (Some("-INT"), "interrupted")] {
         let state = dir.join(&format!("{name}-state"));
         let target = out(&format!("{name}.exr"));
-        let mut args = base(&target);
-        args.extend(["--checkpoint".into(), state.to_string_lossy().into_owned()]);
-        let argv: Vec<&str> = args.iter().map(String::as_str).collect();
-        let stopped = stop_when_saved(&argv, &state.join("refine.ckpt"), signal);
-        let err = String::from_utf8_lossy(&stopped.stderr);
-        if stopped.status.success() {
-            println!("{name}: the refinement had finished before the signal");
-            assert!(std::fs::read(&target).unwrap() == whole, "{name}, not stopped: EXR differs from the uninterrupted run");
-            std::fs::remove_file(&target).unwrap();
-        } else {
-            assert!(!Path::new(&target).exists(), "{name}: no output from a stopped run");
-            if signal.is_some() {
-                assert_eq!(stopped.status.code(), Some(130), "{name}: exit status; {err}");
-                assert!(err.contains("--resume") && err.contains("batches done") && err.contains("state"), "{name}: {err}");
-            }
-            println!("{name}: stopped ({})", stopped.status);
-        }
-        args.push("--resume".into());
+        let args = stop_once_saved(base(&target), &state, &[], "refine.ckpt", signal, &target, &whole, |err| {
+            assert!(err.contains("batches done") && err.contains("state"), "{name}: {err}");
+        });
         let log = ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
         assert!(log.contains("resuming refinement from"), "{name}: the rerun did not resume: {log}");
         assert!(std::fs::read(&target).unwrap() == whole, "{name}, resumed: EXR differs from the uninterrupted run");
