@@ -47,15 +47,19 @@ impl Trajectories {
         (0..self.frames).map(move |f| self.get(f, center))
     }
 
-    /// A copy without the given centers (indices into this set), keeping order.
-    pub fn without(&self, removed: &[usize]) -> Trajectories {
+    /// Removes the given centers (indices into this set), keeping the others'
+    /// order, in place: a long sequence's trajectories are not copied.
+    pub fn remove_centers(&mut self, removed: &[usize]) {
         let keep: Vec<usize> = (0..self.centers).filter(|i| !removed.contains(i)).collect();
-        let mut out = Trajectories::new(self.frames, keep.len());
+        let (n, m) = (self.centers, keep.len());
+        // Each kept position moves to an index at most its own: forward
+        // order never overwrites one still to be moved.
         for f in 0..self.frames {
             for (k, &i) in keep.iter().enumerate() {
-                out.set(f, k, self.get(f, i));
+                self.positions[f * m + k] = self.positions[f * n + i];
             }
         }
-        out
+        self.positions.truncate(self.frames * m);
+        self.centers = m;
     }
 }

@@ -25,13 +25,15 @@ pub fn most_irregular(irregularity: &[Real], count: usize) -> Vec<usize> {
 /// minimum over exact sums in frame order).
 pub fn irregularity(traj: &Trajectories) -> Vec<Real> {
     let (frames, n) = (traj.frames, traj.centers);
-    // Center-major copy, so each trajectory is contiguous.
-    let paths: Vec<Vec<[Real; 3]>> =
-        (0..n).map(|i| traj.trajectory(i).map(|p| [p.x, p.y, p.z]).collect()).collect();
-    let means: Vec<[Real; 3]> = paths
-        .iter()
-        .map(|p| {
-            let s = p.iter().fold([0.0; 3], |s, q| [s[0] + q[0], s[1] + q[1], s[2] + q[2]]);
+    // Read in place (frame-major, strided), not copied center by center: a
+    // long sequence's trajectories are not held twice.
+    let point = |f: usize, i: usize| -> [Real; 3] {
+        let p = traj.get(f, i);
+        [p.x, p.y, p.z]
+    };
+    let means: Vec<[Real; 3]> = (0..n)
+        .map(|i| {
+            let s = (0..frames).map(|f| point(f, i)).fold([0.0; 3], |s, q| [s[0] + q[0], s[1] + q[1], s[2] + q[2]]);
             s.map(|c| c / frames.max(1) as Real)
         })
         .collect();
@@ -48,8 +50,8 @@ pub fn irregularity(traj: &Trajectories) -> Vec<Real> {
                     break;
                 }
                 let mut sum = 0.0;
-                for (a, b) in paths[i].iter().zip(&paths[j]) {
-                    sum += squared(a, b);
+                for f in 0..frames {
+                    sum += squared(&point(f, i), &point(f, j));
                     if sum >= best {
                         break;
                     }
