@@ -182,9 +182,8 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
     let bars = bars::Bars::new();
     let (_, seq) = load(&input.input, &voxel, &bars)?;
     let tracked = voltrack::track::track_with_checkpoints(&seq, &params, checkpoint.as_ref(), bars.progress())?;
-    let voltrack::track::TrackResult { trajectories, timings, cell_counts, .. } = tracked;
-    let before = pipeline::measure_with_counts(&trajectories, &cell_counts);
-    drop(cell_counts);
+    let (pipeline::Tracked { quality, timings, .. }, trajectories) = pipeline::Tracked::split(tracked, true);
+    let before = quality.expect("measured");
     let (traj, refined, refine_params) = match refine {
         Some(r) => {
             let rp = r.params(track.absolute_units);
