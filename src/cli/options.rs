@@ -255,7 +255,7 @@ pub struct ConvertArgs {
     /// Frames per second of the animation (range: 0.001..=100000)
     #[arg(long, default_value_t = GltfExportOptions::default().fps)]
     pub fps: f32,
-    /// Compact glTF: K principal components as morph targets [default: one target per frame up to 256 frames] (range: 1..=100000)
+    /// Compact glTF: K principal components as morph targets [default: one target per frame up to 256 frames; beyond, the fewest components (at most 128) that keep every vertex within 0.1 % of the diagonal, else one target per frame] (range: 1..=100000)
     #[arg(long)]
     pub basis: Option<usize>,
     /// Compressed glTF for the web: quantised positions, normals and morph deltas (KHR_mesh_quantization) encoded by meshoptimizer (EXT_meshopt_compression); viewers need a meshopt decoder (three.js: MeshoptDecoder). Prints the positions' error

@@ -6,8 +6,9 @@
 //! The components come from a randomised range finder (Halko, Martinsson and
 //! Tropp, 2011) over the displacement matrix, which is only ever read frame by
 //! frame: the work grows linearly with the frame count, and the memory with
-//! (vertices + frames) × the components sketched; no frames × frames nor
-//! vertices × frames matrix is formed.
+//! (vertices + frames) × the components sketched, which
+//! [`BasisChoice::Auto`] caps ([`AUTO_MAX_COMPONENTS`]); no frames × frames
+//! nor vertices × frames matrix is formed.
 //!
 //! Every target is a linear combination of the frames' displacements from
 //! frame 0, `target_j = Σ_g mix_j(g) · (frame_g − frame_0)`, so anything known
@@ -33,9 +34,10 @@ pub enum BasisChoice {
     /// rank), K ≥ 1. Lossy; the error is measured and reported.
     Components(usize),
     /// [`PerFrame`](Self::PerFrame) up to [`AUTO_PER_FRAME_LIMIT`] frames;
-    /// beyond, the fewest principal components whose largest vertex error
-    /// stays within the tolerance, or per-frame targets again when that basis
-    /// would not need fewer targets.
+    /// beyond, the fewest principal components (at most
+    /// [`AUTO_MAX_COMPONENTS`]) whose largest vertex error stays within the
+    /// tolerance, or per-frame targets again when no such basis needs fewer
+    /// targets.
     Auto,
 }
 
@@ -58,8 +60,15 @@ const OVERSAMPLING: usize = 10;
 const POWER_ITERATIONS: usize = 2;
 
 /// Components [`BasisChoice::Auto`] sketches first; every further round
-/// doubles it.
+/// doubles it, up to [`AUTO_MAX_COMPONENTS`].
 const AUTO_FIRST_COMPONENTS: usize = 8;
+
+/// Most components [`BasisChoice::Auto`] sketches: a basis of more would
+/// take more targets than the per-frame ones viewers are trusted with
+/// ([`AUTO_PER_FRAME_LIMIT`]), and the sketch, 3V × components numbers held
+/// several times over, would grow with the sequence (at 1,000 frames of a
+/// motion no small basis fits, up to V × F). Past it, per-frame targets.
+const AUTO_MAX_COMPONENTS: usize = AUTO_PER_FRAME_LIMIT / 2;
 
 /// Seed of the Gaussian test matrix: the same frames give the same basis.
 const SKETCH_SEED: u64 = 0x5eed_0022_ba51_5000;
@@ -237,11 +246,12 @@ pub fn choose(frames: &PositionFrames, choice: BasisChoice, tolerance: Real, pro
                     break if basis.targets() < moving { (basis, errors[k]) } else { exact() };
                 }
                 // Nothing within tolerance up to the limit, or more components
-                // would need as many targets as the frames: per-frame targets.
-                if end == limit || pca.basis(end).targets() >= moving {
+                // would need as many targets as the frames, or than Auto
+                // sketches: per-frame targets.
+                if end == limit || pca.basis(end).targets() >= moving || wanted >= AUTO_MAX_COMPONENTS {
                     break exact();
                 }
-                wanted *= 2;
+                wanted = (wanted * 2).min(AUTO_MAX_COMPONENTS);
             };
             passes.finish();
             Ok(choice)
@@ -559,9 +569,12 @@ fn apply_transposed(frames: &PositionFrames, q: &[Real], width: usize, progress:
 /// matrix (rows ≥ width), row-major: Householder QR, whose Q stays orthonormal
 /// when the columns are dependent.
 fn orthonormal(m: Vec<Real>, rows: usize, width: usize) -> Vec<Real> {
-    let q = DMatrix::from_row_slice(rows, width, &m).qr().q();
+    // Each copy is as large as the sketch: one dropped before the next is made.
+    let a = DMatrix::from_row_slice(rows, width, &m);
+    drop(m);
+    let q = a.qr().q();
     // Column-major storage of Qᵀ is Q row-major.
-    q.transpose().as_slice().to_vec()
+    q.transpose().data.into()
 }
 
 /// y += a x.
@@ -688,6 +701,37 @@ mod tests {
         let error = pca.errors(&frames, 3..=3, &mut no_passes()).unwrap()[0];
         assert!(error.max < 1e-9, "{error:?}");
         assert_eq!(pca.sufficient(1e-6), Some(3));
+    }
+
+    /// Frames 0..300 of the torus moved by `rank` fixed random fields, each
+    /// weighted per frame by a random coefficient: motion of exactly that rank.
+    fn random_motion(rank: usize) -> PositionFrames {
+        let base = torus();
+        let mut rng = SplitMix64::new(rank as u64);
+        let mut unit = move || 2.0 * rng.unit() - 1.0;
+        let fields: Vec<Vec<Vector3>> = (0..rank).map(|_| base.iter().map(|_| Vector3::new(unit(), unit(), unit())).collect()).collect();
+        let frames: Vec<Vec<Point3>> = (0..300)
+            .map(|f| {
+                let weights: Vec<Real> = (0..rank).map(|_| if f == 0 { 0.0 } else { 0.01 * unit() }).collect();
+                base.iter().enumerate().map(|(v, p)| p + fields.iter().zip(&weights).map(|(d, w)| *w * d[v]).sum::<Vector3>()).collect()
+            })
+            .collect();
+        PositionFrames::from(frames)
+    }
+
+    #[test]
+    fn auto_sketches_at_most_its_cap_and_falls_back_to_per_frame_targets() {
+        // Rank within the cap: exactly that many components. Beyond it, where
+        // a larger sketch would find a basis still smaller than per-frame
+        // targets (2 × 140 < 299), per-frame targets, so the sketch, and the
+        // memory it takes, stop growing with the sequence.
+        for (rank, components) in [(AUTO_MAX_COMPONENTS - 8, Some(AUTO_MAX_COMPONENTS - 8)), (AUTO_MAX_COMPONENTS + 12, None)] {
+            let frames = random_motion(rank);
+            let (basis, error) = choose(&frames, BasisChoice::Auto, 1e-6, Progress::none()).unwrap();
+            assert_eq!(basis.components, components, "rank {rank}");
+            assert_eq!(basis.targets() >= 299, components.is_none(), "rank {rank}: {} targets", basis.targets());
+            assert!(error.max <= 1e-6, "rank {rank}: {error:?}");
+        }
     }
 
     #[test]
