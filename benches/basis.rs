@@ -1,6 +1,9 @@
 //! Time of the compact morph basis (issue 22): `Auto` and `Components(16)` on
 //! a synthetic deforming torus of 5,000 vertices at 250 to 2,000 frames,
 //! seconds per frame count. The cost should grow about linearly in F.
+//! Then `Auto` on the same motion with noise no small basis fits (it falls
+//! back to per-frame targets): seconds, and the peak memory the call adds
+//! (Linux), which should not grow with F.
 //!
 //! `cargo bench --bench basis`; `VOLTRACK_BENCH_FRAMES=250,500` picks the
 //! frame counts, `VOLTRACK_BENCH_IN_FILE=1` keeps the frames in a temporary
@@ -35,11 +38,21 @@ fn main() {
     println!("{} vertices, threads {}, frames {}", base.positions.len(), rayon::current_num_threads(), if in_file { "in a file" } else { "in memory" });
     println!("| frames | Auto s | Auto components | Components(16) s | s per 1000 frames (Auto, 16) |");
     println!("|---|---|---|---|---|");
-    for &f in &counts {
+    let positions = |f: usize, noise: Real| {
         let mut frames = PositionFrames::new(base.positions.len(), f, if in_file { 0 } else { usize::MAX }).expect("a temporary file");
+        let mut state = 0x5eed_u64;
         for g in 0..f {
-            frames.push(base.positions.iter().map(|p| motion(g, p)).collect()).expect("written");
+            let mut jitter = || {
+                // A linear congruential step: noise of no structure, reproducible.
+                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                noise * ((state >> 11) as Real / (1u64 << 53) as Real - 0.5)
+            };
+            frames.push(base.positions.iter().map(|p| motion(g, p) + Vector3::new(jitter(), jitter(), jitter())).collect()).expect("written");
         }
+        frames
+    };
+    for &f in &counts {
+        let frames = positions(f, 0.0);
         let tolerance = 0.001 * frames.bounds().expect("read").diagonal();
         let clock = Instant::now();
         let (auto, _) = choose(&frames, BasisChoice::Auto, tolerance, Default::default()).expect("Auto basis");
@@ -53,5 +66,39 @@ fn main() {
             1000.0 * auto_s / f as f64,
             1000.0 * k16_s / f as f64
         );
+    }
+    println!();
+    println!("With noise of 1 % of the torus' radius on every coordinate, which no small basis fits:");
+    println!("| frames | Auto s | Auto components | peak memory added, MB |");
+    println!("|---|---|---|---|");
+    for &f in &counts {
+        let frames = positions(f, 0.01);
+        let tolerance = 0.001 * frames.bounds().expect("read").diagonal();
+        let before = peak::reset();
+        let clock = Instant::now();
+        let (auto, _) = choose(&frames, BasisChoice::Auto, tolerance, Default::default()).expect("Auto basis");
+        let auto_s = clock.elapsed().as_secs_f64();
+        let added = before.zip(peak::high_water()).map_or("n/a".into(), |(a, b)| format!("{:.1}", (b - a) / 1e3));
+        println!("| {f} | {auto_s:.2} | {} | {added} |", auto.components.map_or("per frame".into(), |k| k.to_string()));
+    }
+}
+
+/// The process's peak resident memory, from Linux' /proc (kB).
+mod peak {
+    fn field(name: &str) -> Option<f64> {
+        let status = std::fs::read_to_string("/proc/self/status").ok()?;
+        let line = status.lines().find(|l| l.starts_with(name))?;
+        line[name.len()..].trim().trim_end_matches("kB").trim().parse().ok()
+    }
+
+    /// Resets the peak to the memory resident now, and returns that.
+    pub fn reset() -> Option<f64> {
+        std::fs::write("/proc/self/clear_refs", "5").ok()?;
+        field("VmRSS:")
+    }
+
+    /// The peak since the last reset.
+    pub fn high_water() -> Option<f64> {
+        field("VmHWM:")
     }
 }
