@@ -13,7 +13,7 @@ use crate::math::Point3;
 use crate::model::{Trajectories, TrajectoryMetadata, METADATA_ATTRIBUTE};
 use exr::meta::attribute::{AttributeValue, Text};
 use exr::prelude::*;
-use std::io::Write as _;
+use std::io::{Seek, Write};
 use std::path::Path;
 
 
@@ -36,8 +36,74 @@ pub(super) fn encode_points_exr(
     width: usize,
     height: usize,
     pixel: impl Fn(usize, usize) -> Point3 + Sync,
-    mut meta: serde_json::Map<String, serde_json::Value>,
+    meta: serde_json::Map<String, serde_json::Value>,
 ) -> Result<Vec<u8>> {
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    write_points_exr(&mut bytes, path, name, width, height, pixel, meta)?;
+    Ok(bytes.into_inner())
+}
+
+/// [`encode_points_exr`]'s file written into `w` as it is encoded: straight
+/// into a file that can seek (the format's offset tables are filled in after
+/// the blocks), through memory into one that cannot (a pipe). Returns its
+/// length in bytes.
+pub(super) fn stream_points_exr(
+    w: &mut std::io::BufWriter<std::fs::File>,
+    path: &Path,
+    name: &str,
+    width: usize,
+    height: usize,
+    pixel: impl Fn(usize, usize) -> Point3 + Sync,
+    meta: serde_json::Map<String, serde_json::Value>,
+) -> Result<u64> {
+    let Ok(start) = w.stream_position() else {
+        let bytes = encode_points_exr(path, name, width, height, pixel, meta)?;
+        w.write_all(&bytes).map_err(|e| Error::write(path, e))?;
+        return Ok(bytes.len() as u64);
+    };
+    let mut out = Extent { inner: w, position: start, end: start };
+    write_points_exr(&mut out, path, name, width, height, pixel, meta)?;
+    Ok(out.end - start)
+}
+
+/// A writer that knows how far what was written into it reaches, though
+/// the writing seeks back and forth. It counts rather than asks the file,
+/// since asking flushes a `BufWriter`.
+struct Extent<'a, W> {
+    inner: &'a mut W,
+    position: u64,
+    end: u64,
+}
+
+impl<W: Write> Write for Extent<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.position += n as u64;
+        self.end = self.end.max(self.position);
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
+impl<W: Seek> Seek for Extent<'_, W> {
+    fn seek(&mut self, to: std::io::SeekFrom) -> std::io::Result<u64> {
+        self.position = self.inner.seek(to)?;
+        Ok(self.position)
+    }
+}
+
+fn write_points_exr(
+    w: &mut (impl Write + Seek),
+    path: &Path,
+    name: &str,
+    width: usize,
+    height: usize,
+    pixel: impl Fn(usize, usize) -> Point3 + Sync,
+    mut meta: serde_json::Map<String, serde_json::Value>,
+) -> Result<()> {
     if width == 0 || height == 0 {
         return Err(Error::InvalidInput(format!("nothing to write to {}: {width} × {height} points", path.display())));
     }
@@ -56,14 +122,9 @@ pub(super) fn encode_points_exr(
         (q.x as f32, q.y as f32, q.z as f32)
     });
     let layer = Layer::new((width, height), layer_attributes, Encoding::SMALL_LOSSLESS, channels);
-    let mut bytes = std::io::Cursor::new(Vec::new());
-    // Sequential compression: block order, hence bytes, independent of threads.
-    Image::from_layer(layer)
-        .write()
-        .non_parallel()
-        .to_buffered(&mut bytes)
-        .map_err(|e| Error::write(path, e))?;
-    Ok(bytes.into_inner())
+    // Sequential compression: block order, hence bytes, independent of
+    // threads; and the blocks are asked for in order, row after row.
+    Image::from_layer(layer).write().non_parallel().to_buffered(w).map_err(|e| Error::write(path, e))
 }
 
 /// JSON with every non-ASCII character escaped (`\uXXXX`, surrogate pairs

@@ -9,7 +9,7 @@
 //! mesh) and `anim.json` (the sidecar), written all or none.
 
 use super::basis::check_frames;
-use super::exr::encode_points_exr;
+use super::exr::stream_points_exr;
 use super::gltf::{glb_bytes_with, GlbExtras, SceneInfo, Timing};
 use super::normals::FrameNormals;
 use crate::files::write_atomic_all;
@@ -19,6 +19,7 @@ use crate::math::{Point3, Real};
 use crate::model::mesh::TriangleMesh;
 use std::io::Write as _;
 use std::path::Path;
+use std::sync::Mutex;
 
 /// What every VAT sidecar holds near its start (its `software` field), by
 /// which a rerun knows it may replace the file.
@@ -214,11 +215,7 @@ pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Resul
     if sidecar == path || mesh_path == path {
         return Err(Error::write(path, "the texture would overwrite its JSON sidecar or its mesh; name it .exr"));
     }
-    // The texture holds every frame, so they are all read here, as the f32
-    // it stores (half the memory of the positions' f64, the same texels).
-    let frames: Vec<Vec<[f32; 3]>> =
-        mesh.frames.iter().map(|f| f.map(|f| f.iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect())).collect::<Result<_>>()?;
-    let layout = options.layout(frames[0].len(), frames.len())?;
+    let layout = options.layout(mesh.base.positions.len(), mesh.frames.len())?;
     let file_name = |p: &Path| p.file_name().unwrap_or_default().to_string_lossy().into_owned();
     let bounds = mesh.frames.bounds()?;
     let info = VatInfo {
@@ -248,18 +245,66 @@ pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Resul
     };
     let mut attrs = serde_json::Map::new();
     attrs.insert("vat".into(), serde_json::to_value(&info).map_err(|e| Error::write(&sidecar, e))?);
-    let pixel = |x: usize, y: usize| layout.vertex_at(x, y).map_or_else(Point3::origin, |(v, f)| frames[f][v].map(f64::from).into());
-    let texture = encode_points_exr(path, "vertex animation", layout.width, layout.height, pixel, attrs)?;
     let glb = mesh_bytes(mesh, &layout, options, &info.texture, &file_name(&sidecar))?;
     let text = serde_json::to_string_pretty(&info).map_err(|e| Error::write(&sidecar, e))?;
-    let bytes = [texture.len() as u64, glb.len() as u64, text.len() as u64];
+    // The texture is encoded into its file as the rows are asked for, frame
+    // after frame, each read once: no frame but the current one is held.
+    let current = Mutex::new(Frame { index: usize::MAX, positions: Vec::new(), failed: None });
+    let pixel = |x: usize, y: usize| match layout.vertex_at(x, y) {
+        Some((v, f)) => current.lock().unwrap_or_else(|e| e.into_inner()).position(mesh, f, v),
+        None => Point3::origin(),
+    };
+    let mut texture_bytes = 0;
+    let mut failed = None;
     // All or none: the texture cannot be decoded without the other two.
-    write_atomic_all(vec![
-        (path, Box::new(|w: &mut _| w.write_all(&texture))),
+    let written = write_atomic_all(vec![
+        (
+            path,
+            Box::new(|w: &mut _| {
+                let streamed = stream_points_exr(w, path, "vertex animation", layout.width, layout.height, pixel, attrs);
+                let error = current.lock().unwrap_or_else(|e| e.into_inner()).failed.take().map_or(streamed.map(|n| texture_bytes = n), Err);
+                error.map_err(|e| {
+                    let io = std::io::Error::other(e.to_string());
+                    failed = Some(e);
+                    io
+                })
+            }),
+        ),
         (&mesh_path, Box::new(|w: &mut _| w.write_all(&glb))),
         (&sidecar, Box::new(|w: &mut _| w.write_all(text.as_bytes()))),
-    ])?;
-    Ok(VatReport { layout, bytes })
+    ]);
+    // A frame that could not be read is that error, not a failure to write.
+    if let Some(e) = failed {
+        return Err(e);
+    }
+    written?;
+    Ok(VatReport { layout, bytes: [texture_bytes, glb.len() as u64, text.len() as u64] })
+}
+
+/// The frame whose texels are being written, read when its first is asked for.
+struct Frame {
+    index: usize,
+    positions: Vec<Point3>,
+    /// The first frame that could not be read; its texels are written as 0
+    /// and the file discarded.
+    failed: Option<Error>,
+}
+
+impl Frame {
+    /// Vertex `v`'s position in frame `f`.
+    fn position(&mut self, mesh: &DynamicMesh, f: usize, v: usize) -> Point3 {
+        if self.index != f {
+            match mesh.frames.get(f) {
+                Ok(frame) => self.positions = frame.into_owned(),
+                Err(e) => {
+                    self.failed.get_or_insert(e);
+                    self.positions.clear();
+                }
+            }
+            self.index = f;
+        }
+        self.positions.get(v).copied().unwrap_or_else(Point3::origin)
+    }
 }
 
 /// The static GLB beside the texture: frame 0 with its normals, UVs and
