@@ -262,8 +262,12 @@ pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Resul
             path,
             Box::new(|w: &mut _| {
                 let streamed = stream_points_exr(w, path, "vertex animation", layout.width, layout.height, pixel, attrs);
-                let error = current.lock().unwrap_or_else(|e| e.into_inner()).failed.take().map_or(streamed.map(|n| texture_bytes = n), Err);
-                error.map_err(|e| {
+                let unread = current.lock().unwrap_or_else(|e| e.into_inner()).failed.take();
+                let outcome = match unread {
+                    Some(e) => Err(e),
+                    None => streamed.map(|n| texture_bytes = n),
+                };
+                outcome.map_err(|e| {
                     let io = std::io::Error::other(e.to_string());
                     failed = Some(e);
                     io
