@@ -42,7 +42,7 @@ fn main() {
     let evaluation = clock.elapsed().as_secs_f64() / runs as f64;
     let mut current = traj.clone();
     let clock = Instant::now();
-    let history = optimise(&mut current, &seq.grid, &mut cells, &omega, params.beta_hat, params.lambda, params.max_iterations, params.max_halvings, params.memory, |_, _, _| true).expect("gradient in memory");
+    let history = optimise(&mut current, &seq.grid, &mut cells, &omega, &params, |_, _, _| true).expect("gradient in memory");
     let optimise_seconds = clock.elapsed().as_secs_f64();
     let accepted = history.len().saturating_sub(1);
     println!("{}: {} frames, {} centers, R = 256, threads {}", dir, seq.frames.len(), traj.centers, rayon::current_num_threads());

@@ -33,7 +33,7 @@ fn accepted_iterations_lower_the_energy_monotonically() {
     let scale = p.length_scale(&seq.bounds);
     let mut cells = SequenceCells::new(&seq);
     let omega = global_affinity(&traj, &seq, &mut cells, p.rho_gp * scale, p.rho_gm * scale, p.mu);
-    let history = optimise(&mut traj, &seq.grid, &mut cells, &omega, p.beta_hat, p.lambda, 10, p.max_halvings, p.memory, |_, _, _| true).unwrap();
+    let history = optimise(&mut traj, &seq.grid, &mut cells, &omega, &RefineParams { max_iterations: 10, ..p.clone() }, |_, _, _| true).unwrap();
     assert!(history.len() >= 2, "at least one step was accepted");
     for w in history.windows(2) {
         assert!(w[1].energy < w[0].energy, "energy rose: {} -> {}", w[0].energy, w[1].energy);
@@ -112,7 +112,7 @@ fn kept_and_fresh_assignments_and_gradients_in_a_file_give_the_same_optimisation
         let mut cells = SequenceCells::with_cache(&seq, kept);
         assert_eq!(cells.cached_frames(), kept.min(7));
         let omega = global_affinity(&traj, &seq, &mut cells, p.rho_gp * scale, p.rho_gm * scale, p.mu);
-        let history = optimise(&mut traj, &seq.grid, &mut cells, &omega, p.beta_hat, p.lambda, 8, p.max_halvings, memory, |_, _, _| true).unwrap();
+        let history = optimise(&mut traj, &seq.grid, &mut cells, &omega, &RefineParams { max_iterations: 8, memory, ..p.clone() }, |_, _, _| true).unwrap();
         let energies: Vec<u64> = history.iter().map(|h| h.energy.to_bits()).collect();
         (traj, omega, energies)
     };

@@ -3,6 +3,7 @@
 
 use super::affinity::SparseAffinity;
 use super::cells::{frame_blocks, SequenceCells};
+use crate::params::RefineParams;
 use crate::error::Result;
 use crate::math::{Point3, Real, Vector3};
 use crate::model::{FrameStore, GridSpec, Trajectories};
@@ -131,24 +132,23 @@ fn evaluate_moved(
     Ok(Evaluation { energy: smooth + beta_hat * data, smooth, data, gradient })
 }
 
-/// Gradient descent with λ halved until the energy drops; stops after
-/// `max_iterations`, when no halving helps, or when `on_iteration` (called
-/// with the iterations done, the trajectories and the history so far, to
-/// report or save them) returns false. Returns the energy before and after
-/// every accepted step. The gradients are kept as [`evaluate`] says
-/// (`memory`); errors are their temporary files'.
+/// Gradient descent with λ (`params.lambda`) halved until the energy drops
+/// (at most `params.max_halvings` times); stops after
+/// `params.max_iterations`, when no halving helps, or when `on_iteration`
+/// (called with the iterations done, the trajectories and the history so
+/// far, to report or save them) returns false. Returns the energy before
+/// and after every accepted step. The energy weighs the centroid term by
+/// `params.beta_hat`; the gradients are kept as [`evaluate`] says
+/// (`params.memory`); errors are their temporary files'.
 pub fn optimise(
     traj: &mut Trajectories,
     grid: &GridSpec,
     cells: &mut SequenceCells,
     omega: &SparseAffinity,
-    beta_hat: Real,
-    lambda0: Real,
-    max_iterations: usize,
-    max_halvings: usize,
-    memory: usize,
+    params: &RefineParams,
     mut on_iteration: impl FnMut(usize, &Trajectories, &[Iteration]) -> bool,
 ) -> Result<Vec<Iteration>> {
+    let RefineParams { beta_hat, lambda: lambda0, max_iterations, max_halvings, memory, .. } = *params;
     let mut current = evaluate(traj, grid, cells, omega, beta_hat, memory)?;
     let mut history = vec![Iteration { energy: current.energy, smooth: current.smooth, data: current.data, lambda: 0.0 }];
     for it in 0..max_iterations {

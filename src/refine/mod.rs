@@ -118,11 +118,7 @@ pub fn refine_with_checkpoints(traj: Trajectories, seq: &VoxelSequence, params: 
             &seq.grid,
             &mut cells,
             &omega,
-            params.beta_hat,
-            params.lambda,
-            params.max_iterations.saturating_sub(done_before),
-            params.max_halvings,
-            params.memory,
+            &RefineParams { max_iterations: params.max_iterations.saturating_sub(done_before), ..params.clone() },
             |it, now, history| {
                 progress.report(Stage::Refine, done + it, steps);
                 if progress.cancelled() {
