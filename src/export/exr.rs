@@ -20,50 +20,68 @@ use std::path::Path;
 /// Writes `traj` (width = centers, height = frames) with `metadata` (its
 /// version set to this tool's) in the header.
 pub fn write_trajectories_exr(path: &Path, traj: &Trajectories, metadata: &TrajectoryMetadata) -> Result<()> {
-    let pixel = |x: usize, y: usize| traj.get(y, x);
     let meta = match serde_json::to_value(metadata).map_err(|e| Error::write(path, e))? {
         serde_json::Value::Object(map) => map,
         _ => unreachable!("a struct serialises to an object"),
     };
-    let bytes = encode_points_exr(path, "trajectories", traj.centers, traj.frames, pixel, meta)?;
-    write_atomic(path, |w| w.write_all(&bytes))
-}
-
-/// The OpenEXR file of `width` × `height` points; `path` names it in errors.
-pub(super) fn encode_points_exr(
-    path: &Path,
-    name: &str,
-    width: usize,
-    height: usize,
-    pixel: impl Fn(usize, usize) -> Point3 + Sync,
-    meta: serde_json::Map<String, serde_json::Value>,
-) -> Result<Vec<u8>> {
+    let image = PointImage { path, name: "trajectories", width: traj.centers, height: traj.frames, pixel: |x: usize, y: usize| traj.get(y, x), meta };
     let mut bytes = std::io::Cursor::new(Vec::new());
-    write_points_exr(&mut bytes, path, name, width, height, pixel, meta)?;
-    Ok(bytes.into_inner())
+    image.encode(&mut bytes)?;
+    write_atomic(path, |w| w.write_all(bytes.get_ref()))
 }
 
-/// [`encode_points_exr`]'s file written into `w` as it is encoded: straight
-/// into a file that can seek (the format's offset tables are filled in after
-/// the blocks), through memory into one that cannot (a pipe). Returns its
-/// length in bytes.
-pub(super) fn stream_points_exr(
-    w: &mut std::io::BufWriter<std::fs::File>,
-    path: &Path,
-    name: &str,
-    width: usize,
-    height: usize,
-    pixel: impl Fn(usize, usize) -> Point3 + Sync,
-    meta: serde_json::Map<String, serde_json::Value>,
-) -> Result<u64> {
-    let Ok(start) = w.stream_position() else {
-        let bytes = encode_points_exr(path, name, width, height, pixel, meta)?;
-        w.write_all(&bytes).map_err(|e| Error::write(path, e))?;
-        return Ok(bytes.len() as u64);
-    };
-    let mut out = Extent { inner: w, position: start, end: start };
-    write_points_exr(&mut out, path, name, width, height, pixel, meta)?;
-    Ok(out.end - start)
+/// An OpenEXR file of `width` × `height` points, `pixel(x, y)` each, with
+/// `meta` as its metadata attribute; `path` names it in errors.
+pub(super) struct PointImage<'a, F> {
+    pub path: &'a Path,
+    pub name: &'a str,
+    pub width: usize,
+    pub height: usize,
+    pub pixel: F,
+    pub meta: serde_json::Map<String, serde_json::Value>,
+}
+
+impl<F: Fn(usize, usize) -> Point3 + Sync> PointImage<'_, F> {
+    /// The file written into `w` as it is encoded: straight into a file that
+    /// can seek (the format's offset tables are filled in after the blocks),
+    /// through memory into one that cannot (a pipe). Returns its length in
+    /// bytes.
+    pub(super) fn stream(self, w: &mut std::io::BufWriter<std::fs::File>) -> Result<u64> {
+        let Ok(start) = w.stream_position() else {
+            let (path, mut bytes) = (self.path, std::io::Cursor::new(Vec::new()));
+            self.encode(&mut bytes)?;
+            w.write_all(bytes.get_ref()).map_err(|e| Error::write(path, e))?;
+            return Ok(bytes.get_ref().len() as u64);
+        };
+        let mut out = Extent { inner: w, position: start, end: start };
+        self.encode(&mut out)?;
+        Ok(out.end - start)
+    }
+
+    fn encode(self, w: &mut (impl Write + Seek)) -> Result<()> {
+        let PointImage { path, name, width, height, pixel, mut meta } = self;
+        if width == 0 || height == 0 {
+            return Err(Error::InvalidInput(format!("nothing to write to {}: {width} × {height} points", path.display())));
+        }
+        if width >= i32::MAX as usize / 2 || height >= i32::MAX as usize / 2 {
+            return Err(Error::InvalidInput(format!("{width} × {height} is beyond what OpenEXR can store")));
+        }
+        // Metadata carried over from an older file (`voltrack refine` passes its
+        // input's on) never claims that file's version.
+        meta.insert("version".into(), env!("CARGO_PKG_VERSION").into());
+        let json = ascii_json(&serde_json::Value::Object(meta).to_string());
+        let mut layer_attributes = LayerAttributes::named(name);
+        layer_attributes.software_name = Some(Text::new_or_panic(concat!("voltrack ", env!("CARGO_PKG_VERSION"))));
+        layer_attributes.other.insert(Text::new_or_panic(METADATA_ATTRIBUTE), AttributeValue::Text(Text::new_or_panic(&json)));
+        let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
+            let q = pixel(p.x(), p.y());
+            (q.x as f32, q.y as f32, q.z as f32)
+        });
+        let layer = Layer::new((width, height), layer_attributes, Encoding::SMALL_LOSSLESS, channels);
+        // Sequential compression: block order, hence bytes, independent of
+        // threads; and the blocks are asked for in order, row after row.
+        Image::from_layer(layer).write().non_parallel().to_buffered(w).map_err(|e| Error::write(path, e))
+    }
 }
 
 /// A writer that knows how far what was written into it reaches, though
@@ -93,38 +111,6 @@ impl<W: Seek> Seek for Extent<'_, W> {
         self.position = self.inner.seek(to)?;
         Ok(self.position)
     }
-}
-
-fn write_points_exr(
-    w: &mut (impl Write + Seek),
-    path: &Path,
-    name: &str,
-    width: usize,
-    height: usize,
-    pixel: impl Fn(usize, usize) -> Point3 + Sync,
-    mut meta: serde_json::Map<String, serde_json::Value>,
-) -> Result<()> {
-    if width == 0 || height == 0 {
-        return Err(Error::InvalidInput(format!("nothing to write to {}: {width} × {height} points", path.display())));
-    }
-    if width >= i32::MAX as usize / 2 || height >= i32::MAX as usize / 2 {
-        return Err(Error::InvalidInput(format!("{width} × {height} is beyond what OpenEXR can store")));
-    }
-    // Metadata carried over from an older file (`voltrack refine` passes its
-    // input's on) never claims that file's version.
-    meta.insert("version".into(), env!("CARGO_PKG_VERSION").into());
-    let json = ascii_json(&serde_json::Value::Object(meta).to_string());
-    let mut layer_attributes = LayerAttributes::named(name);
-    layer_attributes.software_name = Some(Text::new_or_panic(concat!("voltrack ", env!("CARGO_PKG_VERSION"))));
-    layer_attributes.other.insert(Text::new_or_panic(METADATA_ATTRIBUTE), AttributeValue::Text(Text::new_or_panic(&json)));
-    let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
-        let q = pixel(p.x(), p.y());
-        (q.x as f32, q.y as f32, q.z as f32)
-    });
-    let layer = Layer::new((width, height), layer_attributes, Encoding::SMALL_LOSSLESS, channels);
-    // Sequential compression: block order, hence bytes, independent of
-    // threads; and the blocks are asked for in order, row after row.
-    Image::from_layer(layer).write().non_parallel().to_buffered(w).map_err(|e| Error::write(path, e))
 }
 
 /// JSON with every non-ASCII character escaped (`\uXXXX`, surrogate pairs

@@ -9,7 +9,7 @@
 //! mesh) and `anim.json` (the sidecar), written all or none.
 
 use super::basis::check_frames;
-use super::exr::stream_points_exr;
+use super::exr::PointImage;
 use super::gltf::{glb_bytes_with, GlbExtras, SceneInfo, Timing};
 use super::normals::FrameNormals;
 use crate::files::write_atomic_all;
@@ -261,7 +261,8 @@ pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Resul
         (
             path,
             Box::new(|w: &mut _| {
-                let streamed = stream_points_exr(w, path, "vertex animation", layout.width, layout.height, pixel, attrs);
+                let image = PointImage { path, name: "vertex animation", width: layout.width, height: layout.height, pixel, meta: attrs };
+                let streamed = image.stream(w);
                 let unread = current.lock().unwrap_or_else(|e| e.into_inner()).failed.take();
                 let outcome = match unread {
                     Some(e) => Err(e),
