@@ -237,7 +237,7 @@ pub fn choose(frames: &PositionFrames, choice: BasisChoice, tolerance: Real, pro
                 if let Some(rank) = pca.rank() {
                     limit = limit.min(rank);
                 }
-                let end = limit.min(pca.components.len());
+                let end = limit.min(pca.components.len()).min(AUTO_MAX_COMPONENTS);
                 // The largest error need not fall monotonically with k, so
                 // every k is measured (one pass, whatever the range).
                 let errors = pca.errors(frames, 0..=end, &mut passes)?;
@@ -724,8 +724,10 @@ mod tests {
         // Rank within the cap: exactly that many components. Beyond it, where
         // a larger sketch would find a basis still smaller than per-frame
         // targets (2 × 140 < 299), per-frame targets, so the sketch, and the
-        // memory it takes, stop growing with the sequence.
-        for (rank, components) in [(AUTO_MAX_COMPONENTS - 8, Some(AUTO_MAX_COMPONENTS - 8)), (AUTO_MAX_COMPONENTS + 12, None)] {
+        // memory it takes, stop growing with the sequence; also just beyond,
+        // which the cap's oversampled columns would catch.
+        let cap = AUTO_MAX_COMPONENTS;
+        for (rank, components) in [(cap - 8, Some(cap - 8)), (cap, Some(cap)), (cap + 5, None), (cap + 12, None)] {
             let frames = random_motion(rank);
             let (basis, error) = choose(&frames, BasisChoice::Auto, 1e-6, Progress::none()).unwrap();
             assert_eq!(basis.components, components, "rank {rank}");
