@@ -9,6 +9,9 @@
 //! frame counts, `VOLTRACK_BENCH_IN_FILE=1` keeps the frames in a temporary
 //! file (as a long sequence's are).
 
+#[path = "common/peak.rs"]
+mod peak;
+
 use std::time::Instant;
 use voltrack::export::basis::{choose, BasisChoice};
 use voltrack::fixtures;
@@ -80,25 +83,5 @@ fn main() {
         let auto_s = clock.elapsed().as_secs_f64();
         let added = before.zip(peak::high_water()).map_or("n/a".into(), |(a, b)| format!("{:.1}", (b - a) / 1e3));
         println!("| {f} | {auto_s:.2} | {} | {added} |", auto.components.map_or("per frame".into(), |k| k.to_string()));
-    }
-}
-
-/// The process's peak resident memory, from Linux' /proc (kB).
-mod peak {
-    fn field(name: &str) -> Option<f64> {
-        let status = std::fs::read_to_string("/proc/self/status").ok()?;
-        let line = status.lines().find(|l| l.starts_with(name))?;
-        line[name.len()..].trim().trim_end_matches("kB").trim().parse().ok()
-    }
-
-    /// Resets the peak to the memory resident now, and returns that.
-    pub fn reset() -> Option<f64> {
-        std::fs::write("/proc/self/clear_refs", "5").ok()?;
-        field("VmRSS:")
-    }
-
-    /// The peak since the last reset.
-    pub fn high_water() -> Option<f64> {
-        field("VmHWM:")
     }
 }

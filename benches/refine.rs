@@ -11,10 +11,11 @@ use voltrack::params::{RefineParams, TrackParams};
 use voltrack::refine::{evaluate, global_affinity, optimise, SequenceCells};
 use voltrack::voxel::{voxelize_sequence, VoxelParams};
 
+#[path = "common/peak.rs"]
+mod peak;
+
 fn peak_rss_mib() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    Some(line.split_whitespace().nth(1)?.parse::<f64>().ok()? / 1024.0)
+    peak::high_water().map(|kb| kb / 1024.0)
 }
 
 fn main() {
