@@ -49,7 +49,8 @@ impl Trajectories {
 
     /// Removes the given centers (indices into this set), keeping the others'
     /// order, in place: a long sequence's trajectories are not copied.
-    pub fn remove_centers(&mut self, removed: &[usize]) {
+    /// Returns the kept centers' former indices, in their new order.
+    pub fn remove_centers(&mut self, removed: &[usize]) -> Vec<usize> {
         let keep: Vec<usize> = (0..self.centers).filter(|i| !removed.contains(i)).collect();
         let (n, m) = (self.centers, keep.len());
         // Each kept position moves to an index at most its own: forward
@@ -61,5 +62,31 @@ impl Trajectories {
         }
         self.positions.truncate(self.frames * m);
         self.centers = m;
+        keep
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Real;
+
+    #[test]
+    fn removing_centers_keeps_the_others_in_order_and_names_them() {
+        let (frames, centers) = (3, 6);
+        let mut t = Trajectories::new(frames, centers);
+        for f in 0..frames {
+            for (i, p) in t.frame_mut(f).iter_mut().enumerate() {
+                *p = Point3::new(f as Real, i as Real, (10 * f + i) as Real);
+            }
+        }
+        let kept = t.remove_centers(&[4, 0, 2]);
+        assert_eq!(kept, vec![1, 3, 5]);
+        assert_eq!(t.centers, 3);
+        for f in 0..frames {
+            for (k, &i) in kept.iter().enumerate() {
+                assert_eq!(t.get(f, k), Point3::new(f as Real, i as Real, (10 * f + i) as Real));
+            }
+        }
     }
 }

@@ -89,8 +89,7 @@ pub fn refine_with_checkpoints(traj: Trajectories, seq: &VoxelSequence, params: 
                 let irregularity = irregular::irregularity(&current);
                 let worst = most_irregular(&irregularity, n_rem);
                 removed.extend(worst.iter().map(|&i| kept[i]));
-                current.remove_centers(&worst);
-                kept = (0..kept.len()).filter(|i| !worst.contains(i)).map(|i| kept[i]).collect();
+                kept = current.remove_centers(&worst).into_iter().map(|i| kept[i]).collect();
                 if !params.optimise {
                     save(saving, Snapshot { batches_done: b + 1, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: None, seconds: seconds(&start) })?;
                     continue;
