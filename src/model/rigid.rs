@@ -33,8 +33,9 @@ impl Rigid {
 }
 
 /// argmin over rigid (R, t) of Σ w_j ||dst_j - (R src_j + t)||², over the
-/// weighted index list `pairs` (closed form by SVD of the weighted
-/// cross-covariance; a reflection is turned into the nearest rotation).
+/// weighted index list `pairs` (closed form from the weighted
+/// cross-covariance, see [`rotation_from_covariance`]; the best proper
+/// rotation, never a reflection).
 ///
 /// With too few or collinear points the rotation is under-determined; a small
 /// pull towards the identity then picks the smallest rotation.
