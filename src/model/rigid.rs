@@ -1,7 +1,7 @@
 //! Weighted Kabsch: the rigid motion that best carries one set of weighted
 //! points onto another (method.md §4).
 
-use crate::math::{Matrix3, Point3, Real, Vector3};
+use crate::math::{Matrix3, Point3, Real, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
 /// x -> rotation · x + translation.
@@ -105,8 +105,9 @@ fn quaternion_rotation(h: &Matrix3) -> Option<Matrix3> {
     // N is traceless: its characteristic polynomial is
     // λ⁴ + c2 λ² + c1 λ + c0 with c2 = -2 |H|², c1 = -8 det H, c0 = det N.
     let (c2, c1, c0) = (-2.0 * frobenius2, -8.0 * h.determinant(), det4(&n));
-    // The eigenvalues are ±σ1 ± σ2 ± σ3 (an even number of minus signs),
-    // so all lie below √3 |H|: from there Newton's steps fall monotonically
+    // The eigenvalues are ±σ1 ± σ2 ± σ3 (H's singular values, the smallest
+    // signed as det H; an even number of minus signs), so none exceeds
+    // σ1 + σ2 + σ3 <= √3 |H|: from there Newton's steps fall monotonically
     // onto the largest, the polynomial being increasing and convex above it.
     let mut lambda = (3.0 * frobenius2).sqrt();
     for _ in 0..60 {
@@ -126,20 +127,21 @@ fn quaternion_rotation(h: &Matrix3) -> Option<Matrix3> {
     for (i, row) in a.iter_mut().enumerate() {
         row[i] -= lambda;
     }
-    // Every column of adj(N - λI) is a multiple of the eigenvector when λ is
-    // simple; the longest is the best conditioned. Its length is the product
-    // of λ's gaps to the other eigenvalues, so a short one means a near-double λ.
-    let column = |j: usize| -> [Real; 4] { std::array::from_fn(|i| cofactor(&a, j, i)) };
-    let (best, length2) = (0..4).map(|j| {
-        let c = column(j);
-        (c, c.iter().map(|x| x * x).sum::<Real>())
-    }).fold(([0.0; 4], -1.0), |b, c| if c.1 > b.1 { c } else { b });
+    // adj(N - λI) = Π (λ_k - λ) q qᵀ for a simple λ: column j is q_j times
+    // the product of λ's gaps to the other eigenvalues, and the longest
+    // (|q_j| >= 1/2) is the best conditioned; a short one means a near-double λ.
+    let (best, length2) = (0..4)
+        .map(|j| {
+            let c: [Real; 4] = std::array::from_fn(|i| cofactor(&a, j, i));
+            (c, c.iter().map(|x| x * x).sum::<Real>())
+        })
+        .fold(([0.0; 4], -1.0), |b, c| if c.1 > b.1 { c } else { b });
     let scale3 = frobenius2 * frobenius2.sqrt();
     if !(length2.sqrt() > 1e-4 * scale3) {
         return None;
     }
     let q = nalgebra::Quaternion::new(best[0], best[1], best[2], best[3]);
-    Some(*nalgebra::UnitQuaternion::from_quaternion(q).to_rotation_matrix().matrix())
+    Some(*UnitQuaternion::from_quaternion(q).to_rotation_matrix().matrix())
 }
 
 /// The determinant of the 3 × 3 matrix `a` without row `r` and column `c`,
@@ -153,6 +155,7 @@ fn cofactor(a: &[[Real; 4]; 4], r: usize, c: usize) -> Real {
     if (r + c) % 2 == 0 { det } else { -det }
 }
 
+/// The determinant of `a`, by its first row's cofactors.
 fn det4(a: &[[Real; 4]; 4]) -> Real {
     (0..4).map(|c| a[0][c] * cofactor(a, 0, c)).sum()
 }
