@@ -75,6 +75,9 @@ pub struct TrackArgs {
     /// Iteration limit per frame (range: 1..=100000)
     #[arg(long, default_value_t = TrackParams::default().max_iterations)]
     pub max_iterations: usize,
+    /// Also converged when no center moved W × --threshold over the last W iterations (the state of those with the shortest largest update is kept); 1 is the paper's per-iteration test alone (range: 1..=1000)
+    #[arg(long, value_name = "W", default_value_t = TrackParams::default().convergence_window)]
+    pub convergence_window: usize,
     /// Also track every frame from the previous velocity scaled by K; the runs from the guesses are compared region by region by their energy (range: 0 <= K < 1)
     #[arg(long, value_name = "K", default_value_t = TrackParams::default().damped_guess.expect("on by default"))]
     pub damped_guess: f64,
@@ -136,6 +139,7 @@ impl TrackArgs {
             presmooth_steps: self.presmooth,
             threshold: self.threshold,
             max_iterations: self.max_iterations,
+            convergence_window: self.convergence_window,
             damped_guess: (!self.single_guess).then_some(self.damped_guess),
             accelerated_guess: !self.single_guess && !self.no_accelerated_guess,
             guess_screening: self.guess_screening,

@@ -233,9 +233,16 @@ impl<'a> Tracker<'a> {
     /// Iterates `run` until no center's update is as long as the square
     /// root of `threshold2`, or the iteration limit. None when `progress`
     /// asks to stop.
+    ///
+    /// Toward the tracker's own threshold (not the guesses' screening), the
+    /// run also stops by [`TrackParams::convergence_window`]: once no center
+    /// has moved `window` × the threshold over the last `window` iterations,
+    /// it takes the state among those whose largest update was the shortest.
     fn iterate(&self, run: &mut Run, prev: &[Point3], fits: &RigidFits, threshold2: Real, progress: Progress) -> Option<()> {
         let limit = self.params.max_iterations;
         let (beta, omega) = (self.params.beta, self.params.tracking_over_relaxation);
+        let window = if threshold2 > self.threshold2 { 1 } else { self.params.convergence_window };
+        let mut recent = Recent::new(window);
         let Run { cur, cells, moved, index, timing: t, converged } = run;
         while !*converged && t.iterations < limit {
             if progress.cancelled() {
@@ -254,6 +261,7 @@ impl<'a> Tracker<'a> {
             moved.clear();
             // The residual G(c) − c of the paper's update G(c) = (p + β x̄) / (1 + β)
             // decides convergence whatever the step taken along it.
+            recent.push(cur);
             let mut residual_most: Real = 0.0;
             for (i, c) in cur.iter_mut().enumerate() {
                 let p = motions[i].apply(&prev[i]);
@@ -268,7 +276,12 @@ impl<'a> Tracker<'a> {
                 let over = moved.iter().filter(|&&m| m * m >= threshold2).count();
                 log::debug!("iteration {}: {over} centers move more than the threshold, largest residual {residual_most:.2e}", t.iterations);
             }
+            recent.set_largest_update(residual_most);
             *converged = residual_most * residual_most < threshold2;
+            if !*converged && recent.settled(cur, threshold2) {
+                recent.take_steadiest(cur, moved);
+                *converged = true;
+            }
         }
         Some(())
     }
@@ -378,6 +391,63 @@ impl<'a> Tracker<'a> {
     }
 }
 
+/// The last iterations' states of a run, for the windowed convergence test
+/// ([`TrackParams::convergence_window`]).
+struct Recent {
+    window: usize,
+    /// The positions each of the last `window` iterations started from,
+    /// oldest first, with the largest update found there.
+    states: std::collections::VecDeque<(Vec<Point3>, Real)>,
+    /// Iterations so far in this phase.
+    iterations: usize,
+}
+
+impl Recent {
+    fn new(window: usize) -> Self {
+        Recent { window, states: std::collections::VecDeque::with_capacity(window), iterations: 0 }
+    }
+
+    /// Records the positions an iteration starts from.
+    fn push(&mut self, start: &[Point3]) {
+        self.iterations += 1;
+        if self.window <= 1 {
+            return;
+        }
+        let slot = if self.states.len() == self.window { self.states.pop_front().map(|(mut v, _)| { v.copy_from_slice(start); v }) } else { None };
+        self.states.push_back((slot.unwrap_or_else(|| start.to_vec()), Real::INFINITY));
+    }
+
+    /// The largest update found from the positions pushed last.
+    fn set_largest_update(&mut self, largest: Real) {
+        if let Some(last) = self.states.back_mut() {
+            last.1 = largest;
+        }
+    }
+
+    /// Whether, `window` iterations or more into the phase, no center of
+    /// `cur` is `window` × the threshold from where it was `window`
+    /// iterations ago.
+    fn settled(&self, cur: &[Point3], threshold2: Real) -> bool {
+        if self.window <= 1 || self.iterations <= self.window {
+            return false;
+        }
+        let reach2 = threshold2 * (self.window * self.window) as Real;
+        cur.iter().zip(&self.states[0].0).all(|(a, b)| (a - b).norm_squared() < reach2)
+    }
+
+    /// Moves `cur` to the recorded state with the shortest largest update
+    /// (the first of equal ones) and sets `moved` to each center's distance
+    /// from the positions of the last iteration's start, where the cells
+    /// were last assigned.
+    fn take_steadiest(&self, cur: &mut [Point3], moved: &mut Vec<Real>) {
+        let k = (0..self.states.len()).min_by(|&a, &b| self.states[a].1.total_cmp(&self.states[b].1)).expect("settled after a full window");
+        let (chosen, last) = (&self.states[k].0, &self.states[self.states.len() - 1].0);
+        moved.clear();
+        moved.extend(chosen.iter().zip(last).map(|(a, b)| (a - b).norm()));
+        cur.copy_from_slice(chosen);
+    }
+}
+
 /// E = Es + β Eu = ½ Σ ‖c_i − p_i‖² + β ½ Σ ‖c_i − x̄_i‖² (method.md §3);
 /// an empty cell adds nothing to Eu.
 fn energy(centers: &[Point3], predictions: &[Point3], stats: &CellStats, grid: &GridSpec, beta: Real) -> Real {
@@ -407,4 +477,53 @@ pub fn predict(motions: &[Rigid], prev: &[Point3]) -> Vec<Point3> {
 /// Every cell's moments (None for empty cells).
 pub(crate) fn cell_moments(stats: &CellStats, grid: &GridSpec) -> Vec<Option<CellMoments>> {
     (0..stats.count.len()).map(|i| stats.moments(i, grid)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn at(x: Real) -> Vec<Point3> {
+        vec![Point3::new(x, 0.0, 0.0), Point3::new(0.0, x, 0.0)]
+    }
+
+    /// Settled only once a full window lies behind, only when no center
+    /// drifted W × threshold over it; the state kept is the one whose
+    /// largest update was the shortest, with the moves from the last start.
+    #[test]
+    fn the_window_stops_jitter_not_drift_and_keeps_the_steadiest_state() {
+        let threshold2 = 1.0;
+        // Jitter: back and forth by 2 thresholds, updates 2, 0.5, 2, ...
+        let mut recent = Recent::new(3);
+        let mut cur = at(0.0);
+        for k in 0..4 {
+            recent.push(&cur);
+            recent.set_largest_update(if k % 2 == 0 { 2.0 } else { 0.5 });
+            cur = at(if k % 2 == 0 { 2.0 } else { 0.0 });
+            assert_eq!(recent.settled(&cur, threshold2), k == 3, "iteration {}", k + 1);
+        }
+        let mut moved = Vec::new();
+        recent.take_steadiest(&mut cur, &mut moved);
+        // Starts of iterations 2, 3, 4: at 2 (update 0.5), 0 (2), 2 (0.5).
+        assert_eq!(cur, at(2.0));
+        assert_eq!(moved, vec![0.0, 0.0]);
+
+        // Drift: 1.2 thresholds per iteration passes the per-iteration test's
+        // bound nowhere, and moves 3.6 > 3 over the window.
+        let mut recent = Recent::new(3);
+        let mut cur = at(0.0);
+        for k in 0..10 {
+            recent.push(&cur);
+            recent.set_largest_update(1.2);
+            cur = at(1.2 * (k + 1) as Real);
+            assert!(!recent.settled(&cur, threshold2), "iteration {}", k + 1);
+        }
+
+        // Window 1 is the paper's test alone.
+        let mut recent = Recent::new(1);
+        for _ in 0..5 {
+            recent.push(&cur);
+            assert!(!recent.settled(&cur, threshold2));
+        }
+    }
 }
