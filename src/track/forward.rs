@@ -259,9 +259,9 @@ impl<'a> Tracker<'a> {
             let motions = fits.fit(cur);
             t.fit += clock.elapsed().as_secs_f64();
             moved.clear();
+            recent.push(cur);
             // The residual G(c) − c of the paper's update G(c) = (p + β x̄) / (1 + β)
             // decides convergence whatever the step taken along it.
-            recent.push(cur);
             let mut residual_most: Real = 0.0;
             for (i, c) in cur.iter_mut().enumerate() {
                 let p = motions[i].apply(&prev[i]);
