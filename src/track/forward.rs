@@ -508,8 +508,8 @@ mod tests {
         assert_eq!(cur, at(2.0));
         assert_eq!(moved, vec![0.0, 0.0]);
 
-        // Drift: 1.2 thresholds per iteration passes the per-iteration test's
-        // bound nowhere, and moves 3.6 > 3 over the window.
+        // Drift: 1.2 thresholds per iteration never passes the per-iteration
+        // test, and moves 3.6 > 3 thresholds over the window.
         let mut recent = Recent::new(3);
         let mut cur = at(0.0);
         for k in 0..10 {
