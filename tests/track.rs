@@ -190,6 +190,65 @@ fn assignment_matches_linear_scan(n: usize) {
     }
 }
 
+/// Blocks of 2³ and 3³ voxels (`Assignment::blocks`), grouped here
+/// independently in the order the library documents (by block, z slowest):
+/// each block's owner is the center a linear scan finds nearest its voxels'
+/// centroid, from no hints and from every voxel's hint, while the centers
+/// move; the cells' counts and sums are exactly those of the voxels of their
+/// blocks; and edge 1 is the voxels themselves.
+#[test]
+fn block_assignment_equals_a_linear_scan_over_block_centroids() {
+    let grid = GridSpec { origin: Point3::new(-1.0, -2.0, 0.5), voxel_size: 0.1, dims: [30, 25, 20] };
+    let mut g = Lcg(5);
+    let voxels: Vec<u32> = (0..grid.len() as u32).filter(|_| g.next() < 0.4).collect();
+    for edge in [1usize, 2, 3] {
+        let mut groups: std::collections::BTreeMap<[usize; 3], Vec<u32>> = Default::default();
+        for &v in &voxels {
+            let c = grid.voxel_coords(v as usize).map(|c| c / edge);
+            groups.entry([c[2], c[1], c[0]]).or_default().push(v);
+        }
+        let groups: Vec<Vec<u32>> = groups.into_values().collect();
+        let centroid = |vs: &[u32]| vs.iter().map(|&v| grid.voxel_center(v as usize).coords).sum::<Vector3>() / vs.len() as Real;
+        let mut centers: Vec<Point3> = (0..150).map(|_| grid.voxel_center((g.next() * grid.len() as Real) as usize) + g.vec(0.05)).collect();
+        let hints: Vec<u32> = (0..voxels.len()).map(|k| if k % 3 == 0 { NO_OWNER } else { (k % 150) as u32 }).collect();
+        for mut cells in [Assignment::blocks(&grid, &voxels, &vec![NO_OWNER; voxels.len()], edge), Assignment::blocks(&grid, &voxels, &hints, edge)] {
+            let mut index = CenterIndex::new(&centers);
+            let mut moved = Vec::new();
+            for step in 0..10 {
+                if step > 0 {
+                    index = index.moved_to(&centers, &moved);
+                }
+                let stats = cells.update(&index, &moved, false);
+                assert_eq!(cells.owners.len(), groups.len(), "edge {edge}");
+                let mut counts = vec![0u32; centers.len()];
+                let mut sums = vec![[0i64; 3]; centers.len()];
+                for (b, vs) in groups.iter().enumerate() {
+                    let owner = cells.owners[b];
+                    // Centroids are computed in another order here: compare
+                    // distances, so that a near-tie may go either way.
+                    let x = Point3::from(centroid(vs));
+                    let (best, _) = linear_scan(&centers, &x);
+                    let (d_owner, d_best) = ((centers[owner as usize] - x).norm(), (centers[best as usize] - x).norm());
+                    assert!(d_owner <= d_best + 1e-12, "edge {edge}, step {step}, block {b}: center {owner} at {d_owner}, {best} at {d_best}");
+                    for &v in vs {
+                        counts[owner as usize] += 1;
+                        let c = grid.voxel_coords(v as usize);
+                        (0..3).for_each(|d| sums[owner as usize][d] += c[d] as i64);
+                    }
+                }
+                assert_eq!(stats.count, counts, "edge {edge}, step {step}");
+                assert_eq!(stats.sum, sums, "edge {edge}, step {step}");
+                moved.clear();
+                for c in centers.iter_mut() {
+                    let step = if g.next() < 0.05 { g.vec(1.0) } else { g.vec(0.02) };
+                    *c += step;
+                    moved.push(step.norm());
+                }
+            }
+        }
+    }
+}
+
 /// The nearest center to `p` by a linear scan written here, independent of
 /// the library: the lowest index among the centers at the least squared
 /// distance (summed as the library sums it, so that equal means equal), and
@@ -302,8 +361,9 @@ fn centers_follow_a_rigid_motion() {
     ]);
     let motions = screw(8);
     let seq = rigid_sequence(&mesh, &motions, 96);
-    for kind in [AffinityKind::Max, AffinityKind::Iir] {
-        let params = TrackParams { centers: 60, affinity: kind, ..Default::default() };
+    // Both affinities, and the guesses screened on blocks of 2³ voxels.
+    for (kind, screening_block) in [(AffinityKind::Max, 1), (AffinityKind::Iir, 1), (AffinityKind::Max, 2)] {
+        let params = TrackParams { centers: 60, affinity: kind, screening_block, ..Default::default() };
         let res = track(&seq, &params, Default::default()).unwrap();
         let traj = &res.trajectories;
         for f in 0..traj.frames {
@@ -316,7 +376,7 @@ fn centers_follow_a_rigid_motion() {
             // tracking only ties each frame to the previous one: centers settle
             // within about a voxel of the ideal and wander slowly from there.
             // (Untracked, they would be 10 voxels off by frame 7.)
-            assert!(mean < 1.0 && p95 < 3.0 && max < 5.0, "{kind:?} frame {f}: deviation mean {mean:.2}, p95 {p95:.2}, max {max:.2} voxels");
+            assert!(mean < 1.0 && p95 < 3.0 && max < 5.0, "{kind:?}, screening block {screening_block}, frame {f}: deviation mean {mean:.2}, p95 {p95:.2}, max {max:.2} voxels");
         }
     }
 }

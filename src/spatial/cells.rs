@@ -433,15 +433,21 @@ pub struct CellMoments {
 }
 
 impl CellStats {
+    /// Adds (`sign` 1) or takes away (`sign` -1) the voxels of `block` in
+    /// cell `cell` (their count and coordinate sums only).
+    fn tally_block(&mut self, cell: usize, block: &Block, sign: i64) {
+        self.count[cell] = (self.count[cell] as i64 + sign * block.count as i64) as u32;
+        let s = &mut self.sum[cell];
+        for (s, b) in s.iter_mut().zip(block.sum) {
+            *s += sign * b;
+        }
+    }
+
     /// Adds (`sign` 1) or takes away (`sign` -1) the voxel at grid
     /// coordinates `c` in cell `cell`.
     fn tally(&mut self, cell: usize, c: [u16; 3], sign: i64) {
         let [x, y, z] = c.map(|c| c as i64);
-        self.count[cell] = (self.count[cell] as i64 + sign) as u32;
-        let s = &mut self.sum[cell];
-        s[0] += sign * x;
-        s[1] += sign * y;
-        s[2] += sign * z;
+        self.tally_block(cell, &Block { count: 1, sum: [x, y, z] }, sign);
         if let Some(second) = &mut self.second {
             let q = &mut second[cell];
             q[0] += sign * x * x;
@@ -479,6 +485,23 @@ impl CellStats {
     }
 }
 
+/// A block of a frame's voxels assigned as one: how many, and the sum of
+/// their grid coordinates, so that a cell's centroid is exactly that of the
+/// voxels of its blocks.
+#[derive(Clone, Copy, Debug)]
+struct Block {
+    count: u32,
+    sum: [i64; 3],
+}
+
+/// A frame's voxels grouped into cubic blocks, each assigned by its voxels'
+/// centroid (see [`Assignment::blocks`]).
+struct Blocks {
+    blocks: Vec<Block>,
+    /// Each block's centroid, in world units.
+    positions: Vec<[Real; 3]>,
+}
+
 /// One frame's voxels with their owners and Hamerly bounds, updated as the
 /// centers move.
 ///
@@ -487,7 +510,10 @@ impl CellStats {
 pub struct Assignment {
     origin: [Real; 3],
     voxel_size: Real,
+    /// Grid coordinates of each voxel; empty when the elements are `blocks`.
     coords: Vec<[u16; 3]>,
+    /// Elements that each stand for a block of voxels, when assigned as such.
+    blocks: Option<Blocks>,
     pub owners: Vec<u32>,
     upper: Vec<f32>,
     lower: Vec<f32>,
@@ -510,10 +536,59 @@ impl Assignment {
             origin: grid.origin.coords.into(),
             voxel_size: grid.voxel_size,
             coords,
+            blocks: None,
             owners: hints,
             upper: vec![f32::INFINITY; n],
             lower: vec![f32::NEG_INFINITY; n],
             eps: grid.voxel_size * 1e-9,
+            sums: None,
+        }
+    }
+
+    /// The voxels grouped into blocks of `edge`³ grid cells, each assigned
+    /// as a whole by its voxels' centroid: about `edge`³ times fewer
+    /// elements, and cells whose counts and centroids are exactly those of
+    /// their blocks' voxels. `hints`: one center index (or NO_OWNER) per
+    /// voxel; a block takes the first hint among its voxels. No moments
+    /// ([`Assignment::update`] with `with_moments` panics).
+    pub fn blocks(grid: &GridSpec, voxels: &[u32], hints: &[u32], edge: usize) -> Self {
+        assert_eq!(voxels.len(), hints.len());
+        assert!(edge >= 1);
+        let block_dims = grid.dims.map(|d| d.div_ceil(edge));
+        let key = |v: u32| {
+            let c = grid.voxel_coords(v as usize).map(|c| c / edge);
+            (c[2] * block_dims[1] + c[1]) * block_dims[0] + c[0]
+        };
+        // Sorted by block, then by voxel: the blocks come in grid order, as
+        // voxels do, which the scan's neighbour hint relies on.
+        let mut order: Vec<(usize, u32, u32)> = voxels.iter().zip(hints).map(|(&v, &h)| (key(v), v, h)).collect();
+        order.sort_unstable();
+        let (mut blocks, mut positions, mut owners) = (Vec::new(), Vec::new(), Vec::new());
+        let a = grid.voxel_size;
+        for group in order.chunk_by(|x, y| x.0 == y.0) {
+            let mut block = Block { count: 0, sum: [0; 3] };
+            for &(_, v, _) in group {
+                let c = grid.voxel_coords(v as usize);
+                block.count += 1;
+                for d in 0..3 {
+                    block.sum[d] += c[d] as i64;
+                }
+            }
+            let n = block.count as Real;
+            positions.push([0, 1, 2].map(|d| grid.origin[d] + (block.sum[d] as Real / n + 0.5) * a));
+            blocks.push(block);
+            owners.push(group.iter().map(|g| g.2).find(|&h| h != NO_OWNER).unwrap_or(NO_OWNER));
+        }
+        let n = blocks.len();
+        Assignment {
+            origin: grid.origin.coords.into(),
+            voxel_size: a,
+            coords: Vec::new(),
+            blocks: Some(Blocks { blocks, positions }),
+            owners,
+            upper: vec![f32::INFINITY; n],
+            lower: vec![f32::NEG_INFINITY; n],
+            eps: a * 1e-9,
             sums: None,
         }
     }
@@ -527,7 +602,9 @@ impl Assignment {
     /// the owner (a minority once the centers settle), then those are
     /// measured.
     pub fn update(&mut self, index: &CenterIndex, moved: &[Real], with_moments: bool) -> CellStats {
+        assert!(!(with_moments && self.blocks.is_some()), "blocks keep no second moments");
         let loosening = index.loosening(moved);
+        let (block_positions, coords) = (self.blocks.as_ref().map(|b| &b.positions[..]), &self.coords);
         let loosening32: Vec<Loosening32> = loosening.iter().map(Loosening32::from).collect();
         let (eps, origin, a) = (self.eps, self.origin, self.voxel_size);
         // (voxel, old owner) for every voxel whose owner changed.
@@ -536,13 +613,12 @@ impl Assignment {
             .par_chunks_mut(CHUNK)
             .zip(self.upper.par_chunks_mut(CHUNK))
             .zip(self.lower.par_chunks_mut(CHUNK))
-            .zip(self.coords.par_chunks(CHUNK))
             .enumerate()
             // Voxels to measure, with their lower bound before the first
             // pass: a buffer per rayon job rather than a zeroed one per chunk.
             .map_init(
                 || vec![(0u32, 0f32); CHUNK],
-                |pending, (chunk, (((own, up), low), coords))| {
+                |pending, (chunk, ((own, up), low))| {
                     let mut n = 0;
                     for k in 0..own.len() {
                         let lo = low[k];
@@ -568,8 +644,14 @@ impl Assignment {
                     for &(k, lo) in &pending[..n] {
                         let k = k as usize;
                         let o = own[k];
-                        let c = coords[k];
-                        let pos = [0, 1, 2].map(|d| origin[d] + (c[d] as Real + 0.5) * a);
+                        let at = chunk * CHUNK + k;
+                        let pos = match block_positions {
+                            Some(p) => p[at],
+                            None => {
+                                let c = coords[at];
+                                [0, 1, 2].map(|d| origin[d] + (c[d] as Real + 0.5) * a)
+                            }
+                        };
                         if let Some(b) = loosening.get(o as usize) {
                             let u = index.dist2(o, &pos).sqrt();
                             let l = b.lowered(lo as Real, u);
@@ -582,7 +664,7 @@ impl Assignment {
                         let (owner, d, second) = index.nearest2(&pos, if o == NO_OWNER { last } else { o });
                         last = owner;
                         if owner != o {
-                            changed.push(((chunk * CHUNK + k) as u32, o));
+                            changed.push((at as u32, o));
                         }
                         own[k] = owner;
                         up[k] = (d as f32).next_up();
@@ -596,14 +678,25 @@ impl Assignment {
             Some(sums) if !with_moments && sums.count.len() == index.len() => {
                 // Every voxel had an owner when the sums were taken.
                 for &(k, old) in changes.iter().flatten() {
-                    let c = self.coords[k as usize];
-                    sums.tally(old as usize, c, -1);
-                    sums.tally(self.owners[k as usize] as usize, c, 1);
+                    let (k, new) = (k as usize, self.owners[k as usize] as usize);
+                    match &self.blocks {
+                        Some(b) => {
+                            sums.tally_block(old as usize, &b.blocks[k], -1);
+                            sums.tally_block(new, &b.blocks[k], 1);
+                        }
+                        None => {
+                            sums.tally(old as usize, self.coords[k], -1);
+                            sums.tally(new, self.coords[k], 1);
+                        }
+                    }
                 }
                 sums.clone()
             }
             _ => {
-                let stats = cell_stats(&self.coords, &self.owners, index.len(), with_moments);
+                let stats = match &self.blocks {
+                    Some(b) => block_stats(&b.blocks, &self.owners, index.len()),
+                    None => cell_stats(&self.coords, &self.owners, index.len(), with_moments),
+                };
                 self.sums = Some(CellStats { second: None, ..stats.clone() });
                 stats
             }
@@ -630,6 +723,15 @@ fn cell_stats(coords: &[[u16; 3]], owners: &[u32], n: usize, with_moments: bool)
     };
     for (&o, &c) in owners.iter().zip(coords) {
         stats.tally(o as usize, c, 1);
+    }
+    stats
+}
+
+/// [`cell_stats`] over blocks (counts and sums only).
+fn block_stats(blocks: &[Block], owners: &[u32], n: usize) -> CellStats {
+    let mut stats = CellStats { count: vec![0; n], sum: vec![[0; 3]; n], second: None };
+    for (&o, b) in owners.iter().zip(blocks) {
+        stats.tally_block(o as usize, b, 1);
     }
     stats
 }

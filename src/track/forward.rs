@@ -208,6 +208,8 @@ struct Run {
     index: CenterIndex,
     timing: FrameTiming,
     converged: bool,
+    /// Whether `cells` are blocks of voxels ([`TrackParams::screening_block`]).
+    blocks: bool,
 }
 
 impl<'a> Tracker<'a> {
@@ -217,33 +219,47 @@ impl<'a> Tracker<'a> {
     }
 
     /// `presmooth_steps` of presmoothing from the guess `cur`, and the cells
-    /// carried over from frame f-1.
-    fn start(&self, prev: &[Point3], mut cur: Vec<Point3>, fits: &RigidFits, voxels: &[u32], presmooth_steps: usize) -> Run {
+    /// carried over from frame f-1: of blocks of `block`³ voxels when
+    /// `block` > 1.
+    fn start(&self, prev: &[Point3], mut cur: Vec<Point3>, fits: &RigidFits, voxels: &[u32], presmooth_steps: usize, block: usize) -> Run {
         let mut timing = FrameTiming::default();
-        let cells = Assignment::new(self.grid, voxels, carry_owners(&self.prev_voxels, &self.owners, voxels));
+        let cells = self.cells(voxels, block);
         let clock = Instant::now();
         for _ in 0..presmooth_steps {
             cur = predict(&fits.fit(&cur), prev);
         }
         timing.fit += clock.elapsed().as_secs_f64();
         let index = CenterIndex::new(&cur);
-        Run { cur, cells, moved: Vec::new(), index, timing, converged: false }
+        Run { cur, cells, moved: Vec::new(), index, timing, converged: false, blocks: block > 1 }
+    }
+
+    /// The frame's cells, owners carried over from frame f-1, of blocks of
+    /// `block`³ voxels when `block` > 1.
+    fn cells(&self, voxels: &[u32], block: usize) -> Assignment {
+        let hints = carry_owners(&self.prev_voxels, &self.owners, voxels);
+        if block > 1 {
+            Assignment::blocks(self.grid, voxels, &hints, block)
+        } else {
+            Assignment::new(self.grid, voxels, hints)
+        }
     }
 
     /// Iterates `run` until no center's update is as long as the square
     /// root of `threshold2`, or the iteration limit. None when `progress`
     /// asks to stop.
     ///
-    /// Toward the tracker's own threshold (not the guesses' screening), the
-    /// run also stops by [`TrackParams::convergence_window`]: once no center
+    /// Toward the tracker's own threshold (not the guesses' screening, unless
+    /// on blocks), the run also stops by [`TrackParams::convergence_window`]: once no center
     /// has moved `window` × the threshold over the last `window` iterations,
     /// it takes the state among those whose largest update was the shortest.
     fn iterate(&self, run: &mut Run, prev: &[Point3], fits: &RigidFits, threshold2: Real, progress: Progress) -> Option<()> {
         let limit = self.params.max_iterations;
         let (beta, omega) = (self.params.beta, self.params.tracking_over_relaxation);
-        let window = if threshold2 > self.threshold2 { 1 } else { self.params.convergence_window };
+        // Blocks jitter more than voxels (one changing owner moves a
+        // centroid several times as far), so they need the window too.
+        let window = if threshold2 > self.threshold2 && !run.blocks { 1 } else { self.params.convergence_window };
         let mut recent = Recent::new(window);
-        let Run { cur, cells, moved, index, timing: t, converged } = run;
+        let Run { cur, cells, moved, index, timing: t, converged, .. } = run;
         while !*converged && t.iterations < limit {
             if progress.cancelled() {
                 return None;
@@ -344,18 +360,19 @@ impl<'a> Tracker<'a> {
         let fine = self.threshold2;
         if guesses.len() == 1 {
             let (guess, start) = guesses.into_iter().next().expect("one guess");
-            let mut run = self.start(prev, start, fits, voxels, presmooth);
+            let mut run = self.start(prev, start, fits, voxels, presmooth, 1);
             self.iterate(&mut run, prev, fits, fine, progress)?;
             let mut result = self.finish(run, prev, fits, voxels);
             result.timing.kept_guess = guess;
             return Some(result);
         }
         let coarse = fine * self.params.guess_screening.powi(2);
+        let block = self.params.screening_block;
         // Each run is parallel inside, but not evenly: running them at once fills the cores.
         let mut runs: Vec<(Guess, Run, Vec<Real>)> = guesses
             .into_par_iter()
             .map(|(guess, start)| {
-                let mut run = this.start(prev, start, fits, voxels, presmooth);
+                let mut run = this.start(prev, start, fits, voxels, presmooth, block);
                 this.iterate(&mut run, prev, fits, coarse, progress)?;
                 let energies = this.local_energies(&mut run, prev, fits);
                 Some((guess, run, energies))
@@ -371,14 +388,19 @@ impl<'a> Tracker<'a> {
         if choice.iter().any(|&r| r != choice[0]) {
             // Already through presmoothing: it would blur the seams' choice.
             let mixed = choice.iter().enumerate().map(|(i, &r)| runs[r].1.cur[i]).collect();
-            let mut run = this.start(prev, mixed, fits, voxels, 0);
+            let mut run = this.start(prev, mixed, fits, voxels, 0, block);
             this.iterate(&mut run, prev, fits, coarse, progress)?;
             let energies = this.local_energies(&mut run, prev, fits);
             runs.push((Guess::Mixed, run, energies));
         }
         let best = lowest(runs.iter().map(|r| r.2.iter().sum::<Real>()));
         let (guess, mut kept, _) = runs.remove(best);
-        if coarse > fine {
+        if kept.blocks {
+            // The index and `moved` stay those of the run's positions.
+            kept.cells = this.cells(voxels, 1);
+            kept.blocks = false;
+        }
+        if coarse > fine || block > 1 {
             kept.converged = false;
             self.iterate(&mut kept, prev, fits, fine, progress)?;
         }
