@@ -31,7 +31,7 @@ fn main() {
     let traj = tracked.trajectories.clone();
     let params = RefineParams::default();
     let scale = params.length_scale(&seq.bounds);
-    let mut cells = SequenceCells::new(&seq);
+    let mut cells = SequenceCells::new(&seq, usize::MAX);
     let clock = Instant::now();
     let omega = global_affinity(&traj, &seq, &mut cells, params.rho_gp * scale, params.rho_gm * scale, params.mu);
     let affinity_seconds = clock.elapsed().as_secs_f64();

@@ -257,6 +257,18 @@ pub struct RefineParams {
     /// any value.
     #[serde(skip, default = "refine_gradient_memory")]
     pub memory: usize,
+    /// Bytes of cell assignments the global optimisation keeps between its
+    /// evaluations ([`KEPT_CELL_BYTES_PER_VOXEL`] per occupied voxel of a
+    /// kept frame), for at most [`KEPT_CELL_FRAMES`] frames; the frames
+    /// past it are assigned afresh at each evaluation, which gives the same
+    /// cells much more slowly, so it is not recorded with the result. Why a
+    /// budget in bytes: a solid object at a high resolution has millions of
+    /// voxels a frame, and 64 frames of them would need tens of GiB. None
+    /// (default): half the memory available when the refinement
+    /// starts, or of `--max-memory` when given (1 GiB where unknown); any
+    /// value.
+    #[serde(skip)]
+    pub cell_memory: Option<usize>,
 }
 
 /// [`RefineParams::memory`]'s default: 16 MiB, some 700 frames of 1,000
@@ -283,6 +295,7 @@ impl Default for RefineParams {
             mu: 0.001,
             absolute_units: false,
             memory: REFINE_GRADIENT_MEMORY,
+            cell_memory: None,
         }
     }
 }
@@ -508,6 +521,14 @@ impl CoverageParams {
 /// assigned afresh at each step, so that memory does not grow with the
 /// sequence.
 pub const KEPT_CELL_FRAMES: usize = 64;
+
+/// Bytes a kept cell assignment takes per occupied voxel: owner, distance
+/// bounds and coordinates (18), with room for the update's working lists.
+pub const KEPT_CELL_BYTES_PER_VOXEL: usize = 24;
+
+/// The share of the memory allowed that [`RefineParams::cell_memory`] takes
+/// by default.
+pub const KEPT_CELL_SHARE: f64 = 0.5;
 
 /// Largest number of centers: far more than any capture needs, small enough
 /// that per-center tables stay addressable.

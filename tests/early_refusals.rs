@@ -161,7 +161,8 @@ fn a_resolution_that_cannot_fit_in_memory_is_refused_with_one_that_fits() {
     let meshes: Vec<_> = (0..8).map(voltrack::fixtures::bending_bar).collect();
     let refs: Vec<_> = meshes.iter().collect();
     let estimate = voltrack::voxel::MemoryEstimate::of(&refs, &grid, rayon::current_num_threads().max(2));
-    assert!(estimate.bytes <= 2.0 * (1u64 << 30) as f64, "{} bytes at resolution {fits}", estimate.bytes);
+    let limit = 2.0 * (1u64 << 30) as f64;
+    assert!(estimate.total(limit) <= limit, "{} bytes at resolution {fits}", estimate.total(limit));
     assert!(!dir.0.join("x.glb").exists());
 }
 
@@ -176,10 +177,10 @@ fn the_memory_estimate_is_not_below_what_a_run_holds() {
     let meshes: Vec<_> = (0..3).map(voltrack::fixtures::bending_bar).collect();
     let grid = voltrack::model::GridSpec::for_bounds(&bar_bounds(), 64).unwrap();
     let refs: Vec<_> = meshes.iter().collect();
-    let estimate = voltrack::voxel::MemoryEstimate::of(&refs, &grid, 1);
+    let estimate = voltrack::voxel::MemoryEstimate::of(&refs, &grid, 1).total(f64::INFINITY);
     let occupied: usize = meshes.iter().map(|m| voltrack::voxel::voxelize(m, &grid).len()).sum();
-    assert!(estimate.bytes >= 16.0 * occupied as f64, "estimate {} for {occupied} voxels", estimate.bytes);
-    assert!(estimate.bytes <= 64.0 * occupied as f64 + 1e6, "estimate {} for {occupied} voxels", estimate.bytes);
+    assert!(estimate >= 16.0 * occupied as f64, "estimate {estimate} for {occupied} voxels");
+    assert!(estimate <= 64.0 * occupied as f64 + 1e6, "estimate {estimate} for {occupied} voxels");
 }
 
 #[cfg(unix)]

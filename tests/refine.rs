@@ -31,7 +31,7 @@ fn accepted_iterations_lower_the_energy_monotonically() {
     let mut traj = tracked.trajectories.clone();
     let p = RefineParams::default();
     let scale = p.length_scale(&seq.bounds);
-    let mut cells = SequenceCells::new(&seq);
+    let mut cells = SequenceCells::new(&seq, usize::MAX);
     let omega = global_affinity(&traj, &seq, &mut cells, p.rho_gp * scale, p.rho_gm * scale, p.mu);
     let history = optimise(&mut traj, &seq.grid, &mut cells, &omega, &RefineParams { max_iterations: 10, ..p.clone() }, |_, _, _| true).unwrap();
     assert!(history.len() >= 2, "at least one step was accepted");
@@ -93,6 +93,20 @@ fn removal_spreads_over_batches() {
         for f in 0..refined.frames {
             assert_eq!(refined.get(f, k), tracked.trajectories.get(f, orig));
         }
+    }
+}
+
+/// The kept assignments fill the byte budget from the first frame on, at
+/// most [`KEPT_CELL_FRAMES`] frames: none under one frame's bytes, as many
+/// frames as fit, every frame of a short sequence for an unbounded budget.
+#[test]
+fn kept_assignments_fill_the_byte_budget() {
+    use voltrack::params::{KEPT_CELL_BYTES_PER_VOXEL, KEPT_CELL_FRAMES};
+    let seq = two_bodies(7, 40);
+    let bytes: Vec<usize> = seq.frames.iter().map(|f| f.len() * KEPT_CELL_BYTES_PER_VOXEL).collect();
+    let first_three: usize = bytes[..3].iter().sum();
+    for (budget, kept) in [(0, 0), (bytes[0] - 1, 0), (bytes[0], 1), (first_three, 3), (first_three + bytes[3] - 1, 3), (usize::MAX, 7.min(KEPT_CELL_FRAMES))] {
+        assert_eq!(SequenceCells::new(&seq, budget).cached_frames(), kept, "budget {budget} bytes (frames of {bytes:?} bytes)");
     }
 }
 

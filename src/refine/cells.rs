@@ -4,14 +4,15 @@
 //! A frame's assignment (owner and distance bounds of each voxel) lets the
 //! next update re-examine only the voxels whose owner may have changed; it
 //! costs about 18 bytes per occupied voxel. So that memory does not grow with
-//! the sequence, only the first [`SequenceCells::cached_frames`] frames keep
-//! theirs; the others are assigned afresh at every update. Both give the same
-//! cells: the bounds only skip voxels whose nearest center cannot have
-//! changed.
+//! the sequence or the resolution, only the first
+//! [`SequenceCells::cached_frames`] frames keep theirs, as many as a budget in
+//! bytes holds and at most [`KEPT_CELL_FRAMES`]; the others are assigned
+//! afresh at every update. Both give the same cells: the bounds only skip
+//! voxels whose nearest center cannot have changed.
 
 use crate::math::{Point3, Real};
 use crate::model::Trajectories;
-use crate::params::KEPT_CELL_FRAMES;
+use crate::params::{KEPT_CELL_BYTES_PER_VOXEL, KEPT_CELL_FRAMES};
 use crate::spatial::cells::{Assignment, CellStats, CenterIndex, NO_OWNER};
 use crate::voxel::VoxelSequence;
 use rayon::prelude::*;
@@ -43,9 +44,19 @@ pub struct SequenceCells<'a> {
 }
 
 impl<'a> SequenceCells<'a> {
-    /// Keeps the assignments of the first [`KEPT_CELL_FRAMES`] frames.
-    pub fn new(seq: &'a VoxelSequence) -> Self {
-        Self::with_cache(seq, KEPT_CELL_FRAMES)
+    /// Keeps the assignments of the first frames, as many as `budget`
+    /// bytes hold ([`KEPT_CELL_BYTES_PER_VOXEL`] per occupied voxel) and at
+    /// most [`KEPT_CELL_FRAMES`].
+    pub fn new(seq: &'a VoxelSequence, budget: usize) -> Self {
+        let mut used = 0usize;
+        let kept = seq.frames[..seq.frames.len().min(KEPT_CELL_FRAMES)]
+            .iter()
+            .take_while(|f| {
+                used = used.saturating_add(f.len().saturating_mul(KEPT_CELL_BYTES_PER_VOXEL));
+                used <= budget
+            })
+            .count();
+        Self::with_cache(seq, kept)
     }
 
     /// For one pass over the frames: keeps no assignment, since none would

@@ -5,6 +5,7 @@
 use crate::model::GridSpec;
 use crate::error::{Error, Result};
 use crate::model::mesh::{Aabb, TriangleMesh};
+use crate::params::{KEPT_CELL_BYTES_PER_VOXEL, KEPT_CELL_FRAMES, KEPT_CELL_SHARE};
 
 /// Bytes held per occupied voxel of every frame through the run: its share
 /// of the frame's runs ([`crate::model::OccupancyRuns`], 2 to 10 bytes a run;
@@ -12,10 +13,6 @@ use crate::model::mesh::{Aabb, TriangleMesh};
 /// voxels, so this is generous for captures).
 const BYTES_PER_VOXEL: f64 = 2.0;
 
-/// Bytes per occupied voxel of a frame whose cell assignment the global
-/// optimisation keeps (owner, distance bounds and coordinates, 18), with
-/// room for the tracker's working copy.
-const BYTES_PER_KEPT_VOXEL: f64 = 24.0;
 
 /// What the memory estimate needs of a frame's mesh.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -28,8 +25,13 @@ pub struct FrameExtent {
 /// The estimate for one sequence on one grid.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MemoryEstimate {
-    /// Bytes the run needs on top of the frames already read.
+    /// Bytes the run needs on top of the frames already read, but for the
+    /// cell assignments the global optimisation keeps.
     pub bytes: f64,
+    /// Bytes the kept assignments take at most ([`KEPT_CELL_FRAMES`] of the
+    /// largest frames); they take no more than [`KEPT_CELL_SHARE`] of the
+    /// memory allowed ([`crate::params::RefineParams::cell_memory`]).
+    pub kept_cells: f64,
 }
 
 impl MemoryEstimate {
@@ -57,22 +59,32 @@ impl MemoryEstimate {
         }
         // The frames with the most voxels stand for those whose assignments are kept.
         voxels.sort_by(|a, b| b.total_cmp(a));
-        held += voxels.iter().take(crate::params::KEPT_CELL_FRAMES).sum::<f64>() * BYTES_PER_KEPT_VOXEL;
-        MemoryEstimate { bytes: held + largest_box * threads.max(1) as f64 }
+        let kept_cells = voxels.iter().take(KEPT_CELL_FRAMES).sum::<f64>() * KEPT_CELL_BYTES_PER_VOXEL as f64;
+        MemoryEstimate { bytes: held + largest_box * threads.max(1) as f64, kept_cells }
+    }
+
+    /// Bytes the run needs under a limit of `limit` bytes, the kept
+    /// assignments included.
+    pub fn total(&self, limit: f64) -> f64 {
+        self.bytes + self.kept_cells.min(limit * KEPT_CELL_SHARE)
     }
 
     /// Fails when the estimate exceeds `limit` bytes, naming the largest
     /// resolution that would fit (memory grows as the resolution cubed).
     pub fn check(&self, limit: f64, resolution: usize, frames: usize) -> Result<()> {
-        if self.bytes <= limit {
+        let bytes = self.total(limit);
+        if bytes <= limit {
             return Ok(());
         }
-        let fits = (resolution as f64 * (0.9 * limit / self.bytes).cbrt()).floor() as usize;
+        // The kept assignments take at most their share whatever the
+        // resolution; the rest grows as its cube.
+        let kept = self.kept_cells.min(limit * KEPT_CELL_SHARE);
+        let fits = (resolution as f64 * ((0.9 * limit - kept) / self.bytes).cbrt()).floor() as usize;
         let gib = |b: f64| b / (1u64 << 30) as f64;
         Err(Error::InvalidParameter(format!(
             "resolution {resolution} over {frames} frames needs about {:.1} GiB, more than the {:.1} GiB allowed (the memory available now, unless a limit is set); \
              the largest resolution that fits is about {}, or raise the memory limit if this estimate is too high",
-            gib(self.bytes),
+            gib(bytes),
             gib(limit),
             fits.max(2)
         )))

@@ -139,7 +139,7 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
     let grid = GridSpec::for_bounds(&bounds, params.resolution)?;
     if let Some(limit) = params.max_memory.or_else(super::available_memory) {
         let estimate = super::MemoryEstimate::of_frames(&extents, &grid, rayon::current_num_threads());
-        log::info!("estimated memory: {:.2} GiB of {:.2} GiB allowed", estimate.bytes / (1u64 << 30) as f64, limit / (1u64 << 30) as f64);
+        log::info!("estimated memory: {:.2} GiB of {:.2} GiB allowed", estimate.total(limit) / (1u64 << 30) as f64, limit / (1u64 << 30) as f64);
         estimate.check(limit, params.resolution, paths.len())?;
     }
     let Summary::Mesh { mesh: Some(first_mesh), .. } = summaries.swap_remove(0) else { unreachable!("frame 0 is a mesh, kept") };
