@@ -301,6 +301,14 @@ impl Default for RefineParams {
 }
 
 impl RefineParams {
+    /// These parameters under a limit of `max_memory` bytes for the run,
+    /// when there is one: unless `cell_memory` is set, the kept cells take
+    /// their share of it ([`KEPT_CELL_SHARE`]) instead of the memory available.
+    pub fn within(self, max_memory: Option<f64>) -> Self {
+        let cell_memory = self.cell_memory.or(max_memory.map(|m| (m * KEPT_CELL_SHARE) as usize));
+        RefineParams { cell_memory, ..self }
+    }
+
     /// Centers removed in all for `n` centers.
     pub(crate) fn total_removed(&self, n: usize) -> usize {
         self.remove.unwrap_or((n / 100).max(1))

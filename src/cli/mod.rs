@@ -186,7 +186,7 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
     let before = quality.expect("measured");
     let (traj, refined, refine_params) = match refine {
         Some(r) => {
-            let rp = r.params(track.absolute_units);
+            let rp = r.params(track.absolute_units).within(voxel.max_memory);
             let res = pipeline::refine_tracked(trajectories, &seq, &rp, checkpoint.as_ref(), bars.progress())?;
             (res.trajectories, Some(res.refinement), Some(rp))
         }

@@ -240,9 +240,7 @@ pub fn convert(source: &dyn FrameSource, options: &ConvertOptions, progress: Pro
     seconds.push((Stage::Track, clock.elapsed().as_secs_f64()));
     let (trajectories, refined) = match &options.refine {
         Some(p) => {
-            // The kept cells' share of the memory the run may take, when limited.
-            let cell_memory = p.cell_memory.or(options.voxel.max_memory.map(|m| (m * crate::params::KEPT_CELL_SHARE) as usize));
-            let p = &RefineParams { cell_memory, ..p.clone() };
+            let p = &p.clone().within(options.voxel.max_memory);
             let r = refine_tracked(trajectories, &sequence, p, checkpoint, progress)?;
             seconds.push((Stage::Refine, r.refinement.seconds));
             (r.trajectories, Some(r.refinement))

@@ -28,6 +28,9 @@
 //!   every center outside it is at least r_K(o) - |v - o| away anyway.
 //! Ties are broken by the lower center index, so the result does not depend
 //! on the number of threads. The shortcuts are tested against a linear scan.
+//!
+//! [`Assignment::blocks`] assigns cubes of voxels instead, each whole by its
+//! voxels' centroid (the tracker's screening of its guesses, when asked).
 
 use crate::math::{Point3, Real};
 use crate::model::GridSpec;
