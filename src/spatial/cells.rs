@@ -513,7 +513,8 @@ struct Blocks {
 pub struct Assignment {
     origin: [Real; 3],
     voxel_size: Real,
-    /// Grid coordinates of each voxel; empty when the elements are `blocks`.
+    /// Grid coordinates of each voxel (of each block's first voxel when the
+    /// elements are `blocks`).
     coords: Vec<[u16; 3]>,
     /// Elements that each stand for a block of voxels, when assigned as such.
     blocks: Option<Blocks>,
@@ -566,7 +567,7 @@ impl Assignment {
         // voxels do, which the scan's neighbour hint relies on.
         let mut order: Vec<(usize, u32, u32)> = voxels.iter().zip(hints).map(|(&v, &h)| (key(v), v, h)).collect();
         order.sort_unstable();
-        let (mut blocks, mut positions, mut owners) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut blocks, mut positions, mut owners, mut coords) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         let a = grid.voxel_size;
         for group in order.chunk_by(|x, y| x.0 == y.0) {
             let mut block = Block { count: 0, sum: [0; 3] };
@@ -580,13 +581,14 @@ impl Assignment {
             let n = block.count as Real;
             positions.push([0, 1, 2].map(|d| grid.origin[d] + (block.sum[d] as Real / n + 0.5) * a));
             blocks.push(block);
+            coords.push(grid.voxel_coords(group[0].1 as usize).map(|c| c as u16));
             owners.push(group.iter().map(|g| g.2).find(|&h| h != NO_OWNER).unwrap_or(NO_OWNER));
         }
         let n = blocks.len();
         Assignment {
             origin: grid.origin.coords.into(),
             voxel_size: a,
-            coords: Vec::new(),
+            coords,
             blocks: Some(Blocks { blocks, positions }),
             owners,
             upper: vec![f32::INFINITY; n],
@@ -607,76 +609,14 @@ impl Assignment {
     pub fn update(&mut self, index: &CenterIndex, moved: &[Real], with_moments: bool) -> CellStats {
         assert!(!(with_moments && self.blocks.is_some()), "blocks keep no second moments");
         let loosening = index.loosening(moved);
-        let (block_positions, coords) = (self.blocks.as_ref().map(|b| &b.positions[..]), &self.coords);
-        let loosening32: Vec<Loosening32> = loosening.iter().map(Loosening32::from).collect();
         let (eps, origin, a) = (self.eps, self.origin, self.voxel_size);
-        // (voxel, old owner) for every voxel whose owner changed.
-        let changes: Vec<Vec<(u32, u32)>> = self
-            .owners
-            .par_chunks_mut(CHUNK)
-            .zip(self.upper.par_chunks_mut(CHUNK))
-            .zip(self.lower.par_chunks_mut(CHUNK))
-            .enumerate()
-            // Voxels to measure, with their lower bound before the first
-            // pass: a buffer per rayon job rather than a zeroed one per chunk.
-            .map_init(
-                || vec![(0u32, 0f32); CHUNK],
-                |pending, (chunk, ((own, up), low))| {
-                    let mut n = 0;
-                    for k in 0..own.len() {
-                        let lo = low[k];
-                        let skip = match loosening32.get(own[k] as usize) {
-                            Some(b) => {
-                                let (u, l) = b.loosen(up[k], lo);
-                                up[k] = u;
-                                low[k] = l;
-                                u < l
-                            }
-                            None => false,
-                        };
-                        pending[n] = (k as u32, lo);
-                        n += !skip as usize;
-                    }
-                    let mut changed = Vec::new();
-                    // The owner last found in this chunk: a voxel without
-                    // one (assigned afresh) starts from its neighbour's in
-                    // the scan, which is nearly always its own or close, so
-                    // that the candidate lists settle it instead of the k-d
-                    // tree. The owner found is the same either way.
-                    let mut last = NO_OWNER;
-                    for &(k, lo) in &pending[..n] {
-                        let k = k as usize;
-                        let o = own[k];
-                        let at = chunk * CHUNK + k;
-                        let pos = match block_positions {
-                            Some(p) => p[at],
-                            None => {
-                                let c = coords[at];
-                                [0, 1, 2].map(|d| origin[d] + (c[d] as Real + 0.5) * a)
-                            }
-                        };
-                        if let Some(b) = loosening.get(o as usize) {
-                            let u = index.dist2(o, &pos).sqrt();
-                            let l = b.lowered(lo as Real, u);
-                            if u + eps < l {
-                                up[k] = (u as f32).next_up();
-                                low[k] = (l as f32).next_down();
-                                continue;
-                            }
-                        }
-                        let (owner, d, second) = index.nearest2(&pos, if o == NO_OWNER { last } else { o });
-                        last = owner;
-                        if owner != o {
-                            changed.push((at as u32, o));
-                        }
-                        own[k] = owner;
-                        up[k] = (d as f32).next_up();
-                        low[k] = (second as f32).next_down();
-                    }
-                    changed
-                },
-            )
-            .collect();
+        let (owners, upper, lower, coords) = (&mut self.owners, &mut self.upper, &mut self.lower, &self.coords);
+        // One copy of the pass for each kind of element, each with its own
+        // position lookup compiled in.
+        let changes = match &self.blocks {
+            Some(b) => reassign(owners, upper, lower, coords, eps, index, &loosening, |at, _| b.positions[at]),
+            None => reassign(owners, upper, lower, coords, eps, index, &loosening, |_, c| [0, 1, 2].map(|d| origin[d] + (c[d] as Real + 0.5) * a)),
+        };
         match &mut self.sums {
             Some(sums) if !with_moments && sums.count.len() == index.len() => {
                 // Every voxel had an owner when the sums were taken.
@@ -705,6 +645,85 @@ impl Assignment {
             }
         }
     }
+}
+
+/// The pass of [`Assignment::update`] over every element: loosens the
+/// bounds, measures the elements they no longer prove, and returns (element,
+/// old owner) for every element whose owner changed. `position(k, coords[k])`
+/// is element k's position.
+#[allow(clippy::too_many_arguments)]
+fn reassign(
+    owners: &mut [u32],
+    upper: &mut [f32],
+    lower: &mut [f32],
+    coords: &[[u16; 3]],
+    eps: Real,
+    index: &CenterIndex,
+    loosening: &[Loosening],
+    position: impl Fn(usize, [u16; 3]) -> [Real; 3] + Sync,
+) -> Vec<Vec<(u32, u32)>> {
+    let loosening32: Vec<Loosening32> = loosening.iter().map(Loosening32::from).collect();
+    // (voxel, old owner) for every voxel whose owner changed.
+    owners
+        .par_chunks_mut(CHUNK)
+        .zip(upper.par_chunks_mut(CHUNK))
+        .zip(lower.par_chunks_mut(CHUNK))
+        .zip(coords.par_chunks(CHUNK))
+        .enumerate()
+        // Voxels to measure, with their lower bound before the first
+        // pass: a buffer per rayon job rather than a zeroed one per chunk.
+        .map_init(
+            || vec![(0u32, 0f32); CHUNK],
+            |pending, (chunk, (((own, up), low), coords))| {
+                let mut n = 0;
+                for k in 0..own.len() {
+                    let lo = low[k];
+                    let skip = match loosening32.get(own[k] as usize) {
+                        Some(b) => {
+                            let (u, l) = b.loosen(up[k], lo);
+                            up[k] = u;
+                            low[k] = l;
+                            u < l
+                        }
+                        None => false,
+                    };
+                    pending[n] = (k as u32, lo);
+                    n += !skip as usize;
+                }
+                let mut changed = Vec::new();
+                // The owner last found in this chunk: a voxel without
+                // one (assigned afresh) starts from its neighbour's in
+                // the scan, which is nearly always its own or close, so
+                // that the candidate lists settle it instead of the k-d
+                // tree. The owner found is the same either way.
+                let mut last = NO_OWNER;
+                for &(k, lo) in &pending[..n] {
+                    let k = k as usize;
+                    let o = own[k];
+                    let at = chunk * CHUNK + k;
+                    let pos = position(at, coords[k]);
+                    if let Some(b) = loosening.get(o as usize) {
+                        let u = index.dist2(o, &pos).sqrt();
+                        let l = b.lowered(lo as Real, u);
+                        if u + eps < l {
+                            up[k] = (u as f32).next_up();
+                            low[k] = (l as f32).next_down();
+                            continue;
+                        }
+                    }
+                    let (owner, d, second) = index.nearest2(&pos, if o == NO_OWNER { last } else { o });
+                    last = owner;
+                    if owner != o {
+                        changed.push((at as u32, o));
+                    }
+                    own[k] = owner;
+                    up[k] = (d as f32).next_up();
+                    low[k] = (second as f32).next_down();
+                }
+                changed
+            },
+        )
+        .collect()
 }
 
 /// Assigns every occupied voxel to its nearest center in one go. `owners`
