@@ -265,10 +265,10 @@ pub struct RefineParams {
     /// budget in bytes: a solid object at a high resolution has millions of
     /// voxels a frame, and 64 frames of them would need tens of GiB. None
     /// (default): half the memory available when the refinement
-    /// starts, or of `--max-memory` when given (1 GiB where unknown); any
-    /// value.
+    /// starts, or of `--max-memory` when given (1 GiB where unknown); in
+    /// [`MEMORY`].
     #[serde(skip)]
-    pub cell_memory: Option<usize>,
+    pub cell_memory: Option<f64>,
 }
 
 /// [`RefineParams::memory`]'s default: 16 MiB, some 700 frames of 1,000
@@ -305,8 +305,7 @@ impl RefineParams {
     /// when there is one: unless `cell_memory` is set, the kept cells take
     /// their share of it ([`KEPT_CELL_SHARE`]) instead of the memory available.
     pub fn within(self, max_memory: Option<f64>) -> Self {
-        let cell_memory = self.cell_memory.or(max_memory.map(|m| (m * KEPT_CELL_SHARE) as usize));
-        RefineParams { cell_memory, ..self }
+        RefineParams { cell_memory: self.cell_memory.or(max_memory.map(kept_cell_share)), ..self }
     }
 
     /// Centers removed in all for `n` centers.
@@ -326,6 +325,9 @@ impl RefineParams {
             return bad(format!("cannot remove {} of {n} centers: at most {} (2 must stay)", self.total_removed(n), n - 2));
         }
         check_count("the number of batches", self.batches, 1..=MAX_BATCHES)?;
+        if let Some(m) = self.cell_memory {
+            check("the memory for kept cells", m, MEMORY)?;
+        }
         check("beta_hat", self.beta_hat, WEIGHT)?;
         check("rho_gp", self.rho_gp, LENGTH)?;
         check("rho_gm", self.rho_gm, LENGTH)?;
@@ -538,6 +540,12 @@ pub const KEPT_CELL_BYTES_PER_VOXEL: usize = 24;
 /// by default.
 pub const KEPT_CELL_SHARE: f64 = 0.5;
 
+/// The bytes the kept cell assignments may take under a limit of `limit`
+/// bytes, unless told otherwise ([`KEPT_CELL_SHARE`]).
+pub fn kept_cell_share(limit: f64) -> f64 {
+    limit * KEPT_CELL_SHARE
+}
+
 /// Largest number of centers: far more than any capture needs, small enough
 /// that per-center tables stay addressable.
 pub const MAX_CENTERS: usize = 1_000_000;
@@ -558,6 +566,9 @@ pub const LENGTH: Span = Span::closed(1e-12, 1e12);
 /// Every weight or step size (β, β̂, λ, stiffness): larger would overflow
 /// the weighted sums it scales.
 pub const WEIGHT: Span = Span::open_closed(0.0, 1e6);
+
+/// Range of a memory limit, in bytes: up to 1e9 GiB.
+pub const MEMORY: Span = Span::open_closed(0.0, 1e9 * (1u64 << 30) as Real);
 
 /// A range of a real parameter, each end open or closed.
 #[derive(Clone, Copy, Debug, PartialEq)]

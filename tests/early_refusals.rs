@@ -71,6 +71,9 @@ fn parameters_that_used_to_fail_late_or_panic_are_refused_before_reading() {
         (&["--remove", "18446744073709551615"], &["cannot remove"]),
         (&["--conform-iterations", "18446744073709551615"], &["conform iterations"]),
         (&["-n", "1"], &["at least 3 centers"]),
+        (&["--cell-memory", "0"], &["memory for kept cells"]),
+        (&["--cell-memory", "nan"], &["memory for kept cells"]),
+        (&["--screening-block", "9"], &["screening block"]),
     ];
     for (extra, needles) in cases {
         let mut args = vec!["convert", "seq", "-o", "x.glb"];

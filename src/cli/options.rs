@@ -179,18 +179,8 @@ pub struct RefineArgs {
     #[arg(long, default_value_t = RefineParams::default().max_iterations)]
     pub global_iterations: usize,
     /// Memory for the cell assignments the global optimisation keeps between its steps, in GiB; frames past it are assigned afresh at every step (the same result, more slowly) [default: half of --max-memory, or of what the system has available] (range: 0 < GIB <= 1e9)
-    #[arg(long, value_name = "GIB", value_parser = gibibytes)]
+    #[arg(long, value_name = "GIB")]
     pub cell_memory: Option<f64>,
-}
-
-/// A memory size in GiB, 0 < GIB <= 1e9.
-fn gibibytes(text: &str) -> Result<f64, String> {
-    let gib: f64 = text.parse().map_err(|_| format!("not a number of GiB: {text}"))?;
-    if gib > 0.0 && gib <= 1e9 {
-        Ok(gib)
-    } else {
-        Err(format!("{text} GiB is outside 0 < GIB <= 1e9"))
-    }
 }
 
 impl RefineArgs {
@@ -207,7 +197,7 @@ impl RefineArgs {
             rho_gp: self.rho_gp,
             rho_gm: self.rho_gm,
             max_iterations: self.global_iterations,
-            cell_memory: self.cell_memory.map(|g| (g * (1u64 << 30) as f64) as usize),
+            cell_memory: self.cell_memory.map(|g| g * (1u64 << 30) as f64),
             ..Default::default()
         }
     }

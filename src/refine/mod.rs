@@ -76,8 +76,9 @@ pub fn refine_with_checkpoints(traj: Trajectories, seq: &VoxelSequence, params: 
     let interrupted = |batches_done: usize| {
         Error::Interrupted { saved: checkpoint.map(|c| Saved { path: c.path(), frames, refine: Some((batches_done, params.batches)) }) }
     };
-    let budget = params.cell_memory.unwrap_or_else(default_cell_memory);
-    let mut cells = SequenceCells::new(seq, budget);
+    // A share of the memory available now, 1 GiB where that is unknown.
+    let budget = params.cell_memory.unwrap_or_else(|| crate::voxel::available_memory().map_or((1u64 << 30) as f64, crate::params::kept_cell_share));
+    let mut cells = SequenceCells::new(seq, budget as usize);
     log::info!("the cells of {} of {frames} frames kept between evaluations (budget {:.0} MiB)", cells.cached_frames(), budget as f64 / (1u64 << 20) as f64);
     let per_batch = params.max_iterations.max(1);
     let steps = params.batches * per_batch;
@@ -157,10 +158,4 @@ pub fn refine_with_checkpoints(traj: Trajectories, seq: &VoxelSequence, params: 
 /// Saves `snapshot` where `saving` says, if anywhere.
 fn save(saving: Option<(&Checkpointing, u64)>, snapshot: Snapshot) -> Result<()> {
     saving.map_or(Ok(()), |(c, fp)| checkpoint::save(c, fp, &snapshot))
-}
-
-/// [`RefineParams::cell_memory`]'s default: a share of the memory available
-/// now, 1 GiB where that is unknown.
-fn default_cell_memory() -> usize {
-    crate::voxel::available_memory().map_or(1 << 30, |bytes| (bytes * crate::params::KEPT_CELL_SHARE) as usize)
 }

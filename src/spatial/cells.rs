@@ -559,21 +559,23 @@ impl Assignment {
         assert_eq!(voxels.len(), hints.len());
         assert!(edge >= 1);
         let block_dims = grid.dims.map(|d| d.div_ceil(edge));
-        let key = |v: u32| {
-            let c = grid.voxel_coords(v as usize).map(|c| c / edge);
-            (c[2] * block_dims[1] + c[1]) * block_dims[0] + c[0]
-        };
         // Sorted by block, then by voxel: the blocks come in grid order, as
         // voxels do, which the scan's neighbour hint relies on.
-        let mut order: Vec<(usize, u32, u32)> = voxels.iter().zip(hints).map(|(&v, &h)| (key(v), v, h)).collect();
-        order.sort_unstable();
+        let mut order: Vec<(usize, [usize; 3], u32)> = voxels
+            .iter()
+            .zip(hints)
+            .map(|(&v, &h)| {
+                let c = grid.voxel_coords(v as usize);
+                let b = c.map(|c| c / edge);
+                ((b[2] * block_dims[1] + b[1]) * block_dims[0] + b[0], c, h)
+            })
+            .collect();
+        order.sort_unstable_by_key(|&(key, c, _)| (key, c[2], c[1], c[0]));
         let (mut blocks, mut positions, mut owners, mut coords) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         let a = grid.voxel_size;
         for group in order.chunk_by(|x, y| x.0 == y.0) {
-            let mut block = Block { count: 0, sum: [0; 3] };
-            for &(_, v, _) in group {
-                let c = grid.voxel_coords(v as usize);
-                block.count += 1;
+            let mut block = Block { count: group.len() as u32, sum: [0; 3] };
+            for (_, c, _) in group {
                 for d in 0..3 {
                     block.sum[d] += c[d] as i64;
                 }
@@ -581,7 +583,7 @@ impl Assignment {
             let n = block.count as Real;
             positions.push([0, 1, 2].map(|d| grid.origin[d] + (block.sum[d] as Real / n + 0.5) * a));
             blocks.push(block);
-            coords.push(grid.voxel_coords(group[0].1 as usize).map(|c| c as u16));
+            coords.push(group[0].1.map(|c| c as u16));
             owners.push(group.iter().map(|g| g.2).find(|&h| h != NO_OWNER).unwrap_or(NO_OWNER));
         }
         let n = blocks.len();

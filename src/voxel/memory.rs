@@ -5,7 +5,7 @@
 use crate::model::GridSpec;
 use crate::error::{Error, Result};
 use crate::model::mesh::{Aabb, TriangleMesh};
-use crate::params::{KEPT_CELL_BYTES_PER_VOXEL, KEPT_CELL_FRAMES, KEPT_CELL_SHARE};
+use crate::params::{kept_cell_share, KEPT_CELL_BYTES_PER_VOXEL, KEPT_CELL_FRAMES};
 
 /// Bytes held per occupied voxel of every frame through the run: its share
 /// of the frame's runs ([`crate::model::OccupancyRuns`], 2 to 10 bytes a run;
@@ -29,7 +29,7 @@ pub struct MemoryEstimate {
     /// cell assignments the global optimisation keeps.
     pub bytes: f64,
     /// Bytes the kept assignments take at most ([`KEPT_CELL_FRAMES`] of the
-    /// largest frames); they take no more than [`KEPT_CELL_SHARE`] of the
+    /// largest frames); they take no more than [`crate::params::KEPT_CELL_SHARE`] of the
     /// memory allowed ([`crate::params::RefineParams::cell_memory`]).
     pub kept_cells: f64,
 }
@@ -66,7 +66,7 @@ impl MemoryEstimate {
     /// Bytes the run needs under a limit of `limit` bytes, the kept
     /// assignments included.
     pub fn total(&self, limit: f64) -> f64 {
-        self.bytes + self.kept_cells.min(limit * KEPT_CELL_SHARE)
+        self.bytes + self.kept_cells.min(kept_cell_share(limit))
     }
 
     /// Fails when the estimate exceeds `limit` bytes, naming the largest
@@ -78,7 +78,7 @@ impl MemoryEstimate {
         }
         // The kept assignments take at most their share whatever the
         // resolution; the rest grows as its cube.
-        let kept = self.kept_cells.min(limit * KEPT_CELL_SHARE);
+        let kept = self.kept_cells.min(kept_cell_share(limit));
         let fits = (resolution as f64 * ((0.9 * limit - kept) / self.bytes).cbrt()).floor() as usize;
         let gib = |b: f64| b / (1u64 << 30) as f64;
         Err(Error::InvalidParameter(format!(

@@ -32,7 +32,7 @@ impl VoxelParams {
         crate::params::check_count("the resolution", self.resolution, 2..=MAX_RESOLUTION)?;
         crate::params::check("the largest extent ratio", self.max_extent_ratio, crate::params::Span::closed(1.0, 1e12))?;
         if let Some(m) = self.max_memory {
-            crate::params::check("the memory limit", m, crate::params::Span::open_closed(0.0, 1e9 * (1u64 << 30) as f64))?;
+            crate::params::check("the memory limit", m, crate::params::MEMORY)?;
         }
         Ok(())
     }
