@@ -190,6 +190,53 @@ fn assignment_matches_linear_scan(n: usize) {
     }
 }
 
+/// The tracker's next frame: `Assignment::carried` takes the owners and
+/// bounds of the voxels two frames share (and hints for the new ones), and
+/// its first update, on the last frame's index moved to the new centers,
+/// gives every voxel the center a linear scan finds nearest. Centers move a
+/// little or jump (so that candidate lists are kept or rebuilt), twins tie.
+#[test]
+fn carried_assignment_matches_linear_scan() {
+    let grid = GridSpec { origin: Point3::new(-1.0, -2.0, 0.5), voxel_size: 0.1, dims: [30, 25, 20] };
+    for (seed, n) in [(6, 1), (7, 40), (8, 300)] {
+        let mut g = Lcg(seed);
+        let mut before: Vec<u32> = (0..grid.len() as u32).filter(|_| g.next() < 0.4).collect();
+        let mut centers: Vec<Point3> = (0..n).map(|_| grid.voxel_center((g.next() * grid.len() as Real) as usize) + g.vec(0.05)).collect();
+        for i in (0..n).filter(|i| i % 10 == 1) {
+            centers[i] = centers[i - 1];
+        }
+        let mut index = CenterIndex::new(&centers);
+        let mut cells = Assignment::new(&grid, &before, vec![NO_OWNER; before.len()]);
+        cells.update(&index, &[], false);
+        for frame in 0..6 {
+            // The next frame keeps most voxels, loses some and gains others.
+            let kept: std::collections::HashSet<u32> = before.iter().copied().filter(|_| g.next() < 0.8).collect();
+            let after: Vec<u32> = (0..grid.len() as u32).filter(|v| kept.contains(v) || g.next() < 0.1).collect();
+            let jumps = if frame % 2 == 0 { 0.1 } else { 0.0 };
+            let mut moved = Vec::new();
+            let mut last = Vector3::zeros();
+            for (i, c) in centers.iter_mut().enumerate() {
+                let step = if i % 10 == 1 { last } else if g.next() < jumps { g.vec(1.0) } else { g.vec(0.03) };
+                *c += step;
+                moved.push(step.norm());
+                last = step;
+            }
+            let mut next = Assignment::carried(&grid, &after, &before, &cells);
+            index = index.moved_to(&centers, &moved);
+            let stats = next.update(&index, &moved, false);
+            let mut counts = vec![0u32; n];
+            for (k, &v) in after.iter().enumerate() {
+                let (best, tied) = linear_scan(&centers, &grid.voxel_center(v as usize));
+                assert_eq!(next.owners[k], best, "{n} centers, frame {frame}, voxel {v} ({tied} nearest at equal distance)");
+                counts[best as usize] += 1;
+            }
+            assert_eq!(stats.count, counts, "{n} centers, frame {frame}");
+            // Bounds and owners for the frame after, as the tracker keeps them.
+            (before, cells) = (after, next);
+        }
+    }
+}
+
 /// Blocks of 2³ and 3³ voxels (`Assignment::blocks`), grouped here
 /// independently in the order the library documents (by block, z slowest):
 /// each block's owner is the center a linear scan finds nearest its voxels'

@@ -73,6 +73,22 @@ pub struct CenterIndex {
     local: Option<Vec<Loosening>>,
 }
 
+impl Clone for CenterIndex {
+    /// Without the k-d tree, rebuilt on first use (as after every move).
+    fn clone(&self) -> Self {
+        CenterIndex {
+            tree: OnceLock::new(),
+            points: self.points.clone(),
+            knn: self.knn.clone(),
+            k: self.k,
+            k_far: self.k_far,
+            travel: self.travel.clone(),
+            travel_cap: self.travel_cap,
+            local: self.local.clone(),
+        }
+    }
+}
+
 /// How the bounds of a voxel of center o loosen after a move.
 #[derive(Clone, Copy, Debug)]
 struct Loosening {
@@ -168,6 +184,7 @@ impl Loosening32 {
 /// nearly every search, and the rest, with their own reach, settle most of
 /// those the first K cannot without the k-d tree, whose query costs many
 /// list searches.
+#[derive(Clone)]
 struct Candidates {
     list: Box<[u32]>,
     /// The first `near` of `list` are the K nearest, with reach `reach`;
@@ -262,13 +279,27 @@ impl CenterIndex {
                     .map(|c| (c, c.shrink(travel, travel_cap)))
                     .filter(|(c, shrink)| c.reach - shrink >= 0.9 * c.reach && fast.iter().all(|&j| c.keeps_out(j, o, points, *shrink)))
                     .map(|(c, shrink)| (c, c.reach - shrink));
-                match kept {
-                    Some((c, reach)) => Loosening { moved: own_move, decay: c.list[..c.near].iter().map(|&j| moved[j as usize]).fold(0.0, Real::max), reach, max_move },
-                    None => {
-                        *slot = OnceLock::new();
-                        Loosening::everyone(own_move, max_move)
-                    }
+                let loosening = kept.map(|(c, reach)| Loosening { moved: own_move, decay: c.list[..c.near].iter().map(|&j| moved[j as usize]).fold(0.0, Real::max), reach, max_move });
+                if loosening.is_none() {
+                    *slot = OnceLock::new();
                 }
+                loosening
+            })
+            .collect::<Vec<_>>();
+        // The lists dropped are rebuilt around the new positions at once:
+        // their K nearest bound the loosening (a voxel's other centers are
+        // in the list, each moved at most the list's largest move, or beyond
+        // its reach), where Hamerly's largest move of all would send every
+        // voxel of the cell to a search.
+        let this = &self;
+        let local = local
+            .into_par_iter()
+            .enumerate()
+            .map(|(o, kept)| {
+                kept.unwrap_or_else(|| {
+                    let c = this.candidates(o as u32);
+                    Loosening { moved: moved[o], decay: c.list[..c.near].iter().map(|&j| moved[j as usize]).fold(0.0, Real::max), reach: c.reach, max_move }
+                })
             })
             .collect();
         self.local = Some(local);
@@ -499,6 +530,7 @@ struct Block {
 
 /// A frame's voxels grouped into cubic blocks, each assigned by its voxels'
 /// centroid (see [`Assignment::blocks`]).
+#[derive(Clone)]
 struct Blocks {
     blocks: Vec<Block>,
     /// Each block's centroid, in world units.
@@ -510,6 +542,7 @@ struct Blocks {
 ///
 /// 14 bytes per voxel (coordinates, owner, f32 bounds), so that every frame of
 /// a long sequence can keep its state during the global optimisation.
+#[derive(Clone)]
 pub struct Assignment {
     origin: [Real; 3],
     voxel_size: Real,
@@ -547,6 +580,33 @@ impl Assignment {
             eps: grid.voxel_size * 1e-9,
             sums: None,
         }
+    }
+
+    /// `voxels` with the owners and bounds that `prev` (an assignment of
+    /// `prev_voxels`, both sorted) has for those of its voxels they share;
+    /// the others take the owner of the voxel before them in `prev_voxels`
+    /// as a hint, without bounds. The bounds hold for the centers `prev`
+    /// was last updated to, so the first [`Assignment::update`] must be
+    /// given an index moved from those (a voxel that stays occupied
+    /// needs no search unless the centers moved past its bounds).
+    pub fn carried(grid: &GridSpec, voxels: &[u32], prev_voxels: &[u32], prev: &Assignment) -> Self {
+        assert!(prev.blocks.is_none(), "bounds are carried between voxels");
+        assert_eq!(prev_voxels.len(), prev.owners.len());
+        let mut a = Assignment::new(grid, voxels, vec![NO_OWNER; voxels.len()]);
+        let mut j = 0;
+        let mut last = NO_OWNER;
+        for (k, &v) in voxels.iter().enumerate() {
+            while j < prev_voxels.len() && prev_voxels[j] < v {
+                last = prev.owners[j];
+                j += 1;
+            }
+            if j < prev_voxels.len() && prev_voxels[j] == v {
+                (a.owners[k], a.upper[k], a.lower[k]) = (prev.owners[j], prev.upper[j], prev.lower[j]);
+            } else {
+                a.owners[k] = last;
+            }
+        }
+        a
     }
 
     /// The voxels grouped into blocks of `edge`³ grid cells, each assigned

@@ -54,15 +54,19 @@ pub struct TrackResult {
 }
 
 /// The state the tracker carries from one frame to the next.
-#[derive(Clone)]
 struct Tracker<'a> {
     grid: &'a GridSpec,
     params: &'a TrackParams,
     threshold2: Real,
     affinity: Affinity,
-    owners: Vec<u32>,
     /// The previous frame's voxels.
     prev_voxels: std::sync::Arc<[u32]>,
+    /// Their cells at the previous frame's centers: owners, and bounds
+    /// where that frame was tracked in this run (not when resumed).
+    prev_cells: Assignment,
+    /// The index over the previous frame's centers, which `prev_cells`'
+    /// bounds were measured against.
+    prev_index: CenterIndex,
 }
 
 /// Tracks `params.centers` centers through every frame of `seq`.
@@ -131,20 +135,22 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
     };
     progress.report(Stage::Track, first, frames);
 
+    let prev_voxels: std::sync::Arc<[u32]> = seq.frames[first - 1].indices().into();
     let mut tracker = Tracker {
         grid,
         params,
         threshold2: (params.threshold * scale).powi(2),
         affinity,
-        owners,
-        prev_voxels: seq.frames[first - 1].indices().into(),
+        prev_cells: Assignment::new(grid, &prev_voxels, owners),
+        prev_index: CenterIndex::new(traj.frame(first - 1)),
+        prev_voxels,
     };
     // Frames held by the checkpoint file.
     let mut saved = if resume.is_some() { first } else { 0 };
     let save = |tracker: &Tracker, traj: &Trajectories, cell_counts: &[Vec<u32>], timings: &[FrameTiming]| -> Result<()> {
         let (Some(c), Some(fp)) = (checkpoint, fingerprint) else { return Ok(()) };
         let frames_done = cell_counts.len();
-        let snapshot = Snapshot { frames_done, trajectories: traj, cell_counts, timings, affinity: &tracker.affinity, owners: &tracker.owners };
+        let snapshot = Snapshot { frames_done, trajectories: traj, cell_counts, timings, affinity: &tracker.affinity, owners: &tracker.prev_cells.owners };
         checkpoint::save(c, fp, &snapshot)?;
         log::debug!("checkpoint: {frames_done} frames saved in {}", c.path().display());
         Ok(())
@@ -223,25 +229,26 @@ impl<'a> Tracker<'a> {
     /// `block` > 1.
     fn start(&self, prev: &[Point3], mut cur: Vec<Point3>, fits: &RigidFits, voxels: &[u32], presmooth_steps: usize, block: usize) -> Run {
         let mut timing = FrameTiming::default();
-        let cells = self.cells(voxels, block);
         let clock = Instant::now();
         for _ in 0..presmooth_steps {
             cur = predict(&fits.fit(&cur), prev);
         }
         timing.fit += clock.elapsed().as_secs_f64();
-        let index = CenterIndex::new(&cur);
-        Run { cur, cells, moved: Vec::new(), index, timing, converged: false, blocks: block > 1 }
+        let (cells, index, moved) = if block > 1 {
+            (Assignment::blocks(self.grid, voxels, &self.carried_owners(voxels), block), CenterIndex::new(&cur), Vec::new())
+        } else {
+            // Frame f-1's bounds, loosened in the first iteration by how far
+            // each center is from where they were measured: a voxel that
+            // stays occupied and whose centers moved little needs no search.
+            let moved = cur.iter().zip(prev).map(|(c, p)| (c - p).norm()).collect();
+            (Assignment::carried(self.grid, voxels, &self.prev_voxels, &self.prev_cells), self.prev_index.clone(), moved)
+        };
+        Run { cur, cells, moved, index, timing, converged: false, blocks: block > 1 }
     }
 
-    /// The frame's cells, owners carried over from frame f-1, of blocks of
-    /// `block`³ voxels when `block` > 1.
-    fn cells(&self, voxels: &[u32], block: usize) -> Assignment {
-        let hints = carry_owners(&self.prev_voxels, &self.owners, voxels);
-        if block > 1 {
-            Assignment::blocks(self.grid, voxels, &hints, block)
-        } else {
-            Assignment::new(self.grid, voxels, hints)
-        }
+    /// Frame f-1's owners carried over to `voxels` as hints.
+    fn carried_owners(&self, voxels: &[u32]) -> Vec<u32> {
+        carry_owners(&self.prev_voxels, &self.prev_cells.owners, voxels)
     }
 
     /// Iterates `run` until no center's update is as long as the square
@@ -307,14 +314,16 @@ impl<'a> Tracker<'a> {
     fn finish(&mut self, run: Run, prev: &[Point3], fits: &RigidFits, voxels: &std::sync::Arc<[u32]>) -> FrameResult {
         let Run { cur, mut cells, moved, index, mut timing, .. } = run;
         let clock = Instant::now();
-        let stats = cells.update(&index.moved_to(&cur, &moved), &moved, true);
+        let index = index.moved_to(&cur, &moved);
+        let stats = cells.update(&index, &moved, true);
         timing.assign += clock.elapsed().as_secs_f64();
         let clock = Instant::now();
         let motions = fits.fit(&cur);
         let energy = energy(&cur, &predict(&motions, prev), &stats, self.grid, self.params.beta);
         self.affinity.update(&cur, &motions, &cell_moments(&stats, self.grid));
         timing.affinity += clock.elapsed().as_secs_f64();
-        self.owners = cells.owners;
+        self.prev_cells = cells;
+        self.prev_index = index;
         self.prev_voxels = voxels.clone();
         FrameResult { centers: cur, counts: stats.count, timing, energy }
     }
@@ -387,8 +396,16 @@ impl<'a> Tracker<'a> {
             .collect();
         if choice.iter().any(|&r| r != choice[0]) {
             // Already through presmoothing: it would blur the seams' choice.
-            let mixed = choice.iter().enumerate().map(|(i, &r)| runs[r].1.cur[i]).collect();
-            let mut run = this.start(prev, mixed, fits, voxels, 0, block);
+            let mixed: Vec<Point3> = choice.iter().enumerate().map(|(i, &r)| runs[r].1.cur[i]).collect();
+            // From the cells of the run most centers chose, which hold for
+            // its positions: only the centers taken from other runs have
+            // moved, so few voxels need a search.
+            let mut chosen = vec![0usize; runs.len()];
+            choice.iter().for_each(|&r| chosen[r] += 1);
+            let majority = (0..runs.len()).max_by_key(|&r| (chosen[r], std::cmp::Reverse(r))).expect("several runs");
+            let base = &runs[majority].1;
+            let moved = mixed.iter().zip(&base.cur).map(|(a, b)| (a - b).norm()).collect();
+            let mut run = Run { cur: mixed, cells: base.cells.clone(), moved, index: base.index.clone(), timing: FrameTiming::default(), converged: false, blocks: base.blocks };
             this.iterate(&mut run, prev, fits, coarse, progress)?;
             let energies = this.local_energies(&mut run, prev, fits);
             runs.push((Guess::Mixed, run, energies));
@@ -396,8 +413,9 @@ impl<'a> Tracker<'a> {
         let best = lowest(runs.iter().map(|r| r.2.iter().sum::<Real>()));
         let (guess, mut kept, _) = runs.remove(best);
         if kept.blocks {
-            // The index and `moved` stay those of the run's positions.
-            kept.cells = this.cells(voxels, 1);
+            // Without bounds: the index and `moved` stay those of the run's
+            // positions.
+            kept.cells = Assignment::new(this.grid, voxels, this.carried_owners(voxels));
             kept.blocks = false;
         }
         if coarse > fine || block > 1 {
