@@ -77,6 +77,21 @@ impl<'a> SequenceCells<'a> {
         self.frames.len()
     }
 
+    /// Drops the centers not in `keep` (their old indices, ascending, as
+    /// [`Trajectories::remove_centers`] returns them) from the kept
+    /// assignments, which keep their bounds for the others: after a batch of
+    /// removals only the removed centers' voxels are searched afresh.
+    pub fn keep_centers(&mut self, keep: &[usize]) {
+        self.frames.par_iter_mut().zip(self.last.par_iter_mut()).zip(self.indices.par_iter_mut()).for_each(|((cells, last), index)| {
+            if let Some(cells) = cells.as_mut().filter(|_| !last.is_empty()) {
+                cells.keep_centers(keep, last.len());
+                *last = keep.iter().map(|&i| last[i]).collect();
+                // Its candidate lists name the old indices.
+                *index = None;
+            }
+        });
+    }
+
     /// Each frame's cell sums for the centers in `traj` (frames in parallel).
     pub fn update(&mut self, traj: &Trajectories, with_moments: bool) -> Vec<CellStats> {
         self.update_frames(traj, 0, 0..self.seq.frames.len(), with_moments)

@@ -92,7 +92,9 @@ pub fn refine_with_checkpoints(traj: Trajectories, seq: &VoxelSequence, params: 
                 let irregularity = irregular::irregularity(&current);
                 let worst = most_irregular(&irregularity, n_rem);
                 removed.extend(worst.iter().map(|&i| kept[i]));
-                kept = current.remove_centers(&worst).into_iter().map(|i| kept[i]).collect();
+                let survivors = current.remove_centers(&worst);
+                cells.keep_centers(&survivors);
+                kept = survivors.into_iter().map(|i| kept[i]).collect();
                 if !params.optimise {
                     save(saving, Snapshot { batches_done: b + 1, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: None, seconds: seconds(&start) })?;
                     continue;

@@ -609,6 +609,29 @@ impl Assignment {
         a
     }
 
+    /// Drops every center of `old_count` but those in `keep` (ascending),
+    /// which take their position in `keep` as their new index. A dropped
+    /// center's voxels lose their owner and are measured at the next
+    /// [`Assignment::update`]; the others keep their bounds, since fewer
+    /// centers leave every distance to the nearest other at least as long.
+    /// That update must be given an index over the kept centers and their
+    /// moves since the last.
+    pub fn keep_centers(&mut self, keep: &[usize], old_count: usize) {
+        let mut renumbered = vec![NO_OWNER; old_count];
+        for (new, &old) in keep.iter().enumerate() {
+            renumbered[old] = new as u32;
+        }
+        for (o, up) in self.owners.iter_mut().zip(&mut self.upper) {
+            if *o != NO_OWNER {
+                *o = renumbered[*o as usize];
+                if *o == NO_OWNER {
+                    *up = f32::INFINITY;
+                }
+            }
+        }
+        self.sums = None;
+    }
+
     /// The voxels grouped into blocks of `edge`³ grid cells, each assigned
     /// as a whole by its voxels' centroid: about `edge`³ times fewer
     /// elements, and cells whose counts and centroids are exactly those of
