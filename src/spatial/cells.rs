@@ -205,6 +205,13 @@ fn squared_distance(a: &[Real; 3], b: &[Real; 3]) -> Real {
 const FAST: usize = 32;
 
 impl Candidates {
+    /// How the bounds of this list's center's voxels loosen after the
+    /// centers moved by `moved` (its own by `own_move`), with `reach` the
+    /// list's r_K now.
+    fn loosening(&self, own_move: Real, moved: &[Real], reach: Real, max_move: Real) -> Loosening {
+        Loosening { moved: own_move, decay: self.list[..self.near].iter().map(|&j| moved[j as usize]).fold(0.0, Real::max), reach, max_move }
+    }
+
     /// Whether center j, unless in the list of center o, is beyond both
     /// reaches shrunk by `shrink`.
     fn keeps_out(&self, j: u32, o: usize, points: &[[Real; 3]], shrink: Real) -> bool {
@@ -279,7 +286,7 @@ impl CenterIndex {
                     .map(|c| (c, c.shrink(travel, travel_cap)))
                     .filter(|(c, shrink)| c.reach - shrink >= 0.9 * c.reach && fast.iter().all(|&j| c.keeps_out(j, o, points, *shrink)))
                     .map(|(c, shrink)| (c, c.reach - shrink));
-                let loosening = kept.map(|(c, reach)| Loosening { moved: own_move, decay: c.list[..c.near].iter().map(|&j| moved[j as usize]).fold(0.0, Real::max), reach, max_move });
+                let loosening = kept.map(|(c, reach)| c.loosening(own_move, moved, reach, max_move));
                 if loosening.is_none() {
                     *slot = OnceLock::new();
                 }
@@ -298,7 +305,7 @@ impl CenterIndex {
             .map(|(o, kept)| {
                 kept.unwrap_or_else(|| {
                     let c = this.candidates(o as u32);
-                    Loosening { moved: moved[o], decay: c.list[..c.near].iter().map(|&j| moved[j as usize]).fold(0.0, Real::max), reach: c.reach, max_move }
+                    c.loosening(moved[o], moved, c.reach, max_move)
                 })
             })
             .collect();

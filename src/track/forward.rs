@@ -62,7 +62,7 @@ struct Tracker<'a> {
     /// The previous frame's voxels.
     prev_voxels: std::sync::Arc<[u32]>,
     /// Their cells at the previous frame's centers: owners, and bounds
-    /// where that frame was tracked in this run (not when resumed).
+    /// unless that frame is frame 0 or the one a resumed run starts after.
     prev_cells: Assignment,
     /// The index over the previous frame's centers, which `prev_cells`'
     /// bounds were measured against.
