@@ -600,19 +600,10 @@ impl Assignment {
         assert!(prev.blocks.is_none(), "bounds are carried between voxels");
         assert_eq!(prev_voxels.len(), prev.owners.len());
         let mut a = Assignment::new(grid, voxels, vec![NO_OWNER; voxels.len()]);
-        let mut j = 0;
-        let mut last = NO_OWNER;
-        for (k, &v) in voxels.iter().enumerate() {
-            while j < prev_voxels.len() && prev_voxels[j] < v {
-                last = prev.owners[j];
-                j += 1;
-            }
-            if j < prev_voxels.len() && prev_voxels[j] == v {
-                (a.owners[k], a.upper[k], a.lower[k]) = (prev.owners[j], prev.upper[j], prev.lower[j]);
-            } else {
-                a.owners[k] = last;
-            }
-        }
+        match_voxels(prev_voxels, voxels, |k, found| match found {
+            Ok(j) => (a.owners[k], a.upper[k], a.lower[k]) = (prev.owners[j], prev.upper[j], prev.lower[j]),
+            Err(before) => a.owners[k] = before.map_or(NO_OWNER, |j| prev.owners[j]),
+        });
         a
     }
 
@@ -854,16 +845,25 @@ fn block_stats(blocks: &[Block], owners: &[u32], n: usize) -> CellStats {
 /// both keep their owner as a hint (both lists are sorted).
 pub(crate) fn carry_owners(prev_voxels: &[u32], prev_owners: &[u32], voxels: &[u32]) -> Vec<u32> {
     let mut out = vec![NO_OWNER; voxels.len()];
+    match_voxels(prev_voxels, voxels, |k, found| {
+        // Else the owner of the voxel before it, nearly always a neighbour.
+        if let Ok(j) | Err(Some(j)) = found {
+            out[k] = prev_owners[j];
+        }
+    });
+    out
+}
+
+/// For each of `voxels` (index k), where it is in `prev_voxels` (both
+/// sorted): Ok(j) when there, else Err with the last index before it, if any.
+fn match_voxels(prev_voxels: &[u32], voxels: &[u32], mut each: impl FnMut(usize, Result<usize, Option<usize>>)) {
     let mut j = 0;
-    let mut last = NO_OWNER;
     for (k, &v) in voxels.iter().enumerate() {
         while j < prev_voxels.len() && prev_voxels[j] < v {
-            last = prev_owners[j];
             j += 1;
         }
-        out[k] = if j < prev_voxels.len() && prev_voxels[j] == v { prev_owners[j] } else { last };
+        each(k, if j < prev_voxels.len() && prev_voxels[j] == v { Ok(j) } else { Err(j.checked_sub(1)) });
     }
-    out
 }
 
 #[cfg(test)]
