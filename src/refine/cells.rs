@@ -3,7 +3,7 @@
 //!
 //! A frame's assignment (owner and distance bounds of each voxel) lets the
 //! next update re-examine only the voxels whose owner may have changed; it
-//! costs about 18 bytes per occupied voxel. So that memory does not grow with
+//! costs about 26 bytes per occupied voxel. So that memory does not grow with
 //! the sequence or the resolution, only the first
 //! [`SequenceCells::cached_frames`] frames keep theirs, as many as a budget in
 //! bytes holds and at most [`KEPT_CELL_FRAMES`]; the others are assigned

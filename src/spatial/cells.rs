@@ -124,6 +124,7 @@ impl Loosening {
 /// f64 spends its time converting them and branching, a cost paid for every
 /// voxel in every iteration.
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 struct Loosening32 {
     moved: f32,
     decay: f32,
@@ -173,6 +174,16 @@ impl Loosening32 {
         let c = lower - self.max_move;
         let l = if m > c { m } else { c };
         (u, l * SHRINK)
+    }
+
+    /// Another lower bound after the move, of the same voxel whose upper
+    /// bound is now `upper` ([`Loosening32::loosen`]'s first).
+    #[inline(always)]
+    fn lowered(&self, lower: f32, upper: f32) -> f32 {
+        let (a, b) = (lower - self.decay, self.reach - upper);
+        let m = if a < b { a } else { b };
+        let c = lower - self.max_move;
+        (if m > c { m } else { c }) * SHRINK
     }
 }
 
@@ -382,10 +393,10 @@ impl CenterIndex {
         best.1
     }
 
-    /// Nearest center and a lower bound on the distance to every other
-    /// center, starting from the hint `o` (a center index, or NO_OWNER).
+    /// Nearest center and bounds on the others' distances, starting from the
+    /// hint `o` (a center index, or NO_OWNER).
     #[inline]
-    fn nearest2(&self, v: &[Real; 3], hint: u32) -> (u32, Real, Real) {
+    fn nearest2(&self, v: &[Real; 3], hint: u32) -> Found {
         if hint != NO_OWNER && (hint as usize) < self.points.len() {
             match self.nearest_among_candidates(v, hint) {
                 Ok(found) => return found,
@@ -400,7 +411,7 @@ impl CenterIndex {
             }
         }
         if self.points.len() == 1 {
-            return (0, self.dist2(0, v).sqrt(), Real::INFINITY);
+            return Found { owner: 0, distance: self.dist2(0, v).sqrt(), second: Real::INFINITY, runner_up: NO_OWNER, third: Real::INFINITY };
         }
         let found = self.tree().query(v).nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(2).unwrap()).execute();
         let (a, b) = (found[0].item, found[1].item);
@@ -409,33 +420,39 @@ impl CenterIndex {
         let owner = if db > da * (1.0 + 1e-9) + Real::MIN_POSITIVE { a } else { self.nearest_tree(v) };
         // The second distance bounds every center but the owner from below.
         let second = if owner == a { db } else { da.min(db) };
-        (owner, self.dist2(owner, v).sqrt(), second.sqrt())
+        Found { owner, distance: self.dist2(owner, v).sqrt(), second: second.sqrt(), runner_up: NO_OWNER, third: Real::INFINITY }
     }
 
     /// The nearest center among `hint`'s candidates with a lower bound on
     /// every other center's distance, when the list's reach proves it the
     /// nearest of all; otherwise Err with the best candidate.
     #[inline]
-    fn nearest_among_candidates(&self, v: &[Real; 3], hint: u32) -> Result<(u32, Real, Real), u32> {
-        let (mut best, mut second) = ((Real::INFINITY, 0u32), Real::INFINITY);
+    fn nearest_among_candidates(&self, v: &[Real; 3], hint: u32) -> Result<Found, u32> {
+        let (mut best, mut second, mut third) = ((Real::INFINITY, 0u32), (Real::INFINITY, NO_OWNER), Real::INFINITY);
         let cand = self.candidates(hint);
         let shrink = cand.shrink(self.travel[hint as usize], self.travel_cap) + self.dist2(hint, v).sqrt();
         for (part, reach) in [(&cand.list[..cand.near], cand.reach), (&cand.list[cand.near..], cand.reach_far)] {
             for &c in part {
                 let d = self.dist2(c, v);
                 // Branch-free (selects rather than jumps: which candidate
-                // wins is unpredictable): the runner-up is the smaller of
-                // itself and whichever of d and the best loses.
-                let loser = if d < best.0 { best.0 } else { d };
-                second = if loser < second { loser } else { second };
+                // wins is unpredictable): d displaces the best, the
+                // runner-up or the third, and whichever it displaces moves
+                // down one place.
                 let wins = d < best.0 || (d == best.0 && c < best.1);
+                // The loser of d and the best, then of that and the runner-up.
+                let (lose, lose_c) = if wins { best } else { (d, c) };
+                let seconds = lose < second.0;
+                let drop = if seconds { second.0 } else { lose };
+                third = if drop < third { drop } else { third };
+                second = (if seconds { lose } else { second.0 }, if seconds { lose_c } else { second.1 });
                 best = (if wins { d } else { best.0 }, if wins { c } else { best.1 });
             }
             let bound = reach - shrink;
             let d_best = best.0.sqrt();
             // Strict: a center at exactly the bound could tie and win on index.
             if d_best < bound {
-                return Ok((best.1, d_best, second.sqrt().min(bound)));
+                // Every center outside the list is at least `bound` away.
+                return Ok(Found { owner: best.1, distance: d_best, second: second.0.sqrt().min(bound), runner_up: second.1, third: third.sqrt().min(bound) });
             }
         }
         Err(best.1)
@@ -443,7 +460,7 @@ impl CenterIndex {
 
     /// Nearest center (ties to the lower index), from a hint or none.
     pub fn nearest(&self, v: &[Real; 3], hint: u32) -> u32 {
-        self.nearest2(v, hint).0
+        self.nearest2(v, hint).owner
     }
 
     pub fn len(&self) -> usize {
@@ -453,6 +470,22 @@ impl CenterIndex {
     pub fn is_empty(&self) -> bool {
         self.points.is_empty()
     }
+}
+
+/// A nearest-center search's answer.
+#[derive(Clone, Copy, Debug)]
+struct Found {
+    owner: u32,
+    /// The distance to the owner.
+    distance: Real,
+    /// A lower bound on the distance to every other center.
+    second: Real,
+    /// A center other than the owner (the nearest of the others when the
+    /// search knew it), or NO_OWNER.
+    runner_up: u32,
+    /// With a runner-up, a lower bound on the distance to every center but
+    /// the owner and the runner-up.
+    third: Real,
 }
 
 /// Per-cell sums over occupied voxels, in integer voxel coordinates so that
@@ -547,8 +580,7 @@ struct Blocks {
 /// One frame's voxels with their owners and Hamerly bounds, updated as the
 /// centers move.
 ///
-/// 14 bytes per voxel (coordinates, owner, f32 bounds), so that every frame of
-/// a long sequence can keep its state during the global optimisation.
+/// 26 bytes per voxel (coordinates, owner, runner-up, three f32 bounds).
 #[derive(Clone)]
 pub struct Assignment {
     origin: [Real; 3],
@@ -561,6 +593,14 @@ pub struct Assignment {
     pub owners: Vec<u32>,
     upper: Vec<f32>,
     lower: Vec<f32>,
+    /// Per element, the center that was nearest after its owner when it
+    /// was last measured (NO_OWNER if not known): an element between two
+    /// cells, the common case among those whose bounds fail, is settled by
+    /// measuring both instead of searching the owner's candidates.
+    runner_up: Vec<u32>,
+    /// Per element with a runner-up, a lower bound on the distance to every
+    /// center but the owner and the runner-up, loosened as `lower` is.
+    third: Vec<f32>,
     /// Slack for the f64 arithmetic on the bounds, in world units (the f32
     /// bounds themselves are rounded outwards).
     eps: Real,
@@ -584,6 +624,8 @@ impl Assignment {
             owners: hints,
             upper: vec![f32::INFINITY; n],
             lower: vec![f32::NEG_INFINITY; n],
+            runner_up: vec![NO_OWNER; n],
+            third: vec![f32::NEG_INFINITY; n],
             eps: grid.voxel_size * 1e-9,
             sums: None,
         }
@@ -601,7 +643,10 @@ impl Assignment {
         assert_eq!(prev_voxels.len(), prev.owners.len());
         let mut a = Assignment::new(grid, voxels, vec![NO_OWNER; voxels.len()]);
         match_voxels(prev_voxels, voxels, |k, found| match found {
-            Ok(j) => (a.owners[k], a.upper[k], a.lower[k]) = (prev.owners[j], prev.upper[j], prev.lower[j]),
+            Ok(j) => {
+                (a.owners[k], a.upper[k], a.lower[k]) = (prev.owners[j], prev.upper[j], prev.lower[j]);
+                (a.runner_up[k], a.third[k]) = (prev.runner_up[j], prev.third[j]);
+            }
             Err(before) => a.owners[k] = before.map_or(NO_OWNER, |j| prev.owners[j]),
         });
         a
@@ -626,6 +671,10 @@ impl Assignment {
                     *up = f32::INFINITY;
                 }
             }
+        }
+        // The third bound still holds for the others when the runner-up goes.
+        for r in self.runner_up.iter_mut().filter(|r| **r != NO_OWNER) {
+            *r = renumbered[*r as usize];
         }
         self.sums = None;
     }
@@ -676,6 +725,8 @@ impl Assignment {
             owners,
             upper: vec![f32::INFINITY; n],
             lower: vec![f32::NEG_INFINITY; n],
+            runner_up: vec![NO_OWNER; n],
+            third: vec![f32::NEG_INFINITY; n],
             eps: a * 1e-9,
             sums: None,
         }
@@ -693,12 +744,13 @@ impl Assignment {
         assert!(!(with_moments && self.blocks.is_some()), "blocks keep no second moments");
         let loosening = index.loosening(moved);
         let (eps, origin, a) = (self.eps, self.origin, self.voxel_size);
-        let (owners, upper, lower, coords) = (&mut self.owners, &mut self.upper, &mut self.lower, &self.coords);
+        let bounds = Bounds { owners: &mut self.owners, upper: &mut self.upper, lower: &mut self.lower, runner_up: &mut self.runner_up, third: &mut self.third };
+        let coords = &self.coords;
         // One copy of the pass for each kind of element, each with its own
         // position lookup compiled in.
         let changes = match &self.blocks {
-            Some(b) => reassign(owners, upper, lower, coords, eps, index, &loosening, |at, _| b.positions[at]),
-            None => reassign(owners, upper, lower, coords, eps, index, &loosening, |_, c| [0, 1, 2].map(|d| origin[d] + (c[d] as Real + 0.5) * a)),
+            Some(b) => reassign(bounds, coords, eps, index, &loosening, |at, _| b.positions[at]),
+            None => reassign(bounds, coords, eps, index, &loosening, |_, c| [0, 1, 2].map(|d| origin[d] + (c[d] as Real + 0.5) * a)),
         };
         match &mut self.sums {
             Some(sums) if !with_moments && sums.count.len() == index.len() => {
@@ -730,15 +782,108 @@ impl Assignment {
     }
 }
 
+/// The first pass of [`reassign`] over a chunk: loosens every element's
+/// bounds by its owner's [`Loosening32`] and lists in `pending` (element,
+/// lower bound before) those whose bounds no longer prove the owner, and
+/// those without one. Returns how many.
+fn loosen_all(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [(u32, f32)]) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && !loosening.is_empty() {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { loosen_all_avx2(owners, upper, lower, third, loosening, pending) };
+    }
+    loosen_all_portable(owners, upper, lower, third, loosening, pending, 0)
+}
+
+/// [`loosen_all`] from element `from` on, one element at a time.
+#[inline(always)]
+fn loosen_all_portable(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [(u32, f32)], from: usize) -> usize {
+    let mut n = 0;
+    for k in from..owners.len() {
+        let lo = lower[k];
+        let skip = match loosening.get(owners[k] as usize) {
+            Some(b) => {
+                let (u, l) = b.loosen(upper[k], lo);
+                upper[k] = u;
+                lower[k] = l;
+                third[k] = b.lowered(third[k], u);
+                u < l
+            }
+            None => false,
+        };
+        pending[n] = (k as u32, lo);
+        n += !skip as usize;
+    }
+    n
+}
+
+/// [`loosen_all`] eight elements at a time, the loosenings gathered by
+/// owner. The same f32 operations in the same order as
+/// [`Loosening32::loosen`] (`_mm256_min_ps(a, b)` is `if a < b { a } else
+/// { b }`, NaN included), so the bounds come out bit-identical.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn loosen_all_avx2(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [(u32, f32)]) -> usize {
+    use std::arch::x86_64::*;
+    let len = owners.len();
+    assert!(upper.len() == len && lower.len() == len && third.len() == len && pending.len() >= len);
+    let table = loosening.as_ptr() as *const f32;
+    let last = _mm256_set1_epi32(loosening.len() as i32 - 1);
+    let (grow, shrink) = (_mm256_set1_ps(GROW), _mm256_set1_ps(SHRINK));
+    let mut n = 0;
+    let mut k = 0;
+    while k + 8 <= len {
+        let own = _mm256_loadu_si256(owners.as_ptr().add(k) as *const __m256i);
+        // Owners past the table (NO_OWNER) read its last entry, then are
+        // left as they were and listed.
+        let clamped = _mm256_min_epu32(own, last);
+        let valid = _mm256_cmpeq_epi32(clamped, own);
+        let at = _mm256_slli_epi32::<2>(clamped);
+        let moved = _mm256_i32gather_ps::<4>(table, at);
+        let decay = _mm256_i32gather_ps::<4>(table.add(1), at);
+        let reach = _mm256_i32gather_ps::<4>(table.add(2), at);
+        let max_move = _mm256_i32gather_ps::<4>(table.add(3), at);
+        let up0 = _mm256_loadu_ps(upper.as_ptr().add(k));
+        let lo0 = _mm256_loadu_ps(lower.as_ptr().add(k));
+        let th0 = _mm256_loadu_ps(third.as_ptr().add(k));
+        let u = _mm256_mul_ps(_mm256_add_ps(up0, moved), grow);
+        let lowered = |l: __m256| {
+            let m = _mm256_min_ps(_mm256_sub_ps(l, decay), _mm256_sub_ps(reach, u));
+            _mm256_mul_ps(_mm256_max_ps(m, _mm256_sub_ps(l, max_move)), shrink)
+        };
+        let (l, th) = (lowered(lo0), lowered(th0));
+        let valid = _mm256_castsi256_ps(valid);
+        _mm256_storeu_ps(upper.as_mut_ptr().add(k), _mm256_blendv_ps(up0, u, valid));
+        _mm256_storeu_ps(lower.as_mut_ptr().add(k), _mm256_blendv_ps(lo0, l, valid));
+        _mm256_storeu_ps(third.as_mut_ptr().add(k), _mm256_blendv_ps(th0, th, valid));
+        let skip = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(u, l), valid);
+        let listed = !_mm256_movemask_ps(skip) & 0xff;
+        let mut before = [0f32; 8];
+        _mm256_storeu_ps(before.as_mut_ptr(), lo0);
+        for (j, &lo) in before.iter().enumerate() {
+            *pending.get_unchecked_mut(n) = ((k + j) as u32, lo);
+            n += (listed >> j) as usize & 1;
+        }
+        k += 8;
+    }
+    n + loosen_all_portable(owners, upper, lower, third, loosening, &mut pending[n..], k)
+}
+
+/// An assignment's per-element state, borrowed for [`reassign`].
+struct Bounds<'a> {
+    owners: &'a mut [u32],
+    upper: &'a mut [f32],
+    lower: &'a mut [f32],
+    runner_up: &'a mut [u32],
+    third: &'a mut [f32],
+}
+
 /// The pass of [`Assignment::update`] over every element: loosens the
 /// bounds, measures the elements they no longer prove, and returns (element,
 /// old owner) for every element whose owner changed. `position(k, coords[k])`
 /// is element k's position.
-#[allow(clippy::too_many_arguments)]
 fn reassign(
-    owners: &mut [u32],
-    upper: &mut [f32],
-    lower: &mut [f32],
+    bounds: Bounds,
     coords: &[[u16; 3]],
     eps: Real,
     index: &CenterIndex,
@@ -746,33 +891,22 @@ fn reassign(
     position: impl Fn(usize, [u16; 3]) -> [Real; 3] + Sync,
 ) -> Vec<Vec<(u32, u32)>> {
     let loosening32: Vec<Loosening32> = loosening.iter().map(Loosening32::from).collect();
+    let Bounds { owners, upper, lower, runner_up, third } = bounds;
     // (voxel, old owner) for every voxel whose owner changed.
     owners
         .par_chunks_mut(CHUNK)
         .zip(upper.par_chunks_mut(CHUNK))
         .zip(lower.par_chunks_mut(CHUNK))
+        .zip(runner_up.par_chunks_mut(CHUNK))
+        .zip(third.par_chunks_mut(CHUNK))
         .zip(coords.par_chunks(CHUNK))
         .enumerate()
         // Voxels to measure, with their lower bound before the first
         // pass: a buffer per rayon job rather than a zeroed one per chunk.
         .map_init(
             || vec![(0u32, 0f32); CHUNK],
-            |pending, (chunk, (((own, up), low), coords))| {
-                let mut n = 0;
-                for k in 0..own.len() {
-                    let lo = low[k];
-                    let skip = match loosening32.get(own[k] as usize) {
-                        Some(b) => {
-                            let (u, l) = b.loosen(up[k], lo);
-                            up[k] = u;
-                            low[k] = l;
-                            u < l
-                        }
-                        None => false,
-                    };
-                    pending[n] = (k as u32, lo);
-                    n += !skip as usize;
-                }
+            |pending, (chunk, (((((own, up), low), runner), third), coords))| {
+                let n = loosen_all(own, up, low, third, &loosening32, pending);
                 let mut changed = Vec::new();
                 // The owner last found in this chunk: a voxel without
                 // one (assigned afresh) starts from its neighbour's in
@@ -785,23 +919,54 @@ fn reassign(
                     let o = own[k];
                     let at = chunk * CHUNK + k;
                     let pos = position(at, coords[k]);
+                    let mut hint = if o == NO_OWNER { last } else { o };
                     if let Some(b) = loosening.get(o as usize) {
-                        let u = index.dist2(o, &pos).sqrt();
+                        let u2 = index.dist2(o, &pos);
+                        let u = u2.sqrt();
                         let l = b.lowered(lo as Real, u);
                         if u + eps < l {
                             up[k] = (u as f32).next_up();
                             low[k] = (l as f32).next_down();
                             continue;
                         }
+                        // Between the owner and the runner-up, when every
+                        // other center is farther than both.
+                        let r = runner[k];
+                        let others = third[k] as Real;
+                        if r != NO_OWNER && u + eps < others {
+                            let r2 = index.dist2(r, &pos);
+                            let takes = r2 < u2 || (r2 == u2 && r < o);
+                            let (near, far) = if takes { (r2.sqrt(), u) } else { (u, r2.sqrt()) };
+                            if near + eps < others {
+                                if takes {
+                                    own[k] = r;
+                                    runner[k] = o;
+                                    changed.push((at as u32, o));
+                                }
+                                up[k] = (near as f32).next_up();
+                                low[k] = (far.min(others) as f32).next_down();
+                                last = own[k];
+                                continue;
+                            }
+                        }
+                        // Where the centers moved far (a frame's first
+                        // iterations), the owner the scan just found is
+                        // often nearer than the voxel's own last owner, and
+                        // its candidate list the one that settles the voxel.
+                        if last != NO_OWNER && last != o && index.dist2(last, &pos) < u2 {
+                            hint = last;
+                        }
                     }
-                    let (owner, d, second) = index.nearest2(&pos, if o == NO_OWNER { last } else { o });
-                    last = owner;
-                    if owner != o {
+                    let found = index.nearest2(&pos, hint);
+                    last = found.owner;
+                    if found.owner != o {
                         changed.push((at as u32, o));
                     }
-                    own[k] = owner;
-                    up[k] = (d as f32).next_up();
-                    low[k] = (second as f32).next_down();
+                    own[k] = found.owner;
+                    up[k] = (found.distance as f32).next_up();
+                    low[k] = (found.second as f32).next_down();
+                    runner[k] = found.runner_up;
+                    third[k] = (found.third as f32).next_down();
                 }
                 changed
             },
@@ -870,6 +1035,49 @@ fn match_voxels(prev_voxels: &[u32], voxels: &[u32], mut each: impl FnMut(usize,
 mod tests {
     use super::*;
     use crate::model::rng::SplitMix64;
+
+    /// The pass over a chunk eight elements at a time gives the bounds and
+    /// the list of elements to measure of the one at a time, bit for bit,
+    /// with owners past the table, infinite and NaN-making bounds, and
+    /// lengths that leave a tail.
+    #[test]
+    fn the_vector_pass_matches_the_scalar_one() {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            let mut rng = SplitMix64::new(5);
+            for case in 0..300 {
+                let centers = 1 + case % 40;
+                let len = case * 7 % 200;
+                let mut unit = || rng.unit();
+                let loosening: Vec<Loosening32> = (0..centers)
+                    .map(|i| {
+                        let reach = if i % 7 == 0 { Real::INFINITY } else { 1.0 + unit() };
+                        Loosening32::from(&Loosening { moved: 0.1 * unit(), decay: 0.1 * unit(), reach, max_move: 0.2 })
+                    })
+                    .collect();
+                let owners: Vec<u32> = (0..len).map(|_| if unit() < 0.1 { NO_OWNER } else { (unit() * centers as Real) as u32 }).collect();
+                let mut bound = |inf: f32| if unit() < 0.05 { inf } else { unit() as f32 };
+                let upper: Vec<f32> = (0..len).map(|_| bound(f32::INFINITY)).collect();
+                let lower: Vec<f32> = (0..len).map(|_| bound(f32::NEG_INFINITY)).collect();
+                let third: Vec<f32> = (0..len).map(|_| bound(f32::NEG_INFINITY)).collect();
+                let run = |vector: bool| {
+                    let (mut up, mut lo, mut th) = (upper.clone(), lower.clone(), third.clone());
+                    let mut pending = vec![(0u32, 0f32); len];
+                    let n = if vector {
+                        // SAFETY: the CPU has AVX2, checked above.
+                        unsafe { loosen_all_avx2(&owners, &mut up, &mut lo, &mut th, &loosening, &mut pending) }
+                    } else {
+                        loosen_all_portable(&owners, &mut up, &mut lo, &mut th, &loosening, &mut pending, 0)
+                    };
+                    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    let listed: Vec<(u32, u32)> = pending[..n].iter().map(|&(k, l)| (k, l.to_bits())).collect();
+                    (bits(&up), bits(&lo), bits(&th), listed)
+                };
+                let (vector, scalar) = (run(true), run(false));
+                assert_eq!(vector, scalar, "case {case}: {centers} centers, {len} elements");
+            }
+        }
+    }
 
     /// The f32 loosening never tightens a bound the f64 arithmetic allows,
     /// at any scale, on bounds built to fall within an f32 rounding of a tie.
