@@ -830,6 +830,9 @@ unsafe fn loosen_all_avx2(owners: &[u32], upper: &mut [f32], lower: &mut [f32], 
     let table = loosening.as_ptr() as *const f32;
     let last = _mm256_set1_epi32(loosening.len() as i32 - 1);
     let (grow, shrink) = (_mm256_set1_ps(GROW), _mm256_set1_ps(SHRINK));
+    // The same for every center (the largest move of all): one gather fewer.
+    let max_move = _mm256_set1_ps(loosening[0].max_move);
+    debug_assert!(loosening.iter().all(|l| l.max_move == loosening[0].max_move));
     let mut n = 0;
     let mut k = 0;
     while k + 8 <= len {
@@ -842,7 +845,6 @@ unsafe fn loosen_all_avx2(owners: &[u32], upper: &mut [f32], lower: &mut [f32], 
         let moved = _mm256_i32gather_ps::<4>(table, at);
         let decay = _mm256_i32gather_ps::<4>(table.add(1), at);
         let reach = _mm256_i32gather_ps::<4>(table.add(2), at);
-        let max_move = _mm256_i32gather_ps::<4>(table.add(3), at);
         let up0 = _mm256_loadu_ps(upper.as_ptr().add(k));
         let lo0 = _mm256_loadu_ps(lower.as_ptr().add(k));
         let th0 = _mm256_loadu_ps(third.as_ptr().add(k));
