@@ -169,15 +169,12 @@ impl Loosening32 {
         // instructions here; a NaN (from an infinite upper bound) only fails
         // the test u < l.
         let u = (upper + self.moved) * GROW;
-        let (a, b) = (lower - self.decay, self.reach - u);
-        let m = if a < b { a } else { b };
-        let c = lower - self.max_move;
-        let l = if m > c { m } else { c };
-        (u, l * SHRINK)
+        (u, self.lowered(lower, u))
     }
 
-    /// Another lower bound after the move, of the same voxel whose upper
-    /// bound is now `upper` ([`Loosening32::loosen`]'s first).
+    /// A lower bound after the move (`lower`, or another one of the same
+    /// voxel) given the voxel's upper bound after it, `upper`
+    /// ([`Loosening32::loosen`]'s first).
     #[inline(always)]
     fn lowered(&self, lower: f32, upper: f32) -> f32 {
         let (a, b) = (lower - self.decay, self.reach - upper);
