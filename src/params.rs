@@ -97,11 +97,22 @@ pub struct TrackParams {
     /// another part. Default true.
     pub accelerated_guess: bool,
     /// With several guesses, their runs stop once no update is as long as
-    /// this many times `threshold`; they are then compared region by region
+    /// this many times `threshold` (but for `screening_unsettled` of the
+    /// centers); they are then compared region by region
     /// and combined, and only the kept run goes on to `threshold`
     /// (`track::forward`). 1 runs every guess to `threshold`. Default 4; in
     /// [1, 1e6].
     pub guess_screening: Real,
+    /// The share of the centers whose update may still be longer than
+    /// `guess_screening` × `threshold` when the guesses' runs are compared:
+    /// the screening stops once no more than this share (rounded down) are.
+    /// Why: past the first few dozen iterations a run's updates shrink
+    /// everywhere but in a few places where centers creep along for a
+    /// hundred iterations more, and the screening compares regions, which
+    /// those few centers barely change; waiting for the last of them was
+    /// a third of the screening's iterations (docs/measurements.md). 0 waits
+    /// for every center. Default 0.01; in [0, 1).
+    pub screening_unsettled: Real,
     /// With several guesses, their runs up to the screening (and the
     /// combination's) assign blocks of this many voxels along each side,
     /// each block as a whole by its voxels' centroid, instead of single
@@ -153,6 +164,7 @@ impl Default for TrackParams {
             damped_guess: Some(0.25),
             accelerated_guess: true,
             guess_screening: 4.0,
+            screening_unsettled: 0.01,
             screening_block: 1,
             tracking_over_relaxation: 1.0,
             lloyd_iterations: 1000,
@@ -183,6 +195,7 @@ impl TrackParams {
         }
         check("the tracking over-relaxation", self.tracking_over_relaxation, Span::open(0.0, 2.0))?;
         check("the guess screening factor", self.guess_screening, Span::closed(1.0, 1e6))?;
+        check("the screening's unsettled share", self.screening_unsettled, Span::closed_open(0.0, 1.0))?;
         // 0 would leave the centers where the seeding put them, unplaced.
         check_count("the Lloyd iterations", self.lloyd_iterations, 1..=MAX_ITERATIONS)?;
         check("the over-relaxation", self.over_relaxation, Span::open(0.0, 2.0))?;

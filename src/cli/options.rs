@@ -82,7 +82,7 @@ pub struct TrackArgs {
     #[arg(long, value_name = "K", default_value_t = TrackParams::default().damped_guess.expect("on by default"))]
     pub damped_guess: f64,
     /// Track every frame from the paper's constant-velocity guess alone (no damped or accelerated guess): a third of the tracking work, but fast limbs that turn back get lost
-    #[arg(long, conflicts_with_all = ["damped_guess", "no_accelerated_guess", "guess_screening", "screening_block"])]
+    #[arg(long, conflicts_with_all = ["damped_guess", "no_accelerated_guess", "guess_screening", "screening_unsettled", "screening_block"])]
     pub single_guess: bool,
     /// No start at constant acceleration (the guess that follows a limb turning back, as a galloping animal's legs do)
     #[arg(long)]
@@ -90,6 +90,9 @@ pub struct TrackArgs {
     /// The runs from the several guesses are compared, region by region, once their updates fall below this many times --threshold; only the kept one runs on to --threshold. 1 runs them all to --threshold (range: 1..=1e6)
     #[arg(long, value_name = "FACTOR", default_value_t = TrackParams::default().guess_screening)]
     pub guess_screening: f64,
+    /// The screening compares the runs once no more than this share of the centers still move more than --guess-screening × --threshold; 0 waits for every center (range: 0 <= SHARE < 1)
+    #[arg(long, value_name = "SHARE", default_value_t = TrackParams::default().screening_unsettled)]
+    pub screening_unsettled: f64,
     /// The guesses' runs up to the screening assign blocks of N³ voxels, each by its voxels' centroid; the kept run goes on on voxels. 2 tracks in a little over half the time, with a little worse correspondence; 1 screens on voxels (range: 1..=8)
     #[arg(long, value_name = "N", default_value_t = TrackParams::default().screening_block)]
     pub screening_block: usize,
@@ -146,6 +149,7 @@ impl TrackArgs {
             damped_guess: (!self.single_guess).then_some(self.damped_guess),
             accelerated_guess: !self.single_guess && !self.no_accelerated_guess,
             guess_screening: self.guess_screening,
+            screening_unsettled: self.screening_unsettled,
             screening_block: self.screening_block,
             tracking_over_relaxation: self.tracking_over_relaxation,
             lloyd_iterations: self.lloyd_iterations,

@@ -264,7 +264,11 @@ impl<'a> Tracker<'a> {
         let (beta, omega) = (self.params.beta, self.params.tracking_over_relaxation);
         // Blocks jitter more than voxels (one changing owner moves a
         // centroid several times as far), so they need the window too.
-        let window = if threshold2 > self.threshold2 && !run.blocks { 1 } else { self.params.convergence_window };
+        let screening = threshold2 > self.threshold2;
+        let window = if screening && !run.blocks { 1 } else { self.params.convergence_window };
+        // The screening compares regions: a few centers still creeping along
+        // need not hold it up ([`TrackParams::screening_unsettled`]).
+        let unsettled = if screening { (self.params.screening_unsettled * run.cur.len() as Real) as usize } else { 0 };
         let mut recent = Recent::new(window);
         let Run { cur, cells, moved, index, timing: t, converged, .. } = run;
         while !*converged && t.iterations < limit {
@@ -285,12 +289,13 @@ impl<'a> Tracker<'a> {
             recent.push(cur);
             // The residual G(c) − c of the paper's update G(c) = (p + β x̄) / (1 + β)
             // decides convergence whatever the step taken along it.
-            let mut residual_most: Real = 0.0;
+            let (mut residual_most, mut unsettled_now): (Real, usize) = (0.0, 0);
             for (i, c) in cur.iter_mut().enumerate() {
                 let p = motions[i].apply(&prev[i]);
                 let x = stats.centroid(i, self.grid).unwrap_or(p);
                 let residual = Point3::from((p.coords + x.coords * beta) / (1.0 + beta)) - *c;
                 residual_most = residual_most.max(residual.norm());
+                unsettled_now += (residual.norm_squared() >= threshold2) as usize;
                 let step = residual * omega;
                 moved.push(step.norm());
                 *c += step;
@@ -300,7 +305,7 @@ impl<'a> Tracker<'a> {
                 log::debug!("iteration {}: {over} centers move more than the threshold, largest residual {residual_most:.2e}", t.iterations);
             }
             recent.set_largest_update(residual_most);
-            *converged = residual_most * residual_most < threshold2;
+            *converged = residual_most * residual_most < threshold2 || (unsettled > 0 && unsettled_now <= unsettled);
             if !*converged && recent.settled(cur, threshold2) {
                 recent.take_steadiest(cur, moved);
                 *converged = true;
