@@ -955,6 +955,10 @@ fn reassign(
                         if last != NO_OWNER && last != o && index.dist2(last, &pos) < u2 {
                             hint = last;
                         }
+                    } else if o != NO_OWNER && last != NO_OWNER && last != o && index.dist2(last, &pos) < index.dist2(o, &pos) {
+                        // Assigned afresh from hints (another frame's
+                        // owners, say): the same test.
+                        hint = last;
                     }
                     let found = index.nearest2(&pos, hint);
                     last = found.owner;
