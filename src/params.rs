@@ -545,10 +545,10 @@ impl CoverageParams {
 /// sequence.
 pub const KEPT_CELL_FRAMES: usize = 64;
 
-/// Bytes a kept cell assignment takes per occupied voxel: owner, runner-up,
-/// distance bounds and coordinates (26), with room for the update's working
-/// lists.
-pub const KEPT_CELL_BYTES_PER_VOXEL: usize = 32;
+/// Bytes a kept cell assignment takes per occupied voxel: owner, distance
+/// bounds and coordinates (18; no runner-ups), with room for the update's
+/// working lists.
+pub const KEPT_CELL_BYTES_PER_VOXEL: usize = 24;
 
 /// The share of the memory allowed that [`RefineParams::cell_memory`] takes
 /// by default.

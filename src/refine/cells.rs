@@ -3,7 +3,8 @@
 //!
 //! A frame's assignment (owner and distance bounds of each voxel) lets the
 //! next update re-examine only the voxels whose owner may have changed; it
-//! costs about 26 bytes per occupied voxel. So that memory does not grow with
+//! costs about 18 bytes per occupied voxel (no runner-ups: see
+//! [`Assignment::without_runner_ups`]). So that memory does not grow with
 //! the sequence or the resolution, only the first
 //! [`SequenceCells::cached_frames`] frames keep theirs, as many as a budget in
 //! bytes holds and at most [`KEPT_CELL_FRAMES`]; the others are assigned
@@ -104,7 +105,7 @@ impl<'a> SequenceCells<'a> {
     /// sequence's frame `offset + k`.
     pub fn update_frames(&mut self, traj: &Trajectories, offset: usize, range: Range<usize>, with_moments: bool) -> Vec<CellStats> {
         let seq = self.seq;
-        let fresh = |f: usize| Assignment::new(&seq.grid, &seq.frames[f].indices(), vec![NO_OWNER; seq.frames[f].len()]);
+        let fresh = |f: usize| Assignment::new(&seq.grid, &seq.frames[f].indices(), vec![NO_OWNER; seq.frames[f].len()]).without_runner_ups();
         let kept = range.start.min(self.frames.len())..range.end.min(self.frames.len());
         let mut stats: Vec<CellStats> = self.frames[kept.clone()]
             .par_iter_mut()

@@ -35,6 +35,7 @@
 use crate::math::{Point3, Real};
 use crate::model::GridSpec;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rayon::iter::Either;
 use rayon::prelude::*;
 use std::num::NonZeroUsize;
 use std::sync::OnceLock;
@@ -577,7 +578,8 @@ struct Blocks {
 /// One frame's voxels with their owners and Hamerly bounds, updated as the
 /// centers move.
 ///
-/// 26 bytes per voxel (coordinates, owner, runner-up, three f32 bounds).
+/// 26 bytes per voxel (coordinates, owner, runner-up, three f32 bounds), 18
+/// [`without_runner_ups`](Self::without_runner_ups).
 #[derive(Clone)]
 pub struct Assignment {
     origin: [Real; 3],
@@ -628,6 +630,16 @@ impl Assignment {
         }
     }
 
+    /// The same assignment without runner-ups and third bounds, for one
+    /// kept long whose updates follow small moves (the refinement's): few
+    /// of its voxels then need measuring, and a third of its memory would
+    /// go to the pair test that spares some of them a search.
+    pub fn without_runner_ups(mut self) -> Self {
+        self.runner_up = Vec::new();
+        self.third = Vec::new();
+        self
+    }
+
     /// `voxels` with the owners and bounds that `prev` (an assignment of
     /// `prev_voxels`, both sorted) has for those of its voxels they share;
     /// the others take the owner of the voxel before them in `prev_voxels`
@@ -642,7 +654,9 @@ impl Assignment {
         match_voxels(prev_voxels, voxels, |k, found| match found {
             Ok(j) => {
                 (a.owners[k], a.upper[k], a.lower[k]) = (prev.owners[j], prev.upper[j], prev.lower[j]);
-                (a.runner_up[k], a.third[k]) = (prev.runner_up[j], prev.third[j]);
+                if !prev.runner_up.is_empty() {
+                    (a.runner_up[k], a.third[k]) = (prev.runner_up[j], prev.third[j]);
+                }
             }
             Err(before) => a.owners[k] = before.map_or(NO_OWNER, |j| prev.owners[j]),
         });
@@ -782,19 +796,30 @@ impl Assignment {
 /// The first pass of [`reassign`] over a chunk: loosens every element's
 /// bounds by its owner's [`Loosening32`] and lists in `pending` (element,
 /// lower bound before) those whose bounds no longer prove the owner, and
-/// those without one. Returns how many.
+/// those without one. Returns how many. `third` is empty when the
+/// assignment keeps no runner-ups.
 fn loosen_all(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [(u32, f32)]) -> usize {
+    let pairs = !third.is_empty();
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") && !loosening.is_empty() {
         // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { loosen_all_avx2(owners, upper, lower, third, loosening, pending) };
+        return unsafe {
+            match pairs {
+                true => loosen_all_avx2::<true>(owners, upper, lower, third, loosening, pending),
+                false => loosen_all_avx2::<false>(owners, upper, lower, third, loosening, pending),
+            }
+        };
     }
-    loosen_all_portable(owners, upper, lower, third, loosening, pending, 0)
+    match pairs {
+        true => loosen_all_portable::<true>(owners, upper, lower, third, loosening, pending, 0),
+        false => loosen_all_portable::<false>(owners, upper, lower, third, loosening, pending, 0),
+    }
 }
 
-/// [`loosen_all`] from element `from` on, one element at a time.
+/// [`loosen_all`] from element `from` on, one element at a time; `PAIRS`:
+/// whether there is a third bound to loosen.
 #[inline(always)]
-fn loosen_all_portable(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [(u32, f32)], from: usize) -> usize {
+fn loosen_all_portable<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [(u32, f32)], from: usize) -> usize {
     let mut n = 0;
     for k in from..owners.len() {
         let lo = lower[k];
@@ -803,7 +828,9 @@ fn loosen_all_portable(owners: &[u32], upper: &mut [f32], lower: &mut [f32], thi
                 let (u, l) = b.loosen(upper[k], lo);
                 upper[k] = u;
                 lower[k] = l;
-                third[k] = b.lowered(third[k], u);
+                if PAIRS {
+                    third[k] = b.lowered(third[k], u);
+                }
                 u < l
             }
             None => false,
@@ -820,10 +847,10 @@ fn loosen_all_portable(owners: &[u32], upper: &mut [f32], lower: &mut [f32], thi
 /// { b }`, NaN included), so the bounds come out bit-identical.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn loosen_all_avx2(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [(u32, f32)]) -> usize {
+unsafe fn loosen_all_avx2<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [(u32, f32)]) -> usize {
     use std::arch::x86_64::*;
     let len = owners.len();
-    assert!(upper.len() == len && lower.len() == len && third.len() == len && pending.len() >= len);
+    assert!(upper.len() == len && lower.len() == len && (!PAIRS || third.len() == len) && pending.len() >= len);
     let table = loosening.as_ptr() as *const f32;
     let last = _mm256_set1_epi32(loosening.len() as i32 - 1);
     let (grow, shrink) = (_mm256_set1_ps(GROW), _mm256_set1_ps(SHRINK));
@@ -844,17 +871,19 @@ unsafe fn loosen_all_avx2(owners: &[u32], upper: &mut [f32], lower: &mut [f32], 
         let reach = _mm256_i32gather_ps::<4>(table.add(2), at);
         let up0 = _mm256_loadu_ps(upper.as_ptr().add(k));
         let lo0 = _mm256_loadu_ps(lower.as_ptr().add(k));
-        let th0 = _mm256_loadu_ps(third.as_ptr().add(k));
         let u = _mm256_mul_ps(_mm256_add_ps(up0, moved), grow);
         let lowered = |l: __m256| {
             let m = _mm256_min_ps(_mm256_sub_ps(l, decay), _mm256_sub_ps(reach, u));
             _mm256_mul_ps(_mm256_max_ps(m, _mm256_sub_ps(l, max_move)), shrink)
         };
-        let (l, th) = (lowered(lo0), lowered(th0));
+        let l = lowered(lo0);
         let valid = _mm256_castsi256_ps(valid);
         _mm256_storeu_ps(upper.as_mut_ptr().add(k), _mm256_blendv_ps(up0, u, valid));
         _mm256_storeu_ps(lower.as_mut_ptr().add(k), _mm256_blendv_ps(lo0, l, valid));
-        _mm256_storeu_ps(third.as_mut_ptr().add(k), _mm256_blendv_ps(th0, th, valid));
+        if PAIRS {
+            let th0 = _mm256_loadu_ps(third.as_ptr().add(k));
+            _mm256_storeu_ps(third.as_mut_ptr().add(k), _mm256_blendv_ps(th0, lowered(th0), valid));
+        }
         let skip = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(u, l), valid);
         let listed = !_mm256_movemask_ps(skip) & 0xff;
         let mut before = [0f32; 8];
@@ -865,7 +894,7 @@ unsafe fn loosen_all_avx2(owners: &[u32], upper: &mut [f32], lower: &mut [f32], 
         }
         k += 8;
     }
-    n + loosen_all_portable(owners, upper, lower, third, loosening, &mut pending[n..], k)
+    n + loosen_all_portable::<PAIRS>(owners, upper, lower, third, loosening, &mut pending[n..], k)
 }
 
 /// An assignment's per-element state, borrowed for [`reassign`].
@@ -891,13 +920,22 @@ fn reassign(
 ) -> Vec<Vec<(u32, u32)>> {
     let loosening32: Vec<Loosening32> = loosening.iter().map(Loosening32::from).collect();
     let Bounds { owners, upper, lower, runner_up, third } = bounds;
+    // Without runner-ups ([`Assignment::without_runner_ups`]) every chunk
+    // gets empty slices for them.
+    let pairs = !runner_up.is_empty();
+    let chunks = owners.len().div_ceil(CHUNK);
+    let (runner_up, third) = if pairs {
+        (Either::Left(runner_up.par_chunks_mut(CHUNK)), Either::Left(third.par_chunks_mut(CHUNK)))
+    } else {
+        (Either::Right((0..chunks).into_par_iter().map(|_| <&mut [u32]>::default())), Either::Right((0..chunks).into_par_iter().map(|_| <&mut [f32]>::default())))
+    };
     // (voxel, old owner) for every voxel whose owner changed.
     owners
         .par_chunks_mut(CHUNK)
         .zip(upper.par_chunks_mut(CHUNK))
         .zip(lower.par_chunks_mut(CHUNK))
-        .zip(runner_up.par_chunks_mut(CHUNK))
-        .zip(third.par_chunks_mut(CHUNK))
+        .zip(runner_up)
+        .zip(third)
         .zip(coords.par_chunks(CHUNK))
         .enumerate()
         // Voxels to measure, with their lower bound before the first
@@ -930,8 +968,7 @@ fn reassign(
                         }
                         // Between the owner and the runner-up, when every
                         // other center is farther than both.
-                        let r = runner[k];
-                        let others = third[k] as Real;
+                        let (r, others) = if pairs { (runner[k], third[k] as Real) } else { (NO_OWNER, Real::NEG_INFINITY) };
                         if r != NO_OWNER && u + eps < others {
                             let r2 = index.dist2(r, &pos);
                             let takes = r2 < u2 || (r2 == u2 && r < o);
@@ -968,8 +1005,10 @@ fn reassign(
                     own[k] = found.owner;
                     up[k] = (found.distance as f32).next_up();
                     low[k] = (found.second as f32).next_down();
-                    runner[k] = found.runner_up;
-                    third[k] = (found.third as f32).next_down();
+                    if pairs {
+                        runner[k] = found.runner_up;
+                        third[k] = (found.third as f32).next_down();
+                    }
                 }
                 changed
             },
@@ -1066,11 +1105,17 @@ mod tests {
                 let run = |vector: bool| {
                     let (mut up, mut lo, mut th) = (upper.clone(), lower.clone(), third.clone());
                     let mut pending = vec![(0u32, 0f32); len];
-                    let n = if vector {
-                        // SAFETY: the CPU has AVX2, checked above.
-                        unsafe { loosen_all_avx2(&owners, &mut up, &mut lo, &mut th, &loosening, &mut pending) }
-                    } else {
-                        loosen_all_portable(&owners, &mut up, &mut lo, &mut th, &loosening, &mut pending, 0)
+                    // Without a third bound on odd cases.
+                    let pairs = case % 2 == 0;
+                    if !pairs {
+                        th.clear();
+                    }
+                    // SAFETY: the CPU has AVX2, checked above.
+                    let n = match (vector, pairs) {
+                        (true, true) => unsafe { loosen_all_avx2::<true>(&owners, &mut up, &mut lo, &mut th, &loosening, &mut pending) },
+                        (true, false) => unsafe { loosen_all_avx2::<false>(&owners, &mut up, &mut lo, &mut th, &loosening, &mut pending) },
+                        (false, true) => loosen_all_portable::<true>(&owners, &mut up, &mut lo, &mut th, &loosening, &mut pending, 0),
+                        (false, false) => loosen_all_portable::<false>(&owners, &mut up, &mut lo, &mut th, &loosening, &mut pending, 0),
                     };
                     let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
                     let listed: Vec<(u32, u32)> = pending[..n].iter().map(|&(k, l)| (k, l.to_bits())).collect();
