@@ -106,12 +106,12 @@ pub struct TrackParams {
     /// The share of the centers whose update may still be longer than
     /// `guess_screening` × `threshold` when the guesses' runs are compared:
     /// the screening stops once no more than this share (rounded down) are.
-    /// Why: past the first few dozen iterations a run's updates shrink
-    /// everywhere but in a few places where centers creep along for a
-    /// hundred iterations more, and the screening compares regions, which
-    /// those few centers barely change; waiting for the last of them was
-    /// a third of the screening's iterations (docs/measurements.md). 0 waits
-    /// for every center. Default 0.01; in [0, 1).
+    /// Why: near the end of a run its updates have shrunk everywhere but
+    /// in a few places where centers creep along for dozens of iterations
+    /// more, and the screening compares regions, which those few centers
+    /// barely change; waiting for the last of them cost about a third of
+    /// the dropped runs' iterations (docs/measurements.md). 0 waits for
+    /// every center. Default 0.01; in [0, 1).
     pub screening_unsettled: Real,
     /// With several guesses, their runs up to the screening (and the
     /// combination's) assign blocks of this many voxels along each side,
