@@ -617,7 +617,17 @@ impl Span {
 impl std::fmt::Display for Span {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let (l, r) = (if self.lo_open { '(' } else { '[' }, if self.hi_open { ')' } else { ']' });
-        write!(f, "{l}{:e}, {:e}{r}", self.lo, self.hi)
+        write!(f, "{l}{}, {}{r}", shown(self.lo), shown(self.hi))
+    }
+}
+
+/// A number as a user reads it in a message: plain, or in exponent form
+/// when very large or very small ("1e6", "1e-12", but "0.5" and "0").
+fn shown(x: Real) -> String {
+    if x != 0.0 && x.is_finite() && !(1e-4..1e6).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        x.to_string()
     }
 }
 
@@ -626,8 +636,7 @@ pub(crate) fn check(name: &str, value: Real, span: Span) -> crate::Result<()> {
     if span.contains(value) {
         Ok(())
     } else {
-        let shown = if value != 0.0 && !(1e-4..1e6).contains(&value.abs()) { format!("{value:e}") } else { value.to_string() };
-        Err(crate::Error::InvalidParameter(format!("{name}: {shown} is outside {span}")))
+        Err(crate::Error::InvalidParameter(format!("{name}: {} is outside {span}", shown(value))))
     }
 }
 
@@ -637,5 +646,22 @@ pub(crate) fn check_count(name: &str, value: usize, range: std::ops::RangeInclus
         Ok(())
     } else {
         Err(crate::Error::InvalidParameter(format!("{name}: {value} is outside {}..={}", range.start(), range.end())))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Range errors show the value and the bounds as a user would write
+    /// them: plain, in exponent form only when very large or very small.
+    #[test]
+    fn range_errors_show_numbers_as_written() {
+        let err = TrackParams { damped_guess: Some(1.0), ..Default::default() }.validate().unwrap_err().to_string();
+        assert!(err.contains("the damped guess's factor: 1 is outside [0, 1)"), "{err}");
+        let err = TrackParams { threshold: 1e-13, ..Default::default() }.validate().unwrap_err().to_string();
+        assert!(err.contains("1e-13 is outside [1e-12, 1e12]"), "{err}");
+        let err = TrackParams { screening_unsettled: 0.5 + 0.5, ..Default::default() }.validate().unwrap_err().to_string();
+        assert!(err.contains("unsettled share: 1 is outside [0, 1)"), "{err}");
     }
 }
