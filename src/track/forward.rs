@@ -259,6 +259,8 @@ impl<'a> Tracker<'a> {
     /// on blocks), the run also stops by [`TrackParams::convergence_window`]: once no center
     /// has moved `window` × the threshold over the last `window` iterations,
     /// it takes the state among those whose largest update was the shortest.
+    /// In the screening it stops once no more than
+    /// [`TrackParams::screening_unsettled`] of the centers' updates are that long.
     fn iterate(&self, run: &mut Run, prev: &[Point3], fits: &RigidFits, threshold2: Real, progress: Progress) -> Option<()> {
         let limit = self.params.max_iterations;
         let (beta, omega) = (self.params.beta, self.params.tracking_over_relaxation);
