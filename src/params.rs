@@ -661,7 +661,7 @@ mod tests {
         assert!(err.contains("the damped guess's factor: 1 is outside [0, 1)"), "{err}");
         let err = TrackParams { threshold: 1e-13, ..Default::default() }.validate().unwrap_err().to_string();
         assert!(err.contains("1e-13 is outside [1e-12, 1e12]"), "{err}");
-        let err = TrackParams { screening_unsettled: 0.5 + 0.5, ..Default::default() }.validate().unwrap_err().to_string();
+        let err = TrackParams { screening_unsettled: 1.0, ..Default::default() }.validate().unwrap_err().to_string();
         assert!(err.contains("unsettled share: 1 is outside [0, 1)"), "{err}");
     }
 }

@@ -956,47 +956,49 @@ fn reassign(
                     let o = own[k];
                     let at = chunk * CHUNK + k;
                     let pos = position(at, coords[k]);
-                    let mut hint = if o == NO_OWNER { last } else { o };
-                    if let Some(b) = loosening.get(o as usize) {
-                        let u2 = index.dist2(o, &pos);
-                        let u = u2.sqrt();
-                        let l = b.lowered(lo as Real, u);
-                        if u + eps < l {
-                            up[k] = (u as f32).next_up();
-                            low[k] = (l as f32).next_down();
-                            continue;
-                        }
-                        // Between the owner and the runner-up, when every
-                        // other center is farther than both.
-                        let (r, others) = if pairs { (runner[k], third[k] as Real) } else { (NO_OWNER, Real::NEG_INFINITY) };
-                        if r != NO_OWNER && u + eps < others {
-                            let r2 = index.dist2(r, &pos);
-                            let takes = r2 < u2 || (r2 == u2 && r < o);
-                            let (near, far) = if takes { (r2.sqrt(), u) } else { (u, r2.sqrt()) };
-                            if near + eps < others {
-                                if takes {
-                                    own[k] = r;
-                                    runner[k] = o;
-                                    changed.push((at as u32, o));
-                                }
-                                up[k] = (near as f32).next_up();
-                                low[k] = (far.min(others) as f32).next_down();
-                                last = own[k];
+                    // The squared distance to the voxel's last owner, or to
+                    // its hint when assigned afresh (another frame's owner,
+                    // say); infinite without either.
+                    let own2 = match loosening.get(o as usize) {
+                        Some(b) => {
+                            let u2 = index.dist2(o, &pos);
+                            let u = u2.sqrt();
+                            let l = b.lowered(lo as Real, u);
+                            if u + eps < l {
+                                up[k] = (u as f32).next_up();
+                                low[k] = (l as f32).next_down();
                                 continue;
                             }
+                            // Between the owner and the runner-up, when every
+                            // other center is farther than both.
+                            let (r, others) = if pairs { (runner[k], third[k] as Real) } else { (NO_OWNER, Real::NEG_INFINITY) };
+                            if r != NO_OWNER && u + eps < others {
+                                let r2 = index.dist2(r, &pos);
+                                let takes = r2 < u2 || (r2 == u2 && r < o);
+                                let (near, far) = if takes { (r2.sqrt(), u) } else { (u, r2.sqrt()) };
+                                if near + eps < others {
+                                    if takes {
+                                        own[k] = r;
+                                        runner[k] = o;
+                                        changed.push((at as u32, o));
+                                    }
+                                    up[k] = (near as f32).next_up();
+                                    low[k] = (far.min(others) as f32).next_down();
+                                    last = own[k];
+                                    continue;
+                                }
+                            }
+                            u2
                         }
-                        // Where the centers moved far (a frame's first
-                        // iterations), the owner the scan just found is
-                        // often nearer than the voxel's own last owner, and
-                        // its candidate list the one that settles the voxel.
-                        if last != NO_OWNER && last != o && index.dist2(last, &pos) < u2 {
-                            hint = last;
-                        }
-                    } else if o != NO_OWNER && last != NO_OWNER && last != o && index.dist2(last, &pos) < index.dist2(o, &pos) {
-                        // Assigned afresh from hints (another frame's
-                        // owners, say): the same test.
-                        hint = last;
-                    }
+                        None if (o as usize) < index.len() => index.dist2(o, &pos),
+                        None => Real::INFINITY,
+                    };
+                    // Where the centers moved far (a frame's first
+                    // iterations, or another frame's owners as hints), the
+                    // owner the scan just found is often nearer than the
+                    // voxel's own, and its candidate list the one that
+                    // settles the voxel.
+                    let hint = if last != NO_OWNER && last != o && index.dist2(last, &pos) < own2 { last } else { o };
                     let found = index.nearest2(&pos, hint);
                     last = found.owner;
                     if found.owner != o {
