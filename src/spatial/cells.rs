@@ -115,8 +115,13 @@ impl Loosening {
     #[inline]
     fn lowered(&self, lower: Real, upper: Real) -> Real {
         // Both bounds hold; far from o, where the list proves little,
-        // Hamerly's may be the better.
-        (lower - self.decay).min(self.reach - upper).max(lower - self.max_move)
+        // Hamerly's may be the better. Comparisons rather than min and max,
+        // whose NaN handling costs instructions on every voxel measured;
+        // no operand is NaN (the bounds are finite or infinite, the terms
+        // finite but an infinite reach).
+        let (a, b, c) = (lower - self.decay, self.reach - upper, lower - self.max_move);
+        let m = if a < b { a } else { b };
+        if m > c { m } else { c }
     }
 }
 
@@ -295,11 +300,11 @@ impl CenterIndex {
                     .map(|c| (c, c.shrink(travel, travel_cap)))
                     .filter(|(c, shrink)| c.reach - shrink >= 0.9 * c.reach && fast.iter().all(|&j| c.keeps_out(j, o, points, *shrink)))
                     .map(|(c, shrink)| (c, c.reach - shrink));
-                let loosening = kept.map(|(c, reach)| c.loosening(own_move, moved, reach, max_move));
-                if loosening.is_none() {
-                    *slot = OnceLock::new();
+                match kept.map(|(c, reach)| c.loosening(own_move, moved, reach, max_move)) {
+                    Some(loosening) => Ok(loosening),
+                    // Its members bound the new list's search.
+                    None => Err(slot.take().map(|c| c.list)),
                 }
-                loosening
             })
             .collect::<Vec<_>>();
         // The lists dropped are rebuilt around the new positions at once:
@@ -312,8 +317,8 @@ impl CenterIndex {
             .into_par_iter()
             .enumerate()
             .map(|(o, kept)| {
-                kept.unwrap_or_else(|| {
-                    let c = this.candidates(o as u32);
+                kept.unwrap_or_else(|old| {
+                    let c = this.candidates_around(o as u32, old.as_deref());
                     c.loosening(moved[o], moved, c.reach, max_move)
                 })
             })
@@ -340,15 +345,26 @@ impl CenterIndex {
     }
 
     fn candidates(&self, i: u32) -> &Candidates {
+        self.candidates_around(i, None)
+    }
+
+    /// [`CenterIndex::candidates`], the search bounded by `old` (any
+    /// centers, such as i's list before a move) when there are enough of
+    /// them: the nearest are no farther than the farthest of those, and the
+    /// k-d tree then skips what lies beyond instead of sorting it in.
+    fn candidates_around(&self, i: u32, old: Option<&[u32]>) -> &Candidates {
         self.knn[i as usize].get_or_init(|| {
-            let mut found: Vec<(Real, u32)> = self
-                .tree()
-                .query(&self.points[i as usize])
-                .nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(self.k_far).unwrap())
-                .execute()
-                .into_iter()
-                .map(|r| (r.distance, r.item))
-                .collect();
+            let (p, k) = (&self.points[i as usize], NonZeroUsize::new(self.k_far).unwrap());
+            let query = self.tree().query(p).nearest_n::<SquaredEuclidean<Real>>(k);
+            let bounded = old.filter(|old| old.len() >= self.k_far).map(|old| {
+                // Widened by a hair for the rounding of the distances.
+                let reach2 = old.iter().map(|&j| self.dist2(j, p)).fold(0.0, Real::max) * (1.0 + 1e-9) + Real::MIN_POSITIVE;
+                query.clone().within(reach2).execute().into_iter().map(|r| (r.distance, r.item)).collect::<Vec<(Real, u32)>>()
+            });
+            let mut found = match bounded {
+                Some(found) if found.len() == self.k_far => found,
+                _ => query.execute().into_iter().map(|r| (r.distance, r.item)).collect(),
+            };
             found.sort_by(|a, b| a.0.total_cmp(&b.0).then((a.1 != i).cmp(&(b.1 != i))).then(a.1.cmp(&b.1)));
             // Any center outside the first m is at least as far as the m-th.
             let reach = |m: usize| if m == self.points.len() { Real::INFINITY } else { found[m - 1].0.sqrt() };
@@ -798,7 +814,7 @@ impl Assignment {
 /// lower bound before) those whose bounds no longer prove the owner, and
 /// those without one. Returns how many. `third` is empty when the
 /// assignment keeps no runner-ups.
-fn loosen_all(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [(u32, f32)]) -> usize {
+fn loosen_all(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [Pending]) -> usize {
     let pairs = !third.is_empty();
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") && !loosening.is_empty() {
@@ -819,7 +835,7 @@ fn loosen_all(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut 
 /// [`loosen_all`] from element `from` on, one element at a time; `PAIRS`:
 /// whether there is a third bound to loosen.
 #[inline(always)]
-fn loosen_all_portable<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [(u32, f32)], from: usize) -> usize {
+fn loosen_all_portable<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [Pending], from: usize) -> usize {
     let mut n = 0;
     for k in from..owners.len() {
         let lo = lower[k];
@@ -835,28 +851,30 @@ fn loosen_all_portable<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], low
             }
             None => false,
         };
-        pending[n] = (k as u32, lo);
+        pending[n] = Pending { element: k as u32, lower: lo };
         n += !skip as usize;
     }
     n
 }
 
-/// [`loosen_all`] eight elements at a time, the loosenings gathered by
-/// owner. The same f32 operations in the same order as
+/// [`loosen_all`] eight elements at a time, each owner's loosening loaded
+/// whole and the eight transposed into vectors. The same f32 operations in the same order as
 /// [`Loosening32::loosen`] (`_mm256_min_ps(a, b)` is `if a < b { a } else
 /// { b }`, NaN included), so the bounds come out bit-identical.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn loosen_all_avx2<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [(u32, f32)]) -> usize {
+unsafe fn loosen_all_avx2<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [Pending]) -> usize {
     use std::arch::x86_64::*;
     let len = owners.len();
     assert!(upper.len() == len && lower.len() == len && (!PAIRS || third.len() == len) && pending.len() >= len);
     let table = loosening.as_ptr() as *const f32;
     let last = _mm256_set1_epi32(loosening.len() as i32 - 1);
+    let top = loosening.len() as u32 - 1;
     let (grow, shrink) = (_mm256_set1_ps(GROW), _mm256_set1_ps(SHRINK));
-    // The same for every center (the largest move of all): one gather fewer.
+    // The same for every center (the largest move of all): not transposed.
     let max_move = _mm256_set1_ps(loosening[0].max_move);
     debug_assert!(loosening.iter().all(|l| l.max_move == loosening[0].max_move));
+    let lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     let mut n = 0;
     let mut k = 0;
     while k + 8 <= len {
@@ -865,10 +883,18 @@ unsafe fn loosen_all_avx2<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], 
         // left as they were and listed.
         let clamped = _mm256_min_epu32(own, last);
         let valid = _mm256_cmpeq_epi32(clamped, own);
-        let at = _mm256_slli_epi32::<2>(clamped);
-        let moved = _mm256_i32gather_ps::<4>(table, at);
-        let decay = _mm256_i32gather_ps::<4>(table.add(1), at);
-        let reach = _mm256_i32gather_ps::<4>(table.add(2), at);
+        // Each owner's loosening as one 16-byte load, transposed into
+        // vectors of moves, decays and reaches: cheaper than three gathers.
+        let row = |j: usize| _mm_loadu_ps(table.add(4 * (*owners.get_unchecked(k + j)).min(top) as usize));
+        let (r0, r1) = (_mm256_set_m128(row(4), row(0)), _mm256_set_m128(row(5), row(1)));
+        let (r2, r3) = (_mm256_set_m128(row(6), row(2)), _mm256_set_m128(row(7), row(3)));
+        // Lanes 0-3 hold elements 0-3 and 4-7 in the two halves: moved,
+        // decay, reach, max_move of rows 0..3, then of 4..7.
+        let (t0, t1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpacklo_ps(r2, r3));
+        let (t2, t3) = (_mm256_unpackhi_ps(r0, r1), _mm256_unpackhi_ps(r2, r3));
+        let moved = _mm256_castpd_ps(_mm256_unpacklo_pd(_mm256_castps_pd(t0), _mm256_castps_pd(t1)));
+        let decay = _mm256_castpd_ps(_mm256_unpackhi_pd(_mm256_castps_pd(t0), _mm256_castps_pd(t1)));
+        let reach = _mm256_castpd_ps(_mm256_unpacklo_pd(_mm256_castps_pd(t2), _mm256_castps_pd(t3)));
         let up0 = _mm256_loadu_ps(upper.as_ptr().add(k));
         let lo0 = _mm256_loadu_ps(lower.as_ptr().add(k));
         let u = _mm256_mul_ps(_mm256_add_ps(up0, moved), grow);
@@ -886,16 +912,51 @@ unsafe fn loosen_all_avx2<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], 
         }
         let skip = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(u, l), valid);
         let listed = !_mm256_movemask_ps(skip) & 0xff;
-        let mut before = [0f32; 8];
-        _mm256_storeu_ps(before.as_mut_ptr(), lo0);
-        for (j, &lo) in before.iter().enumerate() {
-            *pending.get_unchecked_mut(n) = ((k + j) as u32, lo);
-            n += (listed >> j) as usize & 1;
-        }
+        // The listed elements' (index, lower bound before) packed to the
+        // front, then written as eight pairs at once: the slots past the
+        // listed ones are overwritten later or never read, and the eight
+        // fit since n <= k and k + 8 <= len.
+        let order = _mm256_cvtepu8_epi32(_mm_loadl_epi64(LEFT_PACK[listed as usize].as_ptr() as *const __m128i));
+        let elements = _mm256_permutevar8x32_epi32(_mm256_add_epi32(_mm256_set1_epi32(k as i32), lanes), order);
+        let lows = _mm256_castps_si256(_mm256_permutevar8x32_ps(lo0, order));
+        let (a, b) = (_mm256_unpacklo_epi32(elements, lows), _mm256_unpackhi_epi32(elements, lows));
+        let out = pending.as_mut_ptr().add(n) as *mut __m256i;
+        _mm256_storeu_si256(out, _mm256_permute2x128_si256::<0x20>(a, b));
+        _mm256_storeu_si256(out.add(1), _mm256_permute2x128_si256::<0x31>(a, b));
+        n += listed.count_ones() as usize;
         k += 8;
     }
     n + loosen_all_portable::<PAIRS>(owners, upper, lower, third, loosening, &mut pending[n..], k)
 }
+
+/// An element whose bounds no longer prove its owner, with its lower bound
+/// before the pass loosened it (C layout: the vector pass writes pairs).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
+struct Pending {
+    element: u32,
+    lower: f32,
+}
+
+/// Per 8-bit mask, the positions of its set bits in order (the rest 0):
+/// the permutation that packs the lanes a mask selects to the front.
+#[cfg(target_arch = "x86_64")]
+static LEFT_PACK: [[u8; 8]; 256] = {
+    let mut table = [[0u8; 8]; 256];
+    let mut mask = 0;
+    while mask < 256 {
+        let (mut lane, mut n) = (0, 0);
+        while lane < 8 {
+            if mask >> lane & 1 == 1 {
+                table[mask][n] = lane as u8;
+                n += 1;
+            }
+            lane += 1;
+        }
+        mask += 1;
+    }
+    table
+};
 
 /// An assignment's per-element state, borrowed for [`reassign`].
 struct Bounds<'a> {
@@ -941,7 +1002,7 @@ fn reassign(
         // Voxels to measure, with their lower bound before the first
         // pass: a buffer per rayon job rather than a zeroed one per chunk.
         .map_init(
-            || vec![(0u32, 0f32); CHUNK],
+            || vec![Pending::default(); CHUNK],
             |pending, (chunk, (((((own, up), low), runner), third), coords))| {
                 let n = loosen_all(own, up, low, third, &loosening32, pending);
                 let mut changed = Vec::new();
@@ -951,7 +1012,7 @@ fn reassign(
                 // that the candidate lists settle it instead of the k-d
                 // tree. The owner found is the same either way.
                 let mut last = NO_OWNER;
-                for &(k, lo) in &pending[..n] {
+                for &Pending { element: k, lower: lo } in &pending[..n] {
                     let k = k as usize;
                     let o = own[k];
                     let at = chunk * CHUNK + k;
@@ -1106,7 +1167,7 @@ mod tests {
                 let third: Vec<f32> = (0..len).map(|_| bound(f32::NEG_INFINITY)).collect();
                 let run = |vector: bool| {
                     let (mut up, mut lo, mut th) = (upper.clone(), lower.clone(), third.clone());
-                    let mut pending = vec![(0u32, 0f32); len];
+                    let mut pending = vec![Pending::default(); len];
                     // Without a third bound on odd cases.
                     let pairs = case % 2 == 0;
                     if !pairs {
@@ -1120,7 +1181,7 @@ mod tests {
                         (false, false) => loosen_all_portable::<false>(&owners, &mut up, &mut lo, &mut th, &loosening, &mut pending, 0),
                     };
                     let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-                    let listed: Vec<(u32, u32)> = pending[..n].iter().map(|&(k, l)| (k, l.to_bits())).collect();
+                    let listed: Vec<(u32, u32)> = pending[..n].iter().map(|p| (p.element, p.lower.to_bits())).collect();
                     (bits(&up), bits(&lo), bits(&th), listed)
                 };
                 let (vector, scalar) = (run(true), run(false));
