@@ -367,13 +367,11 @@ fn refine_rotation(a: &Matrix3, q: &mut UnitQuaternion) {
             alignment += r.column(k).dot(&a.column(k));
         }
         let omega = torque / (alignment.abs() + 1e-9 * a.norm() + Real::MIN_POSITIVE);
-        if !(omega.norm_squared() > 1e-24) {
+        let angle = omega.norm();
+        if !(angle > 1e-12) {
             break;
         }
-        // The turn by ω as the unit quaternion (1, ω/2) normalised: an angle
-        // of 2 atan(|ω|/2) instead of |ω|, the same to third order and at
-        // the same fixed point (ω = 0), without a sine and cosine per step.
-        *q = UnitQuaternion::new_normalize(nalgebra::Quaternion::new(1.0, 0.5 * omega.x, 0.5 * omega.y, 0.5 * omega.z)) * *q;
+        *q = UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_unchecked(omega / angle), angle) * *q;
     }
 }
 
