@@ -41,6 +41,7 @@ use crate::spatial::surface::SurfaceIndex;
 use crate::params::ConformParams;
 use crate::progress::{Counter, Progress, Stage};
 use crate::model::rotation_from_covariance;
+use nalgebra::Unit;
 use rayon::prelude::*;
 use crate::model::FrameSource;
 
@@ -75,13 +76,19 @@ struct Topology {
     /// The triangles over welded indices.
     triangles: Vec<[u32; 3]>,
     edges: Edges,
+    /// Per vertex, Σ_u (X_v − X_u) over its edges: the right-hand side's
+    /// ½ Σ_u (R_v + R_u)(X_v − X_u) is ½ R_v times it plus ½ Σ_u R_u (X_v − X_u),
+    /// one product per edge.
+    spread: Vec<Vector3>,
 }
 
 impl Topology {
     fn new(base: &TriangleMesh) -> Self {
         let (weld, triangles) = base.welded();
-        let edges = edges(base.positions.len(), &triangles);
-        Topology { weld, triangles, edges }
+        let rest = &base.positions;
+        let edges = edges(rest.len(), &triangles);
+        let spread = (0..rest.len()).map(|v| edges.of(v).iter().map(|&u| rest[v] - rest[u as usize]).sum()).collect();
+        Topology { weld, triangles, edges, spread }
     }
 }
 
@@ -224,15 +231,12 @@ fn fit_frame(
     params: &ConformParams,
     cancelled: &dyn Fn() -> bool,
 ) -> Option<Vec<Point3>> {
-    let (rest, edges, triangles) = (&base.positions, &topology.edges, &topology.triangles);
+    let (rest, edges, triangles, spread) = (&base.positions, &topology.edges, &topology.triangles, &topology.spread);
     let n = rest.len();
     let stiffness = 2.0 * params.stiffness;
     let mut y: Vec<Vector3> = blended.iter().map(|p| p.coords).collect();
     let fans = fans(input);
     let diagonal: Vec<Real> = (0..n).map(|v| stiffness * edges.of(v).len() as Real + ANCHOR).collect();
-    // Σ_u (X_v − X_u) per vertex: the right-hand side's ½ Σ_u (R_v + R_u)(X_v − X_u)
-    // is ½ R_v times it plus ½ Σ_u R_u (X_v − X_u), one product per edge.
-    let spread: Vec<Vector3> = (0..n).map(|v| edges.of(v).iter().map(|&u| rest[v] - rest[u as usize]).sum()).collect();
     let mut rhs = vec![Vector3::zeros(); n];
     let mut rotations = vec![UnitQuaternion::identity(); n];
     let mut index: Option<SurfaceIndex> = None;
@@ -371,7 +375,7 @@ fn refine_rotation(a: &Matrix3, q: &mut UnitQuaternion) {
         if !(angle > 1e-12) {
             break;
         }
-        *q = UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_unchecked(omega / angle), angle) * *q;
+        *q = UnitQuaternion::from_axis_angle(&Unit::new_unchecked(omega / angle), angle) * *q;
     }
 }
 

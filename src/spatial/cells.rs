@@ -858,8 +858,8 @@ fn loosen_all_portable<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], low
 }
 
 /// [`loosen_all`] eight elements at a time, each owner's loosening loaded
-/// whole and the eight transposed into vectors. The same f32 operations in the same order as
-/// [`Loosening32::loosen`] (`_mm256_min_ps(a, b)` is `if a < b { a } else
+/// whole and the eight transposed into vectors. The same f32 operations in
+/// the same order as [`Loosening32::loosen`] (`_mm256_min_ps(a, b)` is `if a < b { a } else
 /// { b }`, NaN included), so the bounds come out bit-identical.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
@@ -868,8 +868,8 @@ unsafe fn loosen_all_avx2<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], 
     let len = owners.len();
     assert!(upper.len() == len && lower.len() == len && (!PAIRS || third.len() == len) && pending.len() >= len);
     let table = loosening.as_ptr() as *const f32;
-    let last = _mm256_set1_epi32(loosening.len() as i32 - 1);
     let top = loosening.len() as u32 - 1;
+    let last = _mm256_set1_epi32(top as i32);
     let (grow, shrink) = (_mm256_set1_ps(GROW), _mm256_set1_ps(SHRINK));
     // The same for every center (the largest move of all): not transposed.
     let max_move = _mm256_set1_ps(loosening[0].max_move);
