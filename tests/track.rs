@@ -3,9 +3,9 @@
 
 use voltrack::math::{Matrix3, Point3, Real, Rotation3, Vector3};
 use voltrack::params::{sigma_for, AffinityKind, TrackParams};
-use voltrack::track::affinity::{motion_dissimilarity2, Affinity};
+use voltrack::track::affinity::{motion_dissimilarity2, Affinity, CellMotion};
 use voltrack::spatial::cells::{Assignment, CellMoments, CenterIndex, NO_OWNER};
-use voltrack::model::{fit_rigid, Rigid, RigidFits};
+use voltrack::model::{fit_rigid, PairTable, Rigid, RigidFits};
 use voltrack::track::track;
 use voltrack::model::GridSpec;
 use voltrack::voxel::VoxelSequence;
@@ -65,9 +65,10 @@ fn kabsch_respects_weights() {
     }
 }
 
-/// The tracker's batched fits against one [`fit_rigid`] each: neighbour
-/// lists of every size (empty, one point, collinear, many), points far from
-/// the origin, nearly rigid motions and zero weights.
+/// The tracker's batched fits ([`RigidFits`]) and the refinement's
+/// ([`PairTable`]) against one [`fit_rigid`] each: neighbour lists of every
+/// size (empty, one point, collinear, many), points far from the origin,
+/// nearly rigid motions and zero weights.
 #[test]
 fn batched_rigid_fits_equal_single_fits() {
     let mut g = Lcg(5);
@@ -89,22 +90,25 @@ fn batched_rigid_fits_equal_single_fits() {
         // Rigid plus per-point noise, so that the fits differ from each other.
         let dst: Vec<Point3> = src.iter().map(|p| truth.apply(p) + g.vec(0.3)).collect();
         let batched = fits.fit(&dst);
+        let table = PairTable::new(&src, &dst);
         for (i, list) in lists.iter().enumerate() {
             let single = fit_rigid(&src, &dst, list.iter().copied());
-            let (a, b) = (&batched[i], &single);
-            let energy = |r: &Rigid| -> Real { list.iter().map(|&(j, w)| w * (dst[j] - r.apply(&src[j])).norm_squared()).sum() };
-            assert!((energy(a) - energy(b)).abs() <= 1e-9 * (1.0 + energy(b)), "fit {i}: energy {} vs {}", energy(a), energy(b));
-            if list.len() == 2 {
-                // Two points leave the spin about their line to a 1e-6 pull
-                // towards the identity, which the 3x3 SVD resolves only to
-                // about 1e-5: the line is carried alike, the spin nearly so.
-                assert!((a.rotation - b.rotation).abs().max() < 1e-3, "fit {i}: {:?} vs {:?}", a.rotation, b.rotation);
-                continue;
+            let paired = table.fit(&list.iter().map(|&(j, w)| (j as u32, w)).collect::<Vec<_>>());
+            for (a, b) in [(&batched[i], &single), (&paired, &single)] {
+                let energy = |r: &Rigid| -> Real { list.iter().map(|&(j, w)| w * (dst[j] - r.apply(&src[j])).norm_squared()).sum() };
+                assert!((energy(a) - energy(b)).abs() <= 1e-9 * (1.0 + energy(b)), "fit {i}: energy {} vs {}", energy(a), energy(b));
+                if list.len() == 2 {
+                    // Two points leave the spin about their line to a 1e-6 pull
+                    // towards the identity, which the 3x3 SVD resolves only to
+                    // about 1e-5: the line is carried alike, the spin nearly so.
+                    assert!((a.rotation - b.rotation).abs().max() < 1e-3, "fit {i}: {:?} vs {:?}", a.rotation, b.rotation);
+                    continue;
+                }
+                assert!((a.rotation - b.rotation).abs().max() < 1e-9, "fit {i} ({} points): {:?} vs {:?}", list.len(), a.rotation, b.rotation);
+                // Translations carry the offset (about 1000): compare where they take the points.
+                let worst = list.iter().map(|&(j, _)| (a.apply(&src[j]) - b.apply(&src[j])).norm()).fold(0.0, Real::max);
+                assert!(worst < 1e-8, "fit {i}: points land {worst} apart");
             }
-            assert!((a.rotation - b.rotation).abs().max() < 1e-9, "fit {i} ({} points): {:?} vs {:?}", list.len(), a.rotation, b.rotation);
-            // Translations carry the offset (about 1000): compare where they take the points.
-            let worst = list.iter().map(|&(j, _)| (a.apply(&src[j]) - b.apply(&src[j])).norm()).fold(0.0, Real::max);
-            assert!(worst < 1e-8, "fit {i}: points land {worst} apart");
         }
     }
 }
@@ -315,11 +319,16 @@ fn motion_dissimilarity_matches_its_definition() {
     let mean = Point3::from(pts.iter().map(|p| p.coords).sum::<Vector3>() / n);
     let covariance = pts.iter().map(|p| (p - mean) * (p - mean).transpose()).sum::<Matrix3>() / n;
     let cell = CellMoments { count: 40, mean, covariance };
-    for _ in 0..20 {
-        let (a, b) = (g.rigid(), g.rigid());
+    for k in 0..40 {
+        let a = g.rigid();
+        // Half of them nearly alike, where the refinement's form subtracts
+        // nearly equal terms.
+        let b = if k % 2 == 0 { g.rigid() } else { Rigid { rotation: Rotation3::new(g.vec(1e-4)).matrix() * a.rotation, translation: a.translation + g.vec(1e-4) } };
         let direct: Real = pts.iter().map(|p| (a.apply(p) - b.apply(p)).norm_squared()).sum::<Real>() / n;
         let closed = motion_dissimilarity2(&cell, &a, &b);
         assert!((direct - closed).abs() < 1e-9 * direct.max(1.0), "{direct} vs {closed}");
+        let once = CellMotion::new(&cell, &a).dissimilarity2(&b);
+        assert!((direct - once).abs() < 1e-9 * direct.max(1.0), "{direct} vs {once}");
     }
 }
 

@@ -16,7 +16,7 @@ pub use grid::{GridSpec, Occupancy, OccupancyRuns, GRID_MARGIN, MAX_RESOLUTION};
 pub use mesh::{Aabb, TriangleMesh};
 pub use metadata::{TrajectoryMetadata, METADATA_ATTRIBUTE};
 pub use positions::{FrameStore, PositionFrames};
-pub use rigid::{fit_rigid, rotation_from_covariance, Rigid, RigidFits};
+pub use rigid::{fit_rigid, rotation_from_covariance, PairTable, Rigid, RigidFits};
 pub use trajectories::Trajectories;
 
 use crate::error::{Error, Result};

@@ -5,8 +5,8 @@
 use super::cells::{frame_blocks, SequenceCells};
 use crate::math::Real;
 use crate::params::sigma_for;
-use crate::track::affinity::{motion_dissimilarity2, within_reach};
-use crate::model::{fit_rigid, Rigid, Trajectories};
+use crate::track::affinity::{within_reach, CellMotion};
+use crate::model::{PairTable, Rigid, Trajectories};
 use crate::track::cell_moments;
 use crate::voxel::VoxelSequence;
 use rayon::prelude::*;
@@ -33,8 +33,9 @@ impl SparseAffinity {
 
     /// Rigid motions of every center from frame `from` to frame `to`.
     pub(crate) fn fit_frames(&self, traj: &Trajectories, from: usize, to: usize) -> Vec<Rigid> {
-        let (a, b) = (traj.frame(from), traj.frame(to));
-        (0..traj.centers).into_par_iter().map(|i| fit_rigid(a, b, self.pairs(i))).collect()
+        debug_assert_eq!(self.lists.len(), traj.centers);
+        let table = PairTable::new(traj.frame(from), traj.frame(to));
+        self.lists.par_iter().map(|list| table.fit(list)).collect()
     }
 }
 
@@ -75,8 +76,9 @@ pub fn global_affinity(traj: &Trajectories, seq: &VoxelSequence, cells: &mut Seq
             let moments = cell_moments(&stats[f - block.start], &seq.grid);
             worst.par_iter_mut().enumerate().for_each(|(i, row)| {
                 let Some(cell) = &moments[i] else { return };
+                let cell = CellMotion::new(cell, &motions[i]);
                 for (k, &(j, _)) in omega_max.lists[i].iter().enumerate() {
-                    row[k] = row[k].max(motion_dissimilarity2(cell, &motions[i], &motions[j as usize]));
+                    row[k] = row[k].max(cell.dissimilarity2(&motions[j as usize]));
                 }
             });
         }
