@@ -938,6 +938,23 @@ struct Pending {
     lower: f32,
 }
 
+/// A measured element whose distance to its owner settles it: the new
+/// bounds, before rounding outwards.
+#[derive(Clone, Copy, Debug, Default)]
+struct Settled {
+    element: u32,
+    upper: f32,
+    lower: f32,
+}
+
+/// A measured element that its owner's distance does not settle, with that
+/// squared distance (NaN when it has no owner with a loosening).
+#[derive(Clone, Copy, Debug, Default)]
+struct Unsettled {
+    element: u32,
+    own2: Real,
+}
+
 /// Per 8-bit mask, the positions of its set bits in order (the rest 0):
 /// the permutation that packs the lanes a mask selects to the front.
 #[cfg(target_arch = "x86_64")]
@@ -1000,11 +1017,40 @@ fn reassign(
         .zip(coords.par_chunks(CHUNK))
         .enumerate()
         // Voxels to measure, with their lower bound before the first
-        // pass: a buffer per rayon job rather than a zeroed one per chunk.
+        // pass, then split into those their owner's distance settles and
+        // the others: buffers per rayon job rather than zeroed ones per chunk.
         .map_init(
-            || vec![Pending::default(); CHUNK],
-            |pending, (chunk, (((((own, up), low), runner), third), coords))| {
+            || (vec![Pending::default(); CHUNK], vec![Settled::default(); CHUNK], vec![Unsettled::default(); CHUNK]),
+            |(pending, settled, unsettled), (chunk, (((((own, up), low), runner), third), coords))| {
                 let n = loosen_all(own, up, low, third, &loosening32, pending);
+                // First the distance to the owner, whose new bounds settle
+                // about half of the voxels measured: without a branch on
+                // that outcome, which no predictor guesses, the voxels are
+                // listed on one side or the other. The others follow in
+                // their order, so the scan's hint below sees the same voxels.
+                let (mut n_settled, mut n_unsettled) = (0, 0);
+                for &Pending { element: k, lower: lo } in &pending[..n] {
+                    let o = own[k as usize];
+                    let (own2, done) = match loosening.get(o as usize) {
+                        Some(b) => {
+                            let pos = position(chunk * CHUNK + k as usize, coords[k as usize]);
+                            let u2 = index.dist2(o, &pos);
+                            let u = u2.sqrt();
+                            let l = b.lowered(lo as Real, u);
+                            let done = u + eps < l;
+                            settled[n_settled] = Settled { element: k, upper: u as f32, lower: l as f32 };
+                            n_settled += done as usize;
+                            (u2, done)
+                        }
+                        None => (Real::NAN, false),
+                    };
+                    unsettled[n_unsettled] = Unsettled { element: k, own2 };
+                    n_unsettled += !done as usize;
+                }
+                for &Settled { element: k, upper, lower } in &settled[..n_settled] {
+                    up[k as usize] = upper.next_up();
+                    low[k as usize] = lower.next_down();
+                }
                 let mut changed = Vec::new();
                 // The owner last found in this chunk: a voxel without
                 // one (assigned afresh) starts from its neighbour's in
@@ -1012,7 +1058,7 @@ fn reassign(
                 // that the candidate lists settle it instead of the k-d
                 // tree. The owner found is the same either way.
                 let mut last = NO_OWNER;
-                for &Pending { element: k, lower: lo } in &pending[..n] {
+                for &Unsettled { element: k, own2 } in &unsettled[..n_unsettled] {
                     let k = k as usize;
                     let o = own[k];
                     let at = chunk * CHUNK + k;
@@ -1021,15 +1067,8 @@ fn reassign(
                     // its hint when assigned afresh (another frame's owner,
                     // say); infinite without either.
                     let own2 = match loosening.get(o as usize) {
-                        Some(b) => {
-                            let u2 = index.dist2(o, &pos);
-                            let u = u2.sqrt();
-                            let l = b.lowered(lo as Real, u);
-                            if u + eps < l {
-                                up[k] = (u as f32).next_up();
-                                low[k] = (l as f32).next_down();
-                                continue;
-                            }
+                        Some(_) => {
+                            let (u2, u) = (own2, own2.sqrt());
                             // Between the owner and the runner-up, when every
                             // other center is farther than both.
                             let (r, others) = if pairs { (runner[k], third[k] as Real) } else { (NO_OWNER, Real::NEG_INFINITY) };
