@@ -80,6 +80,9 @@ struct Topology {
     /// ½ Σ_u (R_v + R_u)(X_v − X_u) is ½ R_v times it plus ½ Σ_u R_u (X_v − X_u),
     /// one product per edge.
     spread: Vec<Vector3>,
+    /// Per vertex v, X_v − X_u for each of its edges' u, in `edges`' order:
+    /// every round takes each twice.
+    offsets: PerVertex<Vector3>,
 }
 
 impl Topology {
@@ -87,8 +90,10 @@ impl Topology {
         let (weld, triangles) = base.welded();
         let rest = &base.positions;
         let edges = edges(rest.len(), &triangles);
-        let spread = (0..rest.len()).map(|v| edges.of(v).iter().map(|&u| rest[v] - rest[u as usize]).sum()).collect();
-        Topology { weld, triangles, edges, spread }
+        let entries: Vec<(u32, Vector3)> = (0..rest.len()).flat_map(|v| edges.of(v).iter().map(move |&u| (v as u32, rest[v] - rest[u as usize]))).collect();
+        let offsets = PerVertex::new(rest.len(), &entries);
+        let spread = (0..rest.len()).map(|v| offsets.of(v).iter().sum()).collect();
+        Topology { weld, triangles, edges, spread, offsets }
     }
 }
 
@@ -231,7 +236,7 @@ fn fit_frame(
     params: &ConformParams,
     cancelled: &dyn Fn() -> bool,
 ) -> Option<Vec<Point3>> {
-    let (rest, edges, triangles, spread) = (&base.positions, &topology.edges, &topology.triangles, &topology.spread);
+    let (rest, edges, triangles, spread, offsets) = (&base.positions, &topology.edges, &topology.triangles, &topology.spread, &topology.offsets);
     let n = rest.len();
     let stiffness = 2.0 * params.stiffness;
     let mut y: Vec<Vector3> = blended.iter().map(|p| p.coords).collect();
@@ -273,7 +278,7 @@ fn fit_frame(
         for (v, q) in rotations.iter_mut().enumerate() {
             // A = Σ (y_v − y_u)(X_v − X_u)ᵀ: its rotation carries the frame-0
             // edges onto the current ones.
-            let a: Matrix3 = edges.of(v).iter().map(|&u| (y[v] - y[u as usize]) * (rest[v] - rest[u as usize]).transpose()).sum();
+            let a: Matrix3 = edges.of(v).iter().zip(offsets.of(v)).map(|(&u, x)| (y[v] - y[u as usize]) * x.transpose()).sum();
             if round == 0 {
                 // Already a rotation: no polar decomposition needed.
                 *q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rotation_from_covariance(&a.transpose())));
@@ -283,7 +288,7 @@ fn fit_frame(
         }
         let matrices: Vec<Matrix3> = rotations.iter().map(|q| q.to_rotation_matrix().into_inner()).collect();
         for v in 0..n {
-            let b: Vector3 = matrices[v] * spread[v] + edges.of(v).iter().map(|&u| matrices[u as usize] * (rest[v] - rest[u as usize])).sum::<Vector3>();
+            let b: Vector3 = matrices[v] * spread[v] + edges.of(v).iter().zip(offsets.of(v)).map(|(&u, x)| matrices[u as usize] * x).sum::<Vector3>();
             rhs[v] = 0.5 * stiffness * b + ANCHOR * blended[v].coords;
         }
         terms.clear();
@@ -363,6 +368,7 @@ const ROTATION_STEPS: usize = 3;
 /// from the last round's rotation a few steps suffice, far cheaper than an
 /// SVD per vertex per round.
 fn refine_rotation(a: &Matrix3, q: &mut UnitQuaternion) {
+    let floor = 1e-9 * a.norm() + Real::MIN_POSITIVE;
     for _ in 0..ROTATION_STEPS {
         let r = q.to_rotation_matrix().into_inner();
         let (mut torque, mut alignment) = (Vector3::zeros(), 0.0);
@@ -370,7 +376,7 @@ fn refine_rotation(a: &Matrix3, q: &mut UnitQuaternion) {
             torque += r.column(k).cross(&a.column(k));
             alignment += r.column(k).dot(&a.column(k));
         }
-        let omega = torque / (alignment.abs() + 1e-9 * a.norm() + Real::MIN_POSITIVE);
+        let omega = torque / (alignment.abs() + floor);
         let angle = omega.norm();
         if !(angle > 1e-12) {
             break;
