@@ -458,6 +458,15 @@ fn surface_index_matches_brute_force() {
             let [a, b, d] = moved_mesh.triangles[t as usize].map(|i| moved_mesh.positions[i as usize]);
             assert!((point_triangle_distance_squared(p, &a, &b, &d).sqrt() - want).abs() <= 1e-12 * want.max(scale), "{name} refitted: triangle {t}");
             assert_eq!(c, got, "{name} refitted: {p:?}");
+            // Searched upwards from any triangle's leaf (the conform stage's
+            // last match), with or without the bound that triangle gives:
+            // the same triangle, ties included.
+            for near in [t, (rng.u64() % moved_mesh.triangles.len() as u64) as u32] {
+                let [a, b, d] = moved_mesh.triangles[near as usize].map(|i| moved_mesh.positions[i as usize]);
+                let bound = point_triangle_distance_squared(p, &a, &b, &d).sqrt();
+                assert_eq!(refitted.closest_triangle_near(p, bound, near), Some((t, c)), "{name} from triangle {near}: {p:?}");
+                assert_eq!(refitted.closest_triangle_near(p, Real::INFINITY, near), Some((t, c)), "{name} from triangle {near}: {p:?}");
+            }
         }
     }
     assert_eq!(SurfaceIndex::new(&[], &[]).distance(&Point3::origin()), Real::INFINITY);

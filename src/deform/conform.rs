@@ -266,7 +266,11 @@ fn fit_frame(
                 // Last search's point is still on the mesh: the nearest one
                 // is at most that far, which prunes the search.
                 let bound = found.map_or(max_distance, |m| (point_of(m) - q).norm().min(max_distance));
-                *found = index.closest_triangle_within(q, bound).map(|(t, p)| {
+                let nearest = match *found {
+                    Some((t, _)) => index.closest_triangle_near(q, bound, t),
+                    None => index.closest_triangle_within(q, bound),
+                };
+                *found = nearest.map(|(t, p)| {
                     let [a, b, c] = triangles[t as usize].map(|i| points[i as usize]);
                     (t, barycentric(&p, &a, &b, &c))
                 });

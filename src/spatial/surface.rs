@@ -96,6 +96,12 @@ pub struct SurfaceIndex {
     triangles: Vec<[Point3; 3]>,
     /// Every leaf-order triangle's index in the mesh given.
     ids: Vec<u32>,
+    /// Per mesh triangle, its place in leaf order.
+    places: Vec<u32>,
+    /// Per leaf-order triangle, the leaf that holds it.
+    leaves: Vec<u32>,
+    /// Per node, its parent (the root's is itself).
+    parents: Vec<u32>,
 }
 
 impl SurfaceIndex {
@@ -109,7 +115,20 @@ impl SurfaceIndex {
         if !order.is_empty() {
             build(&mut nodes, &mut order, 0, &corners, &centroids);
         }
-        SurfaceIndex { nodes, triangles: order.iter().map(|&t| corners[t as usize]).collect(), ids: order }
+        let mut places = vec![0u32; order.len()];
+        for (k, &t) in order.iter().enumerate() {
+            places[t as usize] = k as u32;
+        }
+        let (mut leaves, mut parents) = (vec![0u32; order.len()], vec![0u32; nodes.len()]);
+        for (n, node) in nodes.iter().enumerate() {
+            if node.count > 0 {
+                leaves[node.first as usize..(node.first + node.count) as usize].fill(n as u32);
+            } else {
+                parents[n + 1] = n as u32;
+                parents[node.first as usize] = n as u32;
+            }
+        }
+        SurfaceIndex { nodes, triangles: order.iter().map(|&t| corners[t as usize]).collect(), ids: order, places, leaves, parents }
     }
 
     /// Squared distance from `p` to the surface (infinite without triangles).
@@ -169,11 +188,35 @@ impl SurfaceIndex {
     }
 
     /// The triangle nearest to `p` (its index in the mesh given) and the
-    /// point of it nearest to `p`, if one is at most `bound` away.
+    /// point of it nearest to `p`, if one is at most `bound` away. Of
+    /// triangles equally near, the first in the hierarchy's order.
     pub fn closest_triangle_within(&self, p: &Point3, bound: Real) -> Option<(u32, Point3)> {
         let (t, _) = self.nearest_triangle(p, bound * bound)?;
         let [a, b, c] = &self.triangles[t];
         Some((self.ids[t], closest_point_on_triangle(p, a, b, c)))
+    }
+
+    /// [`SurfaceIndex::closest_triangle_within`], searched from the leaf of
+    /// triangle `near` (an index in the mesh given) upwards: when `p` lies
+    /// close to that triangle (the last match of a point on a mesh that has
+    /// moved a little), its leaf tightens the bound at once and the walk up
+    /// visits only the siblings that could hold a nearer triangle, instead
+    /// of descending from the root. The answer is the same.
+    pub fn closest_triangle_near(&self, p: &Point3, bound: Real, near: u32) -> Option<(u32, Point3)> {
+        let mut best = (usize::MAX, bound * bound * (1.0 + 1e-9));
+        let mut stack = Vec::with_capacity(64);
+        let mut node = self.leaves[self.places[near as usize] as usize];
+        self.descend(node, p, &mut best, &mut stack);
+        while node != 0 {
+            let parent = self.parents[node as usize];
+            let sibling = if node == parent + 1 { self.nodes[parent as usize].first } else { parent + 1 };
+            self.descend(sibling, p, &mut best, &mut stack);
+            node = parent;
+        }
+        (best.0 != usize::MAX).then(|| {
+            let [a, b, c] = &self.triangles[best.0];
+            (self.ids[best.0], closest_point_on_triangle(p, a, b, c))
+        })
     }
 
     /// The triangle (in leaf order) nearest to `p` and its squared distance,
@@ -185,12 +228,23 @@ impl SurfaceIndex {
         if self.nodes.is_empty() {
             return None;
         }
+        self.descend(0, p, &mut best, &mut Vec::with_capacity(64));
+        (best.0 != usize::MAX).then_some(best)
+    }
+
+    /// Tightens `best` (a leaf-order triangle and its squared distance from
+    /// `p`) with the triangles under node `root`, nearest box first. Of
+    /// triangles equally near, the first in leaf order wins, whatever order
+    /// they are visited in, so that a search from anywhere in the tree finds
+    /// the same one. `stack` is scratch space.
+    fn descend(&self, root: u32, p: &Point3, best: &mut (usize, Real), stack: &mut Vec<(u32, Real)>) {
         // Depth is at most log2 of the triangle count (median splits), and the
         // stack holds at most one pending sibling per level.
-        let mut stack: Vec<(u32, Real)> = Vec::with_capacity(64);
-        stack.push((0, self.nodes[0].distance_squared(p)));
+        stack.clear();
+        stack.push((root, self.nodes[root as usize].distance_squared(p)));
         while let Some((n, d)) = stack.pop() {
-            if d >= best.1 {
+            // A box as far as the best may still hold a tie that comes first.
+            if d > best.1 {
                 continue;
             }
             let node = &self.nodes[n as usize];
@@ -198,8 +252,8 @@ impl SurfaceIndex {
                 let (first, count) = (node.first as usize, node.count as usize);
                 for (t, [a, b, c]) in self.triangles[first..first + count].iter().enumerate() {
                     let d = point_triangle_distance_squared(p, a, b, c);
-                    if d < best.1 {
-                        best = (first + t, d);
+                    if d < best.1 || (d == best.1 && first + t < best.0) {
+                        *best = (first + t, d);
                     }
                 }
                 continue;
@@ -209,14 +263,13 @@ impl SurfaceIndex {
             // The nearer child is popped first, so its triangles tighten `best`
             // before the farther one is considered.
             let (near, far) = if dl <= dr { ((l, dl), (r, dr)) } else { ((r, dr), (l, dl)) };
-            if far.1 < best.1 {
+            if far.1 <= best.1 {
                 stack.push(far);
             }
-            if near.1 < best.1 {
+            if near.1 <= best.1 {
                 stack.push(near);
             }
         }
-        (best.0 != usize::MAX).then_some(best)
     }
 
     /// Distance from `p` to the surface.
