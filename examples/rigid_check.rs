@@ -9,9 +9,10 @@
 //! default settings and measures the same for every vertex of the dynamic
 //! mesh (issue 5). Distances are in voxels of the grid used.
 //! `VOLTRACK_R`, `VOLTRACK_CENTERS` override the resolution and center count;
-//! `VOLTRACK_THRESHOLD` and `VOLTRACK_CONFORM_STIFFNESS` the tracking
-//! threshold and the conform stage's stiffness (`--threshold`,
-//! `--conform-stiffness`), the settings for a rigid body.
+//! `VOLTRACK_THRESHOLD`, `VOLTRACK_CONFORM_STIFFNESS` and
+//! `VOLTRACK_CONFORM_BEND_STRAIN` the tracking threshold and the conform
+//! stage's stiffness and bend strain (`--threshold`, `--conform-stiffness`,
+//! `--conform-bend-strain`).
 
 use voltrack::math::{Point3, Real};
 use voltrack::params::{ConformParams, DeformParams, RefineParams, TrackParams};
@@ -49,7 +50,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let real = |k: &str| std::env::var(k).ok().and_then(|s| s.parse::<Real>().ok());
             let defaults = TrackParams::default();
             let track = TrackParams { centers: env("VOLTRACK_CENTERS", 1000), threshold: real("VOLTRACK_THRESHOLD").unwrap_or(defaults.threshold), ..defaults };
-            let conform = ConformParams { stiffness: real("VOLTRACK_CONFORM_STIFFNESS").unwrap_or(ConformParams::default().stiffness), ..Default::default() };
+            let defaults = ConformParams::default();
+            let conform = ConformParams {
+                stiffness: real("VOLTRACK_CONFORM_STIFFNESS").unwrap_or(defaults.stiffness),
+                bend_strain: real("VOLTRACK_CONFORM_BEND_STRAIN").unwrap_or(defaults.bend_strain),
+                ..defaults
+            };
             let conv = voltrack::pipeline::convert(
         &voltrack::io::FrameFiles::discover(&inputs)?,
         &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: conform.clone(), checkpoint: None, ..Default::default() },

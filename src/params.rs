@@ -466,13 +466,42 @@ pub struct ConformParams {
     /// beside a crease from pulling the sides, which keeps a rigid body
     /// truer.
     pub min_normal_cosine: Real,
+    /// Strain of an edge (how far it is from its frame-0 vector turned by
+    /// its vertices' rotations, over its length) at which its rigidity
+    /// weighs half, in the fit's last two thirds of rounds: edges strained
+    /// more weigh less, so a joint's bend gathers at the edges across it
+    /// instead of bending the rigid parts beside it. Default 0.2; >= 0, 0
+    /// weighs every edge alike.
+    #[serde(default = "default_bend_strain")]
+    pub bend_strain: Real,
+    /// Least weight of a strained edge, against 1 for an unstrained one:
+    /// keeps a strongly bent joint from folding over. Default 0.3; in (0, 1].
+    #[serde(default = "default_least_edge_weight")]
+    pub least_edge_weight: Real,
     /// Lengths in the input's units instead of fractions of the longest side.
     pub absolute_units: bool,
 }
 
+fn default_bend_strain() -> Real {
+    ConformParams::default().bend_strain
+}
+
+fn default_least_edge_weight() -> Real {
+    ConformParams::default().least_edge_weight
+}
+
 impl Default for ConformParams {
     fn default() -> Self {
-        ConformParams { iterations: 60, stiffness: 1.0, point_weight: 0.1, max_distance: 0.025, min_normal_cosine: 0.7, absolute_units: false }
+        ConformParams {
+            iterations: 60,
+            stiffness: 1.0,
+            point_weight: 0.1,
+            max_distance: 0.025,
+            min_normal_cosine: 0.7,
+            bend_strain: 0.2,
+            least_edge_weight: 0.3,
+            absolute_units: false,
+        }
     }
 }
 
@@ -484,6 +513,8 @@ impl ConformParams {
         check("the conform point weight", self.point_weight, Span::closed(0.0, WEIGHT.hi))?;
         check("the conform distance", self.max_distance, LENGTH)?;
         check("the conform normal cosine", self.min_normal_cosine, Span::closed(-1.0, 1.0))?;
+        check("the conform bend strain", self.bend_strain, Span::closed(0.0, WEIGHT.hi))?;
+        check("the conform least edge weight", self.least_edge_weight, Span::open_closed(0.0, 1.0))?;
         Ok(())
     }
 

@@ -292,6 +292,9 @@ pub struct ConvertArgs {
     /// Stiffness of that fit: weight of keeping the frame-0 edges against lying on the input surface (range: 0 < s <= 1e6)
     #[arg(long, default_value_t = ConformParams::default().stiffness)]
     pub conform_stiffness: f64,
+    /// Strain at which an edge's rigidity weighs half in that fit, so joints bend where they are instead of bending the parts beside them (0: every edge alike) (range: 0 <= s <= 1e6)
+    #[arg(long, default_value_t = ConformParams::default().bend_strain)]
+    pub conform_bend_strain: f64,
     /// Also write a self-contained HTML report: fit to the input per frame, PCAC/DFU, irregularity, time per stage
     #[arg(long, value_name = "HTML")]
     pub report: Option<PathBuf>,
@@ -361,6 +364,7 @@ impl ConvertArgs {
         ConformParams {
             iterations: self.conform_iterations,
             stiffness: self.conform_stiffness,
+            bend_strain: self.conform_bend_strain,
             absolute_units: self.track.absolute_units,
             ..Default::default()
         }

@@ -25,13 +25,22 @@
 //! mesh's point nearest to it (barycentric b_jk in its triangle), n_j that
 //! triangle's normal and w_j 1 when the match is compatible (near enough,
 //! facing the same way) else 0:
-//!   s Σ_edges ik |(y_i − y_k) − R_i (X_i − X_k)|² (both directions)
+//!   s Σ_edges ik w_ik |(y_i − y_k) − R_i (X_i − X_k)|² (both directions)
 //!   + Σ_j w_j ((n_j·(s_j(y) − q_j))² + μ |s_j(y) − q_j|²) + ε Σ_i |y_i − Y_i|²,
 //! where Y is the blended position and ε a small anchor that keeps a part
 //! no input vertex pulls where blending put it. Each round fits the
 //! rotations to the current y, matches the input vertices (see
 //! [`SEARCH_EVERY`]) and solves the linear system for y by conjugate
 //! gradients, warm-started.
+//!
+//! Joints: with every edge weighed alike, the fit spreads a joint's bend
+//! over the rigid parts beside it (a hip bends the body's end). From
+//! [`REWEIGH_FROM`] of the rounds on, every [`SEARCH_EVERY`]th round weighs
+//! each edge's term w_ik by how little it is strained (iteratively
+//! reweighted least squares of a Cauchy loss; 1 before): an
+//! edge strained by `bend_strain` weighs half, more strained ones less, down
+//! to `least_edge_weight`, so the bend gathers at the few edges across the
+//! joint. The weights are per frame: each frame bends its own joints.
 
 use super::DynamicMesh;
 use crate::error::{Error, Result};
@@ -57,6 +66,10 @@ const FIRST_SEARCHES: usize = 3;
 /// rounds before is still close to the nearest: searching every round costs
 /// far more time for hardly any change in the fit.
 const SEARCH_EVERY: usize = 4;
+/// The share of the rounds, from the first, with every edge weighed alike:
+/// they bring the blended mesh onto the surface, and strains measured before
+/// are the blending's, not the joints'.
+const REWEIGH_FROM: Real = 1.0 / 3.0;
 /// Conjugate-gradient iterations per solve; the solve is warm-started from
 /// the last round, so it rarely needs many.
 const MAX_SOLVER_ITERATIONS: usize = 50;
@@ -241,7 +254,13 @@ fn fit_frame(
     let stiffness = 2.0 * params.stiffness;
     let mut y: Vec<Vector3> = blended.iter().map(|p| p.coords).collect();
     let fans = fans(input);
-    let diagonal: Vec<Real> = (0..n).map(|v| stiffness * edges.of(v).len() as Real + ANCHOR).collect();
+    let mut diagonal: Vec<Real> = (0..n).map(|v| stiffness * edges.of(v).len() as Real + ANCHOR).collect();
+    // Per edge (in `edges`' order) its weight w_uv and w_uv (X_v − X_u), and
+    // per vertex Σ_u w_uv (X_v − X_u).
+    let mut weights = PerVertex { start: edges.start.clone(), items: vec![1.0; edges.items.len()] };
+    let mut weighted = PerVertex { start: offsets.start.clone(), items: offsets.items.clone() };
+    let mut weighted_spread: Vec<Vector3> = spread.clone();
+    let reweigh_from = (params.iterations as Real * REWEIGH_FROM).ceil() as usize;
     let mut rhs = vec![Vector3::zeros(); n];
     let mut rotations = vec![UnitQuaternion::identity(); n];
     let mut index: Option<SurfaceIndex> = None;
@@ -280,9 +299,9 @@ fn fit_frame(
             }
         }
         for (v, q) in rotations.iter_mut().enumerate() {
-            // A = Σ (y_v − y_u)(X_v − X_u)ᵀ: its rotation carries the frame-0
+            // A = Σ w_uv (y_v − y_u)(X_v − X_u)ᵀ: its rotation carries the frame-0
             // edges onto the current ones.
-            let a: Matrix3 = edges.of(v).iter().zip(offsets.of(v)).map(|(&u, x)| (y[v] - y[u as usize]) * x.transpose()).sum();
+            let a: Matrix3 = edges.of(v).iter().zip(weighted.of(v)).map(|(&u, x)| (y[v] - y[u as usize]) * x.transpose()).sum();
             if round == 0 {
                 // Already a rotation: no polar decomposition needed.
                 *q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rotation_from_covariance(&a.transpose())));
@@ -291,8 +310,18 @@ fn fit_frame(
             }
         }
         let matrices: Vec<Matrix3> = rotations.iter().map(|q| q.to_rotation_matrix().into_inner()).collect();
+        if params.bend_strain > 0.0 && round >= reweigh_from && (round - reweigh_from) % SEARCH_EVERY == 0 {
+            reweigh(edges, offsets, &y, &matrices, params, &mut weights);
+            for ((w, x), wx) in weights.items.iter().zip(&offsets.items).zip(weighted.items.iter_mut()) {
+                *wx = x * *w;
+            }
+            for v in 0..n {
+                weighted_spread[v] = weighted.of(v).iter().sum();
+                diagonal[v] = stiffness * weights.of(v).iter().sum::<Real>() + ANCHOR;
+            }
+        }
         for v in 0..n {
-            let b: Vector3 = matrices[v] * spread[v] + edges.of(v).iter().zip(offsets.of(v)).map(|(&u, x)| matrices[u as usize] * x).sum::<Vector3>();
+            let b: Vector3 = matrices[v] * weighted_spread[v] + edges.of(v).iter().zip(weighted.of(v)).map(|(&u, x)| matrices[u as usize] * x).sum::<Vector3>();
             rhs[v] = 0.5 * stiffness * b + ANCHOR * blended[v].coords;
         }
         terms.clear();
@@ -318,9 +347,25 @@ fn fit_frame(
             }
             terms.push(Term { corners, weights, m });
         }
-        solve(edges, stiffness, &diagonal, &terms, &rhs, SOLVER_TOLERANCE * max_distance, &mut y);
+        solve(edges, &weights, stiffness, &diagonal, &terms, &rhs, SOLVER_TOLERANCE * max_distance, &mut y);
     }
     Some(topology.weld.iter().map(|&w| Point3::from(y[w as usize])).collect())
+}
+
+/// Every edge's weight 1 / (1 + (strain / `bend_strain`)²), at least
+/// `least_edge_weight`, where the strain is |(y_v − y_u) − R (X_v − X_u)|
+/// over |X_v − X_u|, averaged over R = R_v and R_u: the same for both
+/// directions of an edge, so the system stays symmetric.
+fn reweigh(edges: &Edges, offsets: &PerVertex<Vector3>, y: &[Vector3], rotations: &[Matrix3], params: &ConformParams, weights: &mut PerVertex<Real>) {
+    let scale = 0.5 / params.bend_strain;
+    for v in 0..y.len() {
+        for k in edges.start[v]..edges.start[v + 1] {
+            let u = edges.items[k] as usize;
+            let (x, d) = (offsets.items[k], y[v] - y[u]);
+            let strain = scale * ((d - rotations[v] * x).norm() + (d - rotations[u] * x).norm()) / x.norm().max(Real::MIN_POSITIVE);
+            weights.items[k] = (1.0 / (1.0 + strain * strain)).max(params.least_edge_weight);
+        }
+    }
 }
 
 /// One input vertex q pulling the mesh's point nearest to it, s = Σ_k w_k
@@ -391,17 +436,17 @@ fn refine_rotation(a: &Matrix3, q: &mut UnitQuaternion) {
 
 /// Solves A y = rhs by conjugate gradients preconditioned with A's 3×3
 /// diagonal blocks, from the `y` given, where
-/// A y = (diagonal_v y_v − stiffness Σ_{u ~ v} y_u)_v + Σ_terms bᵀ ⊗ m (b y),
+/// A y = (diagonal_v y_v − stiffness Σ_{u ~ v} w_uv y_u)_v + Σ_terms bᵀ ⊗ m (b y),
 /// each term adding m (Σ_k w_k y_k) to its corners, weighted w_k.
 /// A is symmetric positive definite: a graph Laplacian plus positive
 /// semi-definite terms plus the anchor. Stops when the preconditioned
 /// residual r·M⁻¹r, about Σ_v diagonal_v |step_v|², falls to what steps of
 /// `tolerance` at every vertex would give.
-fn solve(edges: &Edges, stiffness: Real, diagonal: &[Real], terms: &[Term], rhs: &[Vector3], tolerance: Real, y: &mut [Vector3]) {
+fn solve(edges: &Edges, weights: &PerVertex<Real>, stiffness: Real, diagonal: &[Real], terms: &[Term], rhs: &[Vector3], tolerance: Real, y: &mut [Vector3]) {
     let n = y.len();
     let apply = |x: &[Vector3], out: &mut [Vector3]| {
         for v in 0..n {
-            let neighbours: Vector3 = edges.of(v).iter().map(|&u| x[u as usize]).sum();
+            let neighbours: Vector3 = edges.of(v).iter().zip(weights.of(v)).map(|(&u, &w)| x[u as usize] * w).sum();
             out[v] = x[v] * diagonal[v] - neighbours * stiffness;
         }
         for t in terms {
