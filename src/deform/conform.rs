@@ -347,7 +347,8 @@ fn fit_frame(
             }
             terms.push(Term { corners, weights, m });
         }
-        solve(edges, &weights, stiffness, &diagonal, &terms, &rhs, SOLVER_TOLERANCE * max_distance, &mut y);
+        let reweighed = params.bend_strain > 0.0 && round >= reweigh_from;
+        solve(edges, reweighed.then_some(&weights), stiffness, &diagonal, &terms, &rhs, SOLVER_TOLERANCE * max_distance, &mut y);
     }
     Some(topology.weld.iter().map(|&w| Point3::from(y[w as usize])).collect())
 }
@@ -436,18 +437,29 @@ fn refine_rotation(a: &Matrix3, q: &mut UnitQuaternion) {
 
 /// Solves A y = rhs by conjugate gradients preconditioned with A's 3×3
 /// diagonal blocks, from the `y` given, where
-/// A y = (diagonal_v y_v − stiffness Σ_{u ~ v} w_uv y_u)_v + Σ_terms bᵀ ⊗ m (b y),
+/// A y = (diagonal_v y_v − stiffness Σ_{u ~ v} w_uv y_u)_v + Σ_terms bᵀ ⊗ m (b y)
+/// (w_uv = 1 without `weights`),
 /// each term adding m (Σ_k w_k y_k) to its corners, weighted w_k.
 /// A is symmetric positive definite: a graph Laplacian plus positive
 /// semi-definite terms plus the anchor. Stops when the preconditioned
 /// residual r·M⁻¹r, about Σ_v diagonal_v |step_v|², falls to what steps of
 /// `tolerance` at every vertex would give.
-fn solve(edges: &Edges, weights: &PerVertex<Real>, stiffness: Real, diagonal: &[Real], terms: &[Term], rhs: &[Vector3], tolerance: Real, y: &mut [Vector3]) {
+fn solve(edges: &Edges, weights: Option<&PerVertex<Real>>, stiffness: Real, diagonal: &[Real], terms: &[Term], rhs: &[Vector3], tolerance: Real, y: &mut [Vector3]) {
     let n = y.len();
     let apply = |x: &[Vector3], out: &mut [Vector3]| {
-        for v in 0..n {
-            let neighbours: Vector3 = edges.of(v).iter().zip(weights.of(v)).map(|(&u, &w)| x[u as usize] * w).sum();
-            out[v] = x[v] * diagonal[v] - neighbours * stiffness;
+        match weights {
+            Some(weights) => {
+                for v in 0..n {
+                    let neighbours: Vector3 = edges.of(v).iter().zip(weights.of(v)).map(|(&u, &w)| x[u as usize] * w).sum();
+                    out[v] = x[v] * diagonal[v] - neighbours * stiffness;
+                }
+            }
+            None => {
+                for v in 0..n {
+                    let neighbours: Vector3 = edges.of(v).iter().map(|&u| x[u as usize]).sum();
+                    out[v] = x[v] * diagonal[v] - neighbours * stiffness;
+                }
+            }
         }
         for t in terms {
             let s: Vector3 = (0..3).map(|k| x[t.corners[k] as usize] * t.weights[k]).sum();
