@@ -5,7 +5,7 @@
 //! directory of OBJ files). `VOLTRACK_RHO_GP`, `VOLTRACK_RHO_GM`,
 //! `VOLTRACK_MIN_AFFINITY` and `VOLTRACK_BLEND=linear` override the affinity
 //! the mesh is bound with and the blending; `VOLTRACK_CONFORM_ITERATIONS`,
-//! `_STIFFNESS`, `_POINT_WEIGHT`, `_MAX_DISTANCE`, `_NORMAL_COSINE`, `_BEND_STRAIN` and
+//! `_STIFFNESS`, `_POINT_WEIGHT`, `_MAX_DISTANCE`, `_NORMAL_COSINE`, `_BEND_STRAIN`, `_JOINT_STRAIN` and
 //! `_LEAST_EDGE_WEIGHT` the fit
 //! to the input surfaces; `VOLTRACK_MESH_MEMORY` (MiB) the positions kept in
 //! memory before the frames go to a temporary file.
@@ -47,6 +47,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         max_distance: env("VOLTRACK_CONFORM_MAX_DISTANCE").unwrap_or(defaults.max_distance),
         min_normal_cosine: env("VOLTRACK_CONFORM_NORMAL_COSINE").unwrap_or(defaults.min_normal_cosine),
         bend_strain: env("VOLTRACK_CONFORM_BEND_STRAIN").unwrap_or(defaults.bend_strain),
+        joint_strain: env("VOLTRACK_CONFORM_JOINT_STRAIN").unwrap_or(defaults.joint_strain),
         least_edge_weight: env("VOLTRACK_CONFORM_LEAST_EDGE_WEIGHT").unwrap_or(defaults.least_edge_weight),
         ..defaults
     };

@@ -9,10 +9,11 @@
 //! default settings and measures the same for every vertex of the dynamic
 //! mesh (issue 5). Distances are in voxels of the grid used.
 //! `VOLTRACK_R`, `VOLTRACK_CENTERS` override the resolution and center count;
-//! `VOLTRACK_THRESHOLD`, `VOLTRACK_CONFORM_STIFFNESS` and
-//! `VOLTRACK_CONFORM_BEND_STRAIN` the tracking threshold and the conform
-//! stage's stiffness and bend strain (`--threshold`, `--conform-stiffness`,
-//! `--conform-bend-strain`).
+//! `VOLTRACK_THRESHOLD`, `VOLTRACK_CONFORM_STIFFNESS`,
+//! `VOLTRACK_CONFORM_BEND_STRAIN` and `VOLTRACK_CONFORM_JOINT_STRAIN` the
+//! tracking threshold and the conform stage's stiffness, bend strain and
+//! joint strain (`--threshold`, `--conform-stiffness`,
+//! `--conform-bend-strain`, `--conform-joint-strain`).
 
 use voltrack::math::{Point3, Real};
 use voltrack::params::{ConformParams, DeformParams, RefineParams, TrackParams};
@@ -54,6 +55,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let conform = ConformParams {
                 stiffness: real("VOLTRACK_CONFORM_STIFFNESS").unwrap_or(defaults.stiffness),
                 bend_strain: real("VOLTRACK_CONFORM_BEND_STRAIN").unwrap_or(defaults.bend_strain),
+                joint_strain: real("VOLTRACK_CONFORM_JOINT_STRAIN").unwrap_or(defaults.joint_strain),
                 ..defaults
             };
             let conv = voltrack::pipeline::convert(

@@ -449,7 +449,9 @@ pub struct ConformParams {
     pub stiffness: Real,
     /// Share of the full distance to an input vertex next to the distance
     /// along the mesh's normal: small lets the mesh slide along the
-    /// surface. Default 0.1; >= 0.
+    /// surface to where its edges keep their lengths (the nearest point is
+    /// not the input vertex's match, so pulling along the surface biases
+    /// the fit). Default 0.03; >= 0.
     pub point_weight: Real,
     /// Farthest an input vertex pulls the mesh from, as a fraction of the
     /// bounding box's longest side (or in the input's units with
@@ -478,6 +480,19 @@ pub struct ConformParams {
     /// keeps a strongly bent joint from folding over. Default 0.3; in (0, 1].
     #[serde(default = "default_least_edge_weight")]
     pub least_edge_weight: Real,
+    /// Mean strain of an edge, over a first fit of up to 16 frames spread
+    /// over the take, at which its rigidity weighs half in every frame's
+    /// fit (times the frame's own weight from `bend_strain`): a joint bends
+    /// at the same edges through the take, a frame's own strains are partly
+    /// its noise. Default 0.07; >= 0, 0 skips the first fit (every frame
+    /// then finds its joints alone).
+    #[serde(default = "default_joint_strain")]
+    pub joint_strain: Real,
+    /// Least weight of an edge from its mean strain: with the frame's own
+    /// at least `least_edge_weight`, an edge weighs at least their product.
+    /// Default 0.15; in (0, 1].
+    #[serde(default = "default_least_joint_weight")]
+    pub least_joint_weight: Real,
     /// Lengths in the input's units instead of fractions of the longest side.
     pub absolute_units: bool,
 }
@@ -490,16 +505,26 @@ fn default_least_edge_weight() -> Real {
     ConformParams::default().least_edge_weight
 }
 
+fn default_joint_strain() -> Real {
+    ConformParams::default().joint_strain
+}
+
+fn default_least_joint_weight() -> Real {
+    ConformParams::default().least_joint_weight
+}
+
 impl Default for ConformParams {
     fn default() -> Self {
         ConformParams {
             iterations: 60,
             stiffness: 1.0,
-            point_weight: 0.1,
+            point_weight: 0.03,
             max_distance: 0.025,
             min_normal_cosine: 0.7,
             bend_strain: 0.2,
             least_edge_weight: 0.3,
+            joint_strain: 0.07,
+            least_joint_weight: 0.15,
             absolute_units: false,
         }
     }
@@ -515,6 +540,8 @@ impl ConformParams {
         check("the conform normal cosine", self.min_normal_cosine, Span::closed(-1.0, 1.0))?;
         check("the conform bend strain", self.bend_strain, Span::closed(0.0, WEIGHT.hi))?;
         check("the conform least edge weight", self.least_edge_weight, Span::open_closed(0.0, 1.0))?;
+        check("the conform joint strain", self.joint_strain, Span::closed(0.0, WEIGHT.hi))?;
+        check("the conform least joint weight", self.least_joint_weight, Span::open_closed(0.0, 1.0))?;
         Ok(())
     }
 

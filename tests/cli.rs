@@ -421,7 +421,7 @@ fn unwritable_outputs_fail_and_leave_nothing() {
 fn invalid_parameters_exit_with_2() {
     let dir = Scratch::new("cli", "params");
     let input = fixture().to_string_lossy().into_owned();
-    let cases: [(Vec<&str>, &str); 9] = [
+    let cases: [(Vec<&str>, &str); 10] = [
         (vec!["convert", &input, "-r", "32", "--centers", "0", "-o", "x.glb"], "centers"),
         (vec!["track", &input, "-r", "32", "-n", "0", "-o", "c.exr"], "centers"),
         (vec!["track", &input, "-r", "1", "-n", "10", "-o", "c.exr"], "resolution"),
@@ -430,6 +430,7 @@ fn invalid_parameters_exit_with_2() {
         (vec!["convert", &input, "-r", "32", "-n", "20", "--no-refine", "--fps", "0", "-o", "x.pc2"], "frame rate"),
         (vec!["convert", &input, "-r", "32", "-n", "20", "--conform-stiffness", "0", "-o", "x.glb"], "stiffness"),
         (vec!["convert", &input, "-r", "32", "-n", "20", "--conform-bend-strain=-1", "-o", "x.glb"], "bend strain"),
+        (vec!["convert", &input, "-r", "32", "-n", "20", "--conform-joint-strain=-1", "-o", "x.glb"], "joint strain"),
         (vec!["track", &input, "-r", "32", "-n", "10", "--damped-guess", "1", "-o", "c.exr"], "damped guess"),
     ];
     for (args, what) in cases {

@@ -1,6 +1,7 @@
 //! Deforming the first-frame mesh by center trajectories.
 
-use voltrack::deform::{bind, conform_frame, deform, smooth_bindings, Binding, DualQuaternion};
+use voltrack::deform::{bind, conform, conform_frame, deform, smooth_bindings, Binding, DualQuaternion, DynamicMesh};
+use voltrack::model::positions::PositionFrames;
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
 use voltrack::spatial::surface::SurfaceIndex;
 use voltrack::params::{Blending, ConformParams, DeformParams};
@@ -291,27 +292,37 @@ fn conforming_to_a_remeshed_input_does_not_follow_its_cut_creases() {
     assert!(moved_most < 0.05 * depth, "a vertex moved {moved_most}, against a chamfer {depth} deep");
 }
 
-#[test]
-fn conforming_keeps_a_joint_s_bend_at_the_joint() {
-    // The bundled bar (two rigid halves and an elbow at x = 1.5), bent as in
-    // its last frame. Blending spreads the bend over the bar's middle third,
-    // as centers on both sides of a joint give; the input pulls it back.
-    let base = voltrack::fixtures::bending_bar(0);
-    let last = voltrack::fixtures::BENDING_BAR_FRAMES - 1;
-    let input = voltrack::TriangleMesh { positions: base.positions.iter().map(|p| voltrack::fixtures::bending_bar_motion(last, p)).collect(), ..base.clone() };
+/// The bundled bar (two rigid halves and an elbow at x = 1.5) in frame f,
+/// as `bending_bar_motion` makes it, and as blending would deform it: the
+/// elbow's bend spread over the bar's middle third, as centers on both
+/// sides of a joint give.
+fn bar_bent_and_blended(base: &voltrack::TriangleMesh, f: usize) -> (voltrack::TriangleMesh, Vec<Point3>) {
+    let input = voltrack::TriangleMesh { positions: base.positions.iter().map(|p| voltrack::fixtures::bending_bar_motion(f, p)).collect(), ..base.clone() };
     let pivot = Point3::new(1.5, 0.0, 0.0);
     // The elbow's turn and the whole bar's motion, as bending_bar_motion makes them.
-    let (bend, turn, shift) = (0.12 * last as Real, 0.04 * last as Real, Vector3::new(0.02 * last as Real, 0.0, 0.0));
+    let (bend, turn, shift) = (0.12 * f as Real, 0.04 * f as Real, Vector3::new(0.02 * f as Real, 0.0, 0.0));
     let whole = |q: Point3| Rotation3::new(Vector3::y() * turn) * q + shift;
     // Blending's bend: each point takes a share of the elbow's turn, 0 to 1 over x in 1 ..= 2.
     let share = |p: &Point3| (p.x - 1.0).clamp(0.0, 1.0);
     let blended: Vec<Point3> = base.positions.iter().map(|p| whole(pivot + Rotation3::new(Vector3::z() * bend * share(p)) * (p - pivot))).collect();
     // Outside the middle third it is the truth.
     assert!(base.positions.iter().zip(blended.iter().zip(&input.positions)).all(|(p, (b, q))| (share(p) > 0.0 && share(p) < 1.0) || (b - q).norm() < 1e-9));
-    let rigid_parts = |fitted: &[Point3]| -> Real {
-        let far: Vec<usize> = (0..fitted.len()).filter(|&v| (base.positions[v].x - pivot.x).abs() > 0.3).collect();
-        far.iter().map(|&v| (fitted[v] - input.positions[v]).norm()).sum::<Real>() / far.len() as Real
-    };
+    (input, blended)
+}
+
+/// Mean distance of the bar's vertices away from its elbow to where they
+/// belong.
+fn bar_rigid_parts_off(base: &voltrack::TriangleMesh, fitted: &[Point3], truth: &[Point3]) -> Real {
+    let far: Vec<usize> = (0..fitted.len()).filter(|&v| (base.positions[v].x - 1.5).abs() > 0.3).collect();
+    far.iter().map(|&v| (fitted[v] - truth[v]).norm()).sum::<Real>() / far.len() as Real
+}
+
+#[test]
+fn conforming_keeps_a_joint_s_bend_at_the_joint() {
+    // The bar bent as in its last frame; the input pulls the spread bend back.
+    let base = voltrack::fixtures::bending_bar(0);
+    let (input, blended) = bar_bent_and_blended(&base, voltrack::fixtures::BENDING_BAR_FRAMES - 1);
+    let rigid_parts = |fitted: &[Point3]| bar_rigid_parts_off(&base, fitted, &input.positions);
     let even = conform_frame(&base, &blended, &input, &base.bounding_box(), &ConformParams { bend_strain: 0.0, ..Default::default() }).unwrap();
     let jointed = conform_frame(&base, &blended, &input, &base.bounding_box(), &ConformParams::default()).unwrap();
     let (before, even, jointed) = (rigid_parts(&blended), rigid_parts(&even), rigid_parts(&jointed));
@@ -320,4 +331,23 @@ fn conforming_keeps_a_joint_s_bend_at_the_joint() {
     // itself to ease it), so both fits move the rigid parts; weighing the
     // elbow's strained edges less moves them less.
     assert!(jointed < 0.92 * even, "rigid parts off by {before} blended, {even} with every edge alike, {jointed} with strained edges weighing less");
+}
+
+#[test]
+fn conforming_a_take_finds_its_joint_from_every_frame() {
+    // The bar through its whole take, each frame blended with the bend
+    // spread: the edges that bend through the take (the elbow's) weigh less
+    // in every frame, on top of each frame's own strains.
+    let base = voltrack::fixtures::bending_bar(0);
+    let (inputs, blended): (Vec<voltrack::TriangleMesh>, Vec<Vec<Point3>>) = (0..voltrack::fixtures::BENDING_BAR_FRAMES).map(|f| bar_bent_and_blended(&base, f)).unzip();
+    let bounds = base.bounding_box();
+    let fit = |params: &ConformParams| -> Real {
+        let mesh = DynamicMesh { base: base.clone(), frames: PositionFrames::from(blended.clone()) };
+        let fitted = conform(mesh, &inputs, &bounds, params, Default::default()).unwrap().frames.to_vec().unwrap();
+        assert_eq!(fitted[0], blended[0], "frame 0 stays");
+        fitted.iter().zip(&inputs).skip(1).map(|(fitted, input)| bar_rigid_parts_off(&base, fitted, &input.positions)).sum::<Real>() / (fitted.len() - 1) as Real
+    };
+    let alone = fit(&ConformParams { joint_strain: 0.0, ..Default::default() });
+    let pooled = fit(&ConformParams::default());
+    assert!(pooled < 0.85 * alone, "rigid parts off by {alone} with each frame's own strains, {pooled} with the take's too");
 }

@@ -295,6 +295,9 @@ pub struct ConvertArgs {
     /// Strain at which an edge's rigidity weighs half in that fit, so joints bend where they are instead of bending the parts beside them (0: every edge alike) (range: 0 <= s <= 1e6)
     #[arg(long, default_value_t = ConformParams::default().bend_strain)]
     pub conform_bend_strain: f64,
+    /// Mean strain, over a first fit of up to 16 frames spread over the take, at which an edge's rigidity weighs half in every frame's fit: joints are where the take bends (0: no first fit, each frame finds its own) (range: 0 <= s <= 1e6)
+    #[arg(long, default_value_t = ConformParams::default().joint_strain)]
+    pub conform_joint_strain: f64,
     /// Also write a self-contained HTML report: fit to the input per frame, PCAC/DFU, irregularity, time per stage
     #[arg(long, value_name = "HTML")]
     pub report: Option<PathBuf>,
@@ -365,6 +368,7 @@ impl ConvertArgs {
             iterations: self.conform_iterations,
             stiffness: self.conform_stiffness,
             bend_strain: self.conform_bend_strain,
+            joint_strain: self.conform_joint_strain,
             absolute_units: self.track.absolute_units,
             ..Default::default()
         }

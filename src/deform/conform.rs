@@ -41,6 +41,15 @@
 //! edge strained by `bend_strain` weighs half, more strained ones less, down
 //! to `least_edge_weight`, so the bend gathers at the few edges across the
 //! joint. The weights are per frame: each frame bends its own joints.
+//!
+//! A joint bends at the same edges in many frames, while one frame's
+//! strains also hold that frame's noise (a capture's merged surfaces, a
+//! crease re-meshed). So with `joint_strain` set, a first fit of up to
+//! [`JOINT_SAMPLES`] frames spread over the take measures every edge's mean
+//! strain, and every frame's fit then weighs each edge by that mean strain
+//! too (the same Cauchy weight, at least `least_joint_weight`), from its
+//! first round on, times its own frame's weight. The bend then gathers at
+//! the edges that bend through the take.
 
 use super::DynamicMesh;
 use crate::error::{Error, Result};
@@ -56,7 +65,10 @@ use crate::model::FrameSource;
 
 /// Weight ε of staying at the blended position, against 1 for the surface:
 /// only there to keep a part that meets no compatible surface in place.
-const ANCHOR: Real = 1e-3;
+/// Larger holds the mesh where the tracker put it, which a volume tracker
+/// gets wrong along a smooth body (a trunk sliding along its own axis): the
+/// surface and the edges should decide that.
+const ANCHOR: Real = 1e-4;
 /// Rounds, from the first, that search every input vertex's nearest mesh
 /// point: the mesh moves most in them.
 const FIRST_SEARCHES: usize = 3;
@@ -78,6 +90,11 @@ const MAX_SOLVER_ITERATIONS: usize = 50;
 /// change; relative to a length, not to the right-hand side, which holds
 /// absolute positions and would loosen the tolerance far from the origin.
 const SOLVER_TOLERANCE: Real = 2e-4;
+/// Most frames the first fit measures the edges' strains on, spread evenly
+/// over the take: their mean strain is what it needs, which a few frames
+/// across the motion give as well as all of them, and a long take costs
+/// no more than a short one.
+const JOINT_SAMPLES: usize = 16;
 
 /// The frame-0 mesh's connectivity, the same for every frame, with copies of
 /// a vertex (a UV seam: same frame-0 position) welded into the first: the
@@ -196,25 +213,47 @@ pub fn conform(mesh: DynamicMesh, source: &dyn FrameSource, bounds: &Aabb, param
     }
     let topology = Topology::new(&mesh.base);
     let max_distance = params.length_scale(bounds) * params.max_distance;
-    let counter = Counter::new(progress, Stage::Conform, source.len().saturating_sub(1));
+    let later = source.len().saturating_sub(1);
+    let samples = if params.joint_strain > 0.0 { later.min(JOINT_SAMPLES) } else { 0 };
+    let counter = Counter::new(progress, Stage::Conform, samples + later);
     // A few frames at a time, each replaced where it lies: memory holds a
     // block, whether the frames are in memory or in a file.
     let DynamicMesh { base, mut frames } = mesh;
     let block = 4 * rayon::current_num_threads().max(1);
+    let fit = |f: usize, blended: &[Point3], joints: Option<&[Real]>, strains: Option<&mut Vec<Real>>| -> Result<Vec<Point3>> {
+        if progress.cancelled() {
+            return Err(Error::Interrupted { saved: None });
+        }
+        let input = source.mesh(f)?;
+        let fitted = fit_frame(&base, &topology, blended, &input, max_distance, params, joints, strains, &|| progress.cancelled())
+            .ok_or(Error::Interrupted { saved: None })?;
+        counter.tick();
+        Ok(fitted)
+    };
+    let joints = if samples > 0 {
+        // Summed in frame order, whatever the threads: deterministic.
+        let mut total = vec![0.0; topology.edges.items.len()];
+        let sampled: Vec<usize> = (0..samples).map(|k| 1 + k * later / samples).collect();
+        for chunk in sampled.chunks(block) {
+            let strains: Vec<Vec<Real>> = chunk
+                .par_iter()
+                .map(|&f| {
+                    let mut strains = Vec::new();
+                    fit(f, &frames.get(f)?, None, Some(&mut strains))?;
+                    Ok(strains)
+                })
+                .collect::<Result<_>>()?;
+            for strains in strains {
+                total.iter_mut().zip(strains).for_each(|(t, s)| *t += s);
+            }
+        }
+        Some(total.into_iter().map(|t| cauchy_weight(t / samples as Real, params.joint_strain).max(params.least_joint_weight)).collect::<Vec<Real>>())
+    } else {
+        None
+    };
     for start in (1..frames.len()).step_by(block) {
-        let fitted: Vec<Vec<Point3>> = (start..(start + block).min(frames.len()))
-            .into_par_iter()
-            .map(|f| {
-                if progress.cancelled() {
-                    return Err(Error::Interrupted { saved: None });
-                }
-                let input = source.mesh(f)?;
-                let fitted = fit_frame(&base, &topology, &frames.get(f)?, &input, max_distance, params, &|| progress.cancelled())
-                    .ok_or(Error::Interrupted { saved: None })?;
-                counter.tick();
-                Ok(fitted)
-            })
-            .collect::<Result<_>>()?;
+        let fitted: Vec<Vec<Point3>> =
+            (start..(start + block).min(frames.len())).into_par_iter().map(|f| fit(f, &frames.get(f)?, joints.as_deref(), None)).collect::<Result<_>>()?;
         for (k, frame) in fitted.into_iter().enumerate() {
             frames.replace(start + k, frame)?;
         }
@@ -233,13 +272,17 @@ pub fn conform_frame(base: &TriangleMesh, blended: &[Point3], input: &TriangleMe
         return Err(Error::InvalidInput(format!("{} positions for a mesh of {} vertices", blended.len(), base.positions.len())));
     }
     let max_distance = params.length_scale(bounds) * params.max_distance;
-    fit_frame(base, &Topology::new(base), blended, input, max_distance, params, &|| false).ok_or(Error::Interrupted { saved: None })
+    fit_frame(base, &Topology::new(base), blended, input, max_distance, params, None, None, &|| false).ok_or(Error::Interrupted { saved: None })
 }
 
 /// [`conform_frame`] with the mesh's topology at hand; None when `cancelled`
 /// says so (it is asked before every round). Only the first copy of a welded
 /// vertex is fitted (the others, in no welded triangle, have no edges or
 /// surface terms and stay put), and the others take its place at the end.
+/// `joints` are per-edge weights (in `edges`' order) that every edge's own
+/// weight is multiplied by, from the first round on; `strains`, if given,
+/// receives every edge's strain in the fitted mesh.
+#[allow(clippy::too_many_arguments)]
 fn fit_frame(
     base: &TriangleMesh,
     topology: &Topology,
@@ -247,6 +290,8 @@ fn fit_frame(
     input: &TriangleMesh,
     max_distance: Real,
     params: &ConformParams,
+    joints: Option<&[Real]>,
+    strains: Option<&mut Vec<Real>>,
     cancelled: &dyn Fn() -> bool,
 ) -> Option<Vec<Point3>> {
     let (rest, edges, triangles, spread, offsets) = (&base.positions, &topology.edges, &topology.triangles, &topology.spread, &topology.offsets);
@@ -257,10 +302,11 @@ fn fit_frame(
     let mut diagonal: Vec<Real> = (0..n).map(|v| stiffness * edges.of(v).len() as Real + ANCHOR).collect();
     // Per edge (in `edges`' order) its weight w_uv and w_uv (X_v − X_u), and
     // per vertex Σ_u w_uv (X_v − X_u).
-    let mut weights = PerVertex { start: edges.start.clone(), items: vec![1.0; edges.items.len()] };
+    let mut weights = PerVertex { start: edges.start.clone(), items: joints.map_or_else(|| vec![1.0; edges.items.len()], <[Real]>::to_vec) };
     let mut weighted = PerVertex { start: offsets.start.clone(), items: offsets.items.clone() };
     let mut weighted_spread: Vec<Vector3> = spread.clone();
     let reweigh_from = (params.iterations as Real * REWEIGH_FROM).ceil() as usize;
+    let mut reweighed = false;
     let mut rhs = vec![Vector3::zeros(); n];
     let mut rotations = vec![UnitQuaternion::identity(); n];
     let mut index: Option<SurfaceIndex> = None;
@@ -310,8 +356,12 @@ fn fit_frame(
             }
         }
         let matrices: Vec<Matrix3> = rotations.iter().map(|q| q.to_rotation_matrix().into_inner()).collect();
-        if params.bend_strain > 0.0 && round >= reweigh_from && (round - reweigh_from) % SEARCH_EVERY == 0 {
-            reweigh(edges, offsets, &y, &matrices, params, &mut weights);
+        let reweigh_now = params.bend_strain > 0.0 && round >= reweigh_from && (round - reweigh_from) % SEARCH_EVERY == 0;
+        if reweigh_now || (round == 0 && joints.is_some()) {
+            if reweigh_now {
+                reweigh(edges, offsets, &y, &matrices, params, joints, &mut weights);
+            }
+            reweighed = true;
             for ((w, x), wx) in weights.items.iter().zip(&offsets.items).zip(weighted.items.iter_mut()) {
                 *wx = x * *w;
             }
@@ -347,24 +397,40 @@ fn fit_frame(
             }
             terms.push(Term { corners, weights, m });
         }
-        let reweighed = params.bend_strain > 0.0 && round >= reweigh_from;
         solve(edges, reweighed.then_some(&weights), stiffness, &diagonal, &terms, &rhs, SOLVER_TOLERANCE * max_distance, &mut y);
+    }
+    if let Some(strains) = strains {
+        let matrices: Vec<Matrix3> = rotations.iter().map(|q| q.to_rotation_matrix().into_inner()).collect();
+        strains.clear();
+        strains.extend((0..n).flat_map(|v| (edges.start[v]..edges.start[v + 1]).map(move |k| (v, k))).map(|(v, k)| edge_strain(edges, offsets, &y, &matrices, v, k)));
     }
     Some(topology.weld.iter().map(|&w| Point3::from(y[w as usize])).collect())
 }
 
-/// Every edge's weight 1 / (1 + (strain / `bend_strain`)²), at least
-/// `least_edge_weight`, where the strain is |(y_v − y_u) − R (X_v − X_u)|
-/// over |X_v − X_u|, averaged over R = R_v and R_u: the same for both
-/// directions of an edge, so the system stays symmetric.
-fn reweigh(edges: &Edges, offsets: &PerVertex<Vector3>, y: &[Vector3], rotations: &[Matrix3], params: &ConformParams, weights: &mut PerVertex<Real>) {
-    let scale = 0.5 / params.bend_strain;
+/// The strain of `edges`' k-th item, from v to u: |(y_v − y_u) − R (X_v − X_u)|
+/// over |X_v − X_u|, averaged over R = R_v and R_u, so the same for both
+/// directions of an edge.
+fn edge_strain(edges: &Edges, offsets: &PerVertex<Vector3>, y: &[Vector3], rotations: &[Matrix3], v: usize, k: usize) -> Real {
+    let u = edges.items[k] as usize;
+    let (x, d) = (offsets.items[k], y[v] - y[u]);
+    0.5 * ((d - rotations[v] * x).norm() + (d - rotations[u] * x).norm()) / x.norm().max(Real::MIN_POSITIVE)
+}
+
+/// 1 / (1 + (strain / half)²): 1 unstrained, ½ at `half`.
+fn cauchy_weight(strain: Real, half: Real) -> Real {
+    let s = strain / half;
+    1.0 / (1.0 + s * s)
+}
+
+/// Every edge's weight [`cauchy_weight`] of its [`edge_strain`] and
+/// `bend_strain`, at least `least_edge_weight`, times its weight in `joints`
+/// if given: the same for both directions of an edge, so the system stays
+/// symmetric.
+fn reweigh(edges: &Edges, offsets: &PerVertex<Vector3>, y: &[Vector3], rotations: &[Matrix3], params: &ConformParams, joints: Option<&[Real]>, weights: &mut PerVertex<Real>) {
     for v in 0..y.len() {
         for k in edges.start[v]..edges.start[v + 1] {
-            let u = edges.items[k] as usize;
-            let (x, d) = (offsets.items[k], y[v] - y[u]);
-            let strain = scale * ((d - rotations[v] * x).norm() + (d - rotations[u] * x).norm()) / x.norm().max(Real::MIN_POSITIVE);
-            weights.items[k] = (1.0 / (1.0 + strain * strain)).max(params.least_edge_weight);
+            let own = cauchy_weight(edge_strain(edges, offsets, y, rotations, v, k), params.bend_strain).max(params.least_edge_weight);
+            weights.items[k] = own * joints.map_or(1.0, |j| j[k]);
         }
     }
 }
