@@ -214,20 +214,17 @@ fn convert_warns_after_its_summary_and_the_report_marks_the_frames() {
     let stdout = voltrack("convert", &[&["convert"][..], &args].concat());
     let wrote = stdout.find("wrote ").expect("summary");
     // The leg is lost from frame 6 on (its centers 10-21 voxels off on
-    // average); in frame 5 it is going (3.6 on average, 8 at most) and the
-    // fit's p95 sits near the 2 % limit, so the run may start there.
-    let (warning, first) = [5, 6]
-        .iter()
-        .find_map(|f| stdout.find(&format!("warning: frames {f}-9: the result is far from the input")).map(|at| (at, *f)))
-        .unwrap_or_else(|| panic!("no warning for frames 5-9 or 6-9:\n{stdout}"));
+    // average); in frame 5 it is going (3.6 on average, 8 at most), and the
+    // fit there is past the limit too (p95 2.33 against 2 %).
+    let warning = stdout.find("warning: frames 5-9: the result is far from the input").unwrap_or_else(|| panic!("no warning:\n{stdout}"));
     assert!(warning > wrote, "the warning comes after the summary:\n{stdout}");
     let html = std::fs::read_to_string(&report).unwrap();
     common::assert_well_formed(&html);
-    assert!(html.contains("Warning: a part may have been lost") && html.contains(&format!("Frames {first}-9")), "no warning in the report");
-    assert_eq!(html.matches("<tr class=\"flagged\">").count(), 10 - first);
+    assert!(html.contains("Warning: a part may have been lost") && html.contains("Frames 5-9"), "no warning in the report");
+    assert_eq!(html.matches("<tr class=\"flagged\">").count(), 5);
     // Without a report too: the fit is measured for every mesh output.
     let plain = voltrack("plain", &["convert", input.to_str().unwrap(), "-r", "48", "-n", "150", "--single-guess", "-o", "plain.glb"]);
-    assert!(plain.contains(&format!("warning: frames {first}-9: the result is far from the input")), "no warning without --report:\n{plain}");
+    assert!(plain.contains("warning: frames 5-9: the result is far from the input"), "no warning without --report:\n{plain}");
     // The bar is not flagged.
     let bar = fixture("bending_bar");
     let stdout = voltrack("bar", &["convert", bar.to_str().unwrap(), "-r", "48", "-n", "120", "-o", "bar.glb"]);

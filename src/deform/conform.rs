@@ -306,7 +306,6 @@ fn fit_frame(
     let mut weighted = PerVertex { start: offsets.start.clone(), items: offsets.items.clone() };
     let mut weighted_spread: Vec<Vector3> = spread.clone();
     let reweigh_from = (params.iterations as Real * REWEIGH_FROM).ceil() as usize;
-    let mut reweighed = false;
     let mut rhs = vec![Vector3::zeros(); n];
     let mut rotations = vec![UnitQuaternion::identity(); n];
     let mut index: Option<SurfaceIndex> = None;
@@ -357,11 +356,12 @@ fn fit_frame(
         }
         let matrices: Vec<Matrix3> = rotations.iter().map(|q| q.to_rotation_matrix().into_inner()).collect();
         let reweigh_now = params.bend_strain > 0.0 && round >= reweigh_from && (round - reweigh_from) % SEARCH_EVERY == 0;
+        if reweigh_now {
+            reweigh(edges, offsets, &y, &matrices, params, joints, &mut weights);
+        }
+        // The take's weights apply from the first solve, the frame's own from their first reweighing.
+        let weighed = joints.is_some() || (params.bend_strain > 0.0 && round >= reweigh_from);
         if reweigh_now || (round == 0 && joints.is_some()) {
-            if reweigh_now {
-                reweigh(edges, offsets, &y, &matrices, params, joints, &mut weights);
-            }
-            reweighed = true;
             for ((w, x), wx) in weights.items.iter().zip(&offsets.items).zip(weighted.items.iter_mut()) {
                 *wx = x * *w;
             }
@@ -397,7 +397,7 @@ fn fit_frame(
             }
             terms.push(Term { corners, weights, m });
         }
-        solve(edges, reweighed.then_some(&weights), stiffness, &diagonal, &terms, &rhs, SOLVER_TOLERANCE * max_distance, &mut y);
+        solve(edges, weighed.then_some(&weights), stiffness, &diagonal, &terms, &rhs, SOLVER_TOLERANCE * max_distance, &mut y);
     }
     if let Some(strains) = strains {
         let matrices: Vec<Matrix3> = rotations.iter().map(|q| q.to_rotation_matrix().into_inner()).collect();
