@@ -4,10 +4,12 @@
 
 pub mod coverage;
 pub mod fit;
+pub mod lost;
 
 pub use coverage::{coverage, fit_outliers, Coverage, FitOutliers, FrameCoverage};
 
 pub use crate::refine::irregular::irregularity;
+pub use lost::{frame_runs, lost_part_warnings, LostPartWarning};
 pub use fit::{fit_to_input, surface_fit, DistanceSummary, FrameFit, SequenceFit, Surface};
 
 use crate::math::Real;

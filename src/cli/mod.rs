@@ -13,7 +13,6 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use options::{ConvertArgs, InputArgs, OutputFormat, RefineArgs, TrackArgs};
 use std::path::{Path, PathBuf};
-use voltrack::metrics::{Coverage, FitOutliers};
 use voltrack::params::CoverageParams;
 use voltrack::pipeline::{self, Quality};
 use voltrack::io::FrameFiles;
@@ -220,51 +219,10 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
         println!("refined: removed {} centers in {:.1} s; PCAC {:.4}  DFU {:.4}", r.removed.len(), r.seconds, q.pcac, q.dfu);
     }
     println!("wrote {}", output.display());
-    for w in lost_part_warnings(&coverage, None) {
+    for w in voltrack::metrics::lost_part_warnings(&coverage, None).into_iter().map(|w| w.message) {
         println!("{w}");
     }
     Ok(())
-}
-
-/// Frame numbers as runs: "3, 7-9".
-fn frame_runs(frames: &[usize]) -> String {
-    voltrack::metrics::coverage::runs(frames).iter().map(|&(a, b)| if a == b { a.to_string() } else { format!("{a}-{b}") }).collect::<Vec<_>>().join(", ")
-}
-
-/// Warnings of parts the tracking may have lost. With the result's fit to
-/// the input (`convert`), volume left unreached is warned of only where the
-/// fit is bad too (within a frame): a few unreached voxels where the result
-/// lies on the input are a cell lagging, not a part lost. Without it
-/// (`track`), the unreached volume is all there is to go by.
-fn lost_part_warnings(coverage: &Coverage, fit: Option<&FitOutliers>) -> Vec<String> {
-    let mut out = Vec::new();
-    let confirmed = |a: usize, b: usize| fit.is_none_or(|f| f.flagged.iter().any(|&k| k + 1 >= a && k <= b + 1));
-    for (a, b) in coverage.flagged_runs() {
-        if !confirmed(a, b) {
-            log::info!("frames {a}-{b}: some input volume is not reached by any tracked cell, but the result fits the input there");
-            continue;
-        }
-        let frames = &coverage.frames[a..=b];
-        let worst = frames.iter().map(|c| c.lost_share).fold(0.0, f64::max);
-        let region = frames.iter().map(|c| c.largest_region).max().unwrap_or(0) as f64 / coverage.cell_voxels.max(1e-12);
-        let which = if a == b { format!("frame {a}") } else { format!("frames {a}-{b}") };
-        out.push(format!(
-            "warning: {which}: up to {:.2} % of the input volume is not reached by any tracked cell (a connected region of {region:.1} cells' volume): \
-             a fast or thin part may have been lost, its centers left in the body or another part; check these frames, \
-             and try more --centers or a higher --resolution",
-            100.0 * worst
-        ));
-    }
-    if let Some(fit) = fit.filter(|f| !f.flagged.is_empty()) {
-        out.push(format!(
-            "warning: frames {}: the result is far from the input (p95 distance above {:.2} % of the diagonal, against a usual {:.2} %): \
-             a part may have been lost or torn between two parts; --report FILE shows every frame's fit",
-            frame_runs(&fit.flagged),
-            fit.limit,
-            fit.usual
-        ));
-    }
-    out
 }
 
 type Tracked = (voltrack::model::Trajectories, voltrack::model::TrajectoryMetadata);
@@ -505,6 +463,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
     // What carries the name and the frame rate, and where they are written.
     let named = matches!(format, OutputFormat::Glb | OutputFormat::Vat | OutputFormat::Pc2 | OutputFormat::ObjSequence);
     let timed = matches!(format, OutputFormat::Glb | OutputFormat::Vat | OutputFormat::Pc2);
+    let warnings = voltrack::metrics::lost_part_warnings(&conv.coverage, fit.as_ref().map(|f| &f.1));
     if args.json {
         let mut stages: serde_json::Map<String, serde_json::Value> = seconds.iter().map(|(stage, s)| (stage.name().to_string(), (*s).into())).collect();
         stages.insert("total".into(), total.into());
@@ -525,7 +484,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
             "fit_percent": fit.as_ref().map(|f| f.0.summary()),
             "fit_outliers": fit.as_ref().map(|f| &f.1),
             "coverage": &conv.coverage,
-            "warnings": lost_part_warnings(&conv.coverage, fit.as_ref().map(|f| &f.1)),
+            "warnings": warnings.iter().map(|w| &w.message).collect::<Vec<_>>(),
             "basis": glb_report.map(|r| serde_json::json!({
                 "targets": r.targets,
                 "components": r.basis,
@@ -559,8 +518,8 @@ fn convert(args: ConvertArgs) -> Result<()> {
     }
     let called = if named { format!(", object \"{name}\"") } else { String::new() };
     println!("wrote {} ({}{called})", out.display(), human_size(size));
-    for w in lost_part_warnings(&conv.coverage, fit.as_ref().map(|f| &f.1)) {
-        println!("{w}");
+    for w in warnings {
+        println!("{}", w.message);
     }
     Ok(())
 }

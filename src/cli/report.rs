@@ -14,7 +14,7 @@ use std::fmt::Write;
 use std::path::{Path, PathBuf};
 use voltrack::error::Result;
 use voltrack::math::Real;
-use voltrack::metrics::coverage::runs;
+use voltrack::metrics::frame_runs;
 use voltrack::metrics::FrameFit;
 use voltrack::params::{ConformParams, DeformParams, RefineParams, TrackParams};
 use voltrack::pipeline::{Conversion, Measurements, Quality};
@@ -320,11 +320,6 @@ fn fit_html(input: &ReportInput) -> String {
     }
     h.push_str("</table>\n</details>\n</section>\n");
     h
-}
-
-/// Frame numbers as runs: "3, 7-9".
-fn frame_runs(frames: &[usize]) -> String {
-    runs(frames).iter().map(|&(a, b)| if a == b { a.to_string() } else { format!("{a}-{b}") }).collect::<Vec<_>>().join(", ")
 }
 
 /// A box under the headline figures naming the frames where a part may
