@@ -1,0 +1,135 @@
+//! Converts every take of the generated family
+//! (`voltrack::fixtures::family`) at the defaults and prints, per take, the
+//! correspondence error against the ground truth (mean, 95th percentile and
+//! maximum, in percent of the diagonal), its drift (the last tenth's mean
+//! over the first tenth's), the frames where a part is truly lost (a part's
+//! mean error above 5 %), the frames `convert` warns of, and the seconds;
+//! then how many takes are within the bounds.
+//!
+//! `cargo bench --bench family`. Environment:
+//! - `VOLTRACK_FAMILY`: `all` (default), `dev` (the takes tuning may look
+//!   at), `held-out` (the others), or names (prefixes), comma-separated;
+//! - `VOLTRACK_SEED`: the conversion's seed (`--seed`), default 0;
+//! - `VOLTRACK_RESOLUTION`, `VOLTRACK_CENTERS`: other than the defaults;
+//! - `VOLTRACK_FAMILY_JSON=FILE`: also write every take's figures as JSON
+//!   lines (per-frame errors included), for tables before and after a change.
+
+use std::io::Write;
+use std::time::Instant;
+use voltrack::fixtures::family::{build, family, score, TakeSpec};
+use voltrack::metrics::coverage::runs;
+use voltrack::pipeline::{convert, ConvertOptions, Measurements};
+
+/// A take is within bounds when its correspondence maximum is at most this.
+const MAX_BOUND: f64 = 8.0;
+/// A take of at least this many frames must drift at most [`DRIFT_BOUND`].
+const LONG_TAKE: usize = 100;
+const DRIFT_BOUND: f64 = 2.0;
+
+fn chosen(spec: &TakeSpec, which: &str) -> bool {
+    match which {
+        "all" => true,
+        "dev" => !spec.held_out,
+        "held-out" => spec.held_out,
+        names => names.split(',').any(|n| !n.is_empty() && spec.name.starts_with(n.trim())),
+    }
+}
+
+fn frames_text(frames: &[usize]) -> String {
+    if frames.is_empty() {
+        return "-".into();
+    }
+    runs(frames).iter().map(|&(a, b)| if a == b { a.to_string() } else { format!("{a}-{b}") }).collect::<Vec<_>>().join(",")
+}
+
+fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
+    std::env::var(name).ok().map(|v| v.parse().unwrap_or_else(|_| panic!("{name}={v} is not a number")))
+}
+
+fn main() {
+    let which = std::env::var("VOLTRACK_FAMILY").unwrap_or_else(|_| "all".into());
+    let mut options = ConvertOptions::default();
+    options.track.seed = env("VOLTRACK_SEED").unwrap_or(0);
+    if let Some(r) = env("VOLTRACK_RESOLUTION") {
+        options.voxel.resolution = r;
+    }
+    if let Some(n) = env("VOLTRACK_CENTERS") {
+        options.track.centers = n;
+    }
+    let mut json = std::env::var("VOLTRACK_FAMILY_JSON").ok().map(|p| std::fs::File::create(p).expect("creating the JSON file"));
+    println!(
+        "family at resolution {}, {} centers, seed {}, threads {}",
+        options.voxel.resolution,
+        options.track.centers,
+        options.track.seed,
+        rayon::current_num_threads()
+    );
+    println!(
+        "{:<18} {:>4} {:>5} {:>5} {:>6} {:>6} {:>6} {:>6}  {:<18} {:<18} {:>7}",
+        "take", "fr", "limb", "fast%", "mean", "p95", "max", "drift", "lost", "warned", "s"
+    );
+    let mut rows = Vec::new();
+    for spec in family().into_iter().filter(|s| chosen(s, &which)) {
+        let take = build(&spec);
+        let clock = Instant::now();
+        let conv = convert(&take.meshes, &options, Default::default()).expect("converting");
+        let (_, outliers) = Measurements::fit_of(&conv, &take.meshes, Default::default()).expect("measuring the fit");
+        let seconds = clock.elapsed().as_secs_f64();
+        let warnings = voltrack::metrics::lost_part_warnings(&conv.coverage, Some(&outliers));
+        let mut warned: Vec<usize> = warnings.iter().flat_map(|w| w.frames.iter().copied()).collect();
+        warned.sort_unstable();
+        warned.dedup();
+        let result = conv.mesh.frames.to_vec().expect("reading the result");
+        let s = score(&take, &result);
+        let missed: Vec<usize> = s.lost.iter().copied().filter(|f| !warned.contains(f)).collect();
+        println!(
+            "{:<18} {:>4} {:>5.1} {:>5.1} {:>6.3} {:>6.3} {:>6.2} {:>6.2}  {:<18} {:<18} {:>7.1}{}",
+            spec.name,
+            spec.frames,
+            take.limb_voxels,
+            take.fastest_percent,
+            s.mean,
+            s.p95,
+            s.max,
+            s.drift,
+            frames_text(&s.lost),
+            frames_text(&warned),
+            seconds,
+            if missed.is_empty() { String::new() } else { format!("  missed {}", frames_text(&missed)) }
+        );
+        std::io::stdout().flush().ok();
+        if let Some(out) = json.as_mut() {
+            let line = serde_json::json!({
+                "take": spec.name, "held_out": spec.held_out, "frames": spec.frames, "limb_voxels": take.limb_voxels,
+                "fastest_percent": take.fastest_percent, "seed": options.track.seed, "resolution": options.voxel.resolution,
+                "centers": options.track.centers, "mean": s.mean, "p95": s.p95, "max": s.max, "drift": s.drift,
+                "lost": s.lost, "warned": warned, "missed": missed, "seconds": seconds,
+                "per_frame_mean": s.per_frame_mean, "worst_part": s.worst_part,
+            });
+            writeln!(out, "{line}").expect("writing the JSON file");
+        }
+        rows.push((spec, s, missed, seconds));
+    }
+    if rows.is_empty() {
+        println!("no take matches VOLTRACK_FAMILY={which}");
+        return;
+    }
+    let within = rows.iter().filter(|r| r.1.max <= MAX_BOUND).count();
+    let mut means: Vec<f64> = rows.iter().map(|r| r.1.mean).collect();
+    means.sort_by(f64::total_cmp);
+    let median = if means.len() % 2 == 1 { means[means.len() / 2] } else { 0.5 * (means[means.len() / 2 - 1] + means[means.len() / 2]) };
+    let long: Vec<_> = rows.iter().filter(|r| r.0.frames >= LONG_TAKE).collect();
+    let drifting: Vec<&str> = long.iter().filter(|r| r.1.drift > DRIFT_BOUND).map(|r| r.0.name).collect();
+    let lost: usize = rows.iter().map(|r| r.1.lost.len()).sum();
+    let missed: usize = rows.iter().map(|r| r.2.len()).sum();
+    let seconds: f64 = rows.iter().map(|r| r.3).sum();
+    println!(
+        "{} takes: {within} with max <= {MAX_BOUND} %; median mean {median:.3} %; {} of {} takes of {LONG_TAKE}+ frames drift <= {DRIFT_BOUND}{}; \
+         {lost} frames lost, {} warned of ({missed} missed); {seconds:.0} s",
+        rows.len(),
+        long.len() - drifting.len(),
+        long.len(),
+        if drifting.is_empty() { String::new() } else { format!(" (not {})", drifting.join(", ")) },
+        lost - missed,
+    );
+}

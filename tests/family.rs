@@ -1,0 +1,81 @@
+//! The generated family of takes (`voltrack::fixtures::family`): what it
+//! spans, that every frame is a closed surface meshed afresh, that the
+//! ground truth lies on every frame's surface, and that the score measures
+//! what it says.
+
+use voltrack::fixtures::family::{build, family, score, Body, TakeSpec};
+use voltrack::math::Real;
+use voltrack::spatial::surface::SurfaceIndex;
+
+/// `spec` cut to its first `frames` frames.
+fn short(spec: &TakeSpec, frames: usize) -> TakeSpec {
+    TakeSpec { frames, ..spec.clone() }
+}
+
+#[test]
+fn the_family_spans_what_it_is_meant_to() {
+    let specs = family();
+    assert_eq!(specs.len(), 24);
+    assert!(specs.iter().filter(|s| s.held_out).count() >= 8);
+    let count = |b: Body| specs.iter().filter(|s| s.body == b).count();
+    assert!(count(Body::Biped) >= 8 && count(Body::Quadruped) >= 6 && count(Body::ManyLimbed) >= 4);
+    let widths: Vec<Real> = specs.iter().map(|s| s.limb_voxels).collect();
+    assert!(widths.iter().any(|&w| w <= 3.0) && widths.iter().any(|&w| w >= 12.0));
+    assert!(specs.iter().any(|s| s.frames <= 30) && specs.iter().any(|s| s.frames >= 200));
+    let mut names: Vec<&str> = specs.iter().map(|s| s.name).collect();
+    names.sort();
+    names.dedup();
+    assert_eq!(names.len(), specs.len(), "names are unique");
+}
+
+/// Every frame of every take (its first frames): a closed surface, facing
+/// out, with its own vertices; the truth of frame 0's vertices that are
+/// not ambiguous lies on each frame's surface.
+#[test]
+fn every_frame_is_a_closed_surface_and_the_truth_lies_on_it() {
+    for spec in family() {
+        let take = build(&short(&spec, 4));
+        assert!((take.limb_voxels / spec.limb_voxels - 1.0).abs() < 0.05, "{}: limbs {} voxels", spec.name, take.limb_voxels);
+        for (f, m) in take.meshes.iter().enumerate() {
+            // Every directed edge is matched by its reverse: closed and consistently oriented.
+            let mut edges = std::collections::HashMap::new();
+            for t in &m.triangles {
+                for k in 0..3 {
+                    *edges.entry((t[k], t[(k + 1) % 3])).or_insert(0i32) += 1;
+                    *edges.entry((t[(k + 1) % 3], t[k])).or_insert(0i32) -= 1;
+                }
+            }
+            assert!(edges.values().all(|&c| c == 0), "{} frame {f}: not closed", spec.name);
+            let volume: Real = m.triangles.iter().map(|t| m.positions[t[0] as usize].coords.dot(&m.positions[t[1] as usize].coords.cross(&m.positions[t[2] as usize].coords)) / 6.0).sum();
+            assert!(volume > 0.0, "{} frame {f}: faces inward", spec.name);
+            if f > 0 {
+                assert_ne!(m.positions, take.meshes[0].positions, "{} frame {f} is frame 0's mesh", spec.name);
+            }
+            let index = SurfaceIndex::new(&m.positions, &m.triangles);
+            let truth = take.truth.frame(f, &take.meshes[0].positions);
+            let off = truth.iter().zip(&take.truth.ambiguous).filter(|(_, &a)| !a).map(|(p, _)| index.distance(p)).fold(0.0, Real::max);
+            // A vertex is within about half a step of the surface it was meshed
+            // from, the frame's mesh within about half a step of its own.
+            assert!(off < 1.5 * take.step, "{} frame {f}: truth {off} from the surface (step {})", spec.name, take.step);
+        }
+        let ambiguous = take.truth.ambiguous.iter().filter(|&&a| a).count() as Real / take.truth.ambiguous.len() as Real;
+        assert!(ambiguous < 0.6, "{}: {:.0} % ambiguous", spec.name, 100.0 * ambiguous);
+    }
+}
+
+/// The truth scores 0 and loses nothing; a result that stays where frame 0
+/// was loses the parts that move.
+#[test]
+fn the_score_measures_against_the_truth() {
+    let spec = family().into_iter().find(|s| s.name == "kick").unwrap();
+    let take = build(&short(&spec, 24));
+    let first = &take.meshes[0].positions;
+    let truth: Vec<_> = (0..take.meshes.len()).map(|f| take.truth.frame(f, first)).collect();
+    let s = score(&take, &truth);
+    assert!(s.max < 1e-9 && s.lost.is_empty(), "{s:?}");
+    let still: Vec<_> = (0..take.meshes.len()).map(|_| first.clone()).collect();
+    let s = score(&take, &still);
+    assert!(!s.lost.is_empty() && s.lost.iter().all(|&f| f > 0), "{:?}", s.lost);
+    // The kick lifts a foot far from where it stood: lost while up.
+    assert!(s.worst_part.iter().any(|(p, e)| p.starts_with("foot") && *e > 5.0), "{:?}", s.worst_part);
+}
