@@ -133,6 +133,21 @@ pub struct TrackParams {
     /// worse and the galloping trotter's legs clearly worse
     /// (docs/measurements.md). Default 1 (the paper's iteration); in (0, 2).
     pub tracking_over_relaxation: Real,
+    /// Once a frame has converged, move the centers whose cells hold far
+    /// less than their frame-0 volume (starved) toward the voxels that
+    /// other cells hold only by stretching past their frame-0 reach, and
+    /// iterate again, for up to 3 rounds while each leaves the volume held
+    /// by stretching a fifth smaller (`track::claims`). Why: a thin part
+    /// that moves several of its widths in a frame leaves its centers
+    /// behind with empty cells, which the centroid term cannot pull, while
+    /// the few cells nearest to where it went stretch across it; each
+    /// volume element keeps about its volume, so a starved cell's volume is
+    /// where the stretched cells' excess is. Frames where no cell is
+    /// starved are tracked as before. Default false: it keeps more thin
+    /// parts on the generated family but worsens the galloping trotter's
+    /// worst frames (docs/measurements.md).
+    #[serde(default)]
+    pub reclaim: bool,
     /// Most Lloyd iterations placing the centers in frame 0; they stop earlier
     /// once no center moves farther than `threshold`. Default 1000 (the
     /// reference runs 100, which leaves frame 0 unconverged: see
@@ -167,6 +182,7 @@ impl Default for TrackParams {
             screening_unsettled: 0.01,
             screening_block: 1,
             tracking_over_relaxation: 1.0,
+            reclaim: false,
             lloyd_iterations: 1000,
             over_relaxation: 1.8,
             absolute_units: false,
@@ -243,6 +259,13 @@ pub struct RefineParams {
     /// Run the global optimisation after each batch; false = removal only.
     /// Default true.
     pub optimise: bool,
+    /// Rank the centers to remove by their irregularity relative to their
+    /// spacing in frame 0 (`refine::irregular::relative_irregularity`)
+    /// instead of the paper's absolute I_i, which ranks every center of a
+    /// sparsely covered part (a thin limb) as the most irregular and so
+    /// removes the part. Default true; false is the paper's.
+    #[serde(default = "default_relative_irregularity")]
+    pub relative_irregularity: bool,
     /// β̂: weight of the centroid term in the global energy. Default 0.5; in [`WEIGHT`].
     pub beta_hat: Real,
     /// ρ_gp: distance (maximum over frames) at which ω_max is 0.5. Default
@@ -289,6 +312,10 @@ pub struct RefineParams {
 /// which costs little beside assigning every frame's cells.
 pub const REFINE_GRADIENT_MEMORY: usize = 16 << 20;
 
+fn default_relative_irregularity() -> bool {
+    true
+}
+
 fn refine_gradient_memory() -> usize {
     REFINE_GRADIENT_MEMORY
 }
@@ -299,6 +326,7 @@ impl Default for RefineParams {
             remove: None,
             batches: 5,
             optimise: true,
+            relative_irregularity: true,
             beta_hat: 0.5,
             rho_gp: 0.07,
             rho_gm: 0.0167,

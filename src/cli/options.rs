@@ -96,6 +96,9 @@ pub struct TrackArgs {
     /// The guesses' runs up to the screening assign blocks of N³ voxels, each by its voxels' centroid; the kept run goes on on voxels. 2 tracks in a little over half the time, with a little worse correspondence; 1 screens on voxels (range: 1..=8)
     #[arg(long, value_name = "N", default_value_t = TrackParams::default().screening_block)]
     pub screening_block: usize,
+    /// Move centers left without volume (a limb that moved several of its widths leaves them behind) to the volume that cells hold only by stretching, once a frame has converged; keeps more thin parts, but worsens some fast takes' worst frames
+    #[arg(long)]
+    pub reclaim: bool,
     /// Over-relaxation of the tracking iterations: each step goes ω times the way to the paper's update; 1 is the paper's (range: 0 < ω < 2)
     #[arg(long, value_name = "ω", default_value_t = TrackParams::default().tracking_over_relaxation)]
     pub tracking_over_relaxation: f64,
@@ -152,6 +155,7 @@ impl TrackArgs {
             screening_unsettled: self.screening_unsettled,
             screening_block: self.screening_block,
             tracking_over_relaxation: self.tracking_over_relaxation,
+            reclaim: self.reclaim,
             lloyd_iterations: self.lloyd_iterations,
             over_relaxation: self.over_relaxation,
             absolute_units: self.absolute_units,
@@ -170,6 +174,9 @@ pub struct RefineArgs {
     /// Remove irregular centers without the global optimisation
     #[arg(long)]
     pub no_optimise: bool,
+    /// Rank irregular centers by the paper's absolute I_i, which removes sparsely covered thin parts first, instead of relative to each center's spacing
+    #[arg(long)]
+    pub absolute_irregularity: bool,
     /// β̂: weight of the centroid term in the global energy (range: 0 < β̂ <= 1e6)
     #[arg(long, default_value_t = RefineParams::default().beta_hat)]
     pub beta_hat: f64,
@@ -197,6 +204,7 @@ impl RefineArgs {
             remove: self.remove,
             batches: self.batches,
             optimise: !self.no_optimise,
+            relative_irregularity: !self.absolute_irregularity,
             beta_hat: self.beta_hat,
             rho_gp: self.rho_gp,
             rho_gm: self.rho_gm,

@@ -14,6 +14,36 @@ pub fn most_irregular(irregularity: &[Real], count: usize) -> Vec<usize> {
     order
 }
 
+/// Each center's irregularity relative to its spacing: I_i over F times
+/// the squared distance from c_i^0 to the nearest other center in frame 0.
+/// About 1 for a center that keeps its distance to a neighbour (a rigid
+/// part's, however sparse), far above for one that wanders off from all.
+///
+/// Why not I_i itself: it is the squared distance to the nearest other
+/// trajectory, which is about F times the local spacing squared for every
+/// center that moves with its neighbours, so where centers are sparse (a
+/// thin limb one or two centers wide, an extremity) the whole part ranks as
+/// the most irregular, and removing irregular centers removes the part.
+pub fn relative_irregularity(traj: &Trajectories, irregularity: &[Real]) -> Vec<Real> {
+    let first = traj.frame(0);
+    let points: Vec<[Real; 3]> = first.iter().map(|p| [p.x, p.y, p.z]).collect();
+    if points.len() < 2 {
+        return irregularity.to_vec();
+    }
+    let tree = kiddo::ImmutableKdTree::<Real, 3>::new_from_slice(&points).expect("finite centers");
+    let frames = traj.frames.max(1) as Real;
+    (0..points.len())
+        .into_par_iter()
+        .map(|i| {
+            let near = tree.query(&points[i]).nearest_n::<kiddo::SquaredEuclidean<Real>>(std::num::NonZeroUsize::new(2).expect("2 > 0")).execute();
+            // The nearest other: the first found may be i itself, or another at the same place.
+            let d2 = near.iter().filter(|n| n.item as usize != i).map(|n| n.distance).fold(Real::INFINITY, Real::min);
+            let d2 = if d2.is_finite() { d2 } else { near.iter().map(|n| n.distance).fold(0.0, Real::max) };
+            irregularity[i] / (frames * d2.max(Real::MIN_POSITIVE))
+        })
+        .collect()
+}
+
 /// Irregularity I_i = min over j ≠ i of Σ_f ‖c_i^f − c_j^f‖² (method.md §6):
 /// how far a center's whole trajectory is from its nearest other trajectory.
 /// Infinite for a lone center.

@@ -89,7 +89,10 @@ pub fn refine_with_checkpoints(traj: Trajectories, seq: &VoxelSequence, params: 
             None => {
                 // Spread the remainder over the first batches.
                 let n_rem = total / params.batches + usize::from(b < total % params.batches);
-                let irregularity = irregular::irregularity(&current);
+                let mut irregularity = irregular::irregularity(&current);
+                if params.relative_irregularity {
+                    irregularity = irregular::relative_irregularity(&current, &irregularity);
+                }
                 let worst = most_irregular(&irregularity, n_rem);
                 removed.extend(worst.iter().map(|&i| kept[i]));
                 let survivors = current.remove_centers(&worst);

@@ -646,6 +646,12 @@ impl Assignment {
         }
     }
 
+    /// Each voxel's grid coordinates, in the order of `owners`; None when
+    /// the elements are blocks of voxels.
+    pub fn voxel_coords(&self) -> Option<&[[u16; 3]]> {
+        self.blocks.is_none().then_some(&self.coords[..])
+    }
+
     /// The same assignment without runner-ups and third bounds, for one
     /// kept long whose updates follow small moves (the refinement's): few
     /// of its voxels then need measuring, and a third of its memory would

@@ -67,6 +67,8 @@ struct Tracker<'a> {
     /// The index over the previous frame's centers, which `prev_cells`'
     /// bounds were measured against.
     prev_index: CenterIndex,
+    /// Each cell's frame-0 volume and reach, for starved cells' claims.
+    capacity: Option<super::claims::Capacity>,
 }
 
 /// Tracks `params.centers` centers through every frame of `seq`.
@@ -136,7 +138,14 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
     progress.report(Stage::Track, first, frames);
 
     let prev_voxels: std::sync::Arc<[u32]> = seq.frames[first - 1].indices().into();
+    let capacity = params.reclaim.then(|| {
+        let voxels0 = seq.frames[0].indices();
+        let mut owners = vec![NO_OWNER; voxels0.len()];
+        assign(grid, &voxels0, &CenterIndex::new(traj.frame(0)), &mut owners, false);
+        super::claims::Capacity::new(grid, &voxels0, &owners, traj.frame(0))
+    });
     let mut tracker = Tracker {
+        capacity,
         grid,
         params,
         threshold2: (params.threshold * scale).powi(2),
@@ -205,7 +214,15 @@ fn guesses(traj: &Trajectories, f: usize, params: &TrackParams) -> Vec<(Guess, V
     starts
 }
 
+/// Most rounds of moving starved centers to the volume they lost, per frame.
+const MAX_RECLAIMS: usize = 3;
+
+/// A round of reclaiming is kept when it leaves less than this share of the
+/// loose volume.
+const RECLAIM_GAIN: Real = 0.8;
+
 /// One run of a frame's iterations from one guess.
+#[derive(Clone)]
 struct Run {
     cur: Vec<Point3>,
     cells: Assignment,
@@ -335,6 +352,49 @@ impl<'a> Tracker<'a> {
         FrameResult { centers: cur, counts: stats.count, timing, energy }
     }
 
+    /// Moves the starved centers of a converged run to the volume they
+    /// lost (see `track::claims`) and iterates again, as long as that
+    /// leaves clearly less volume loose.
+    fn reclaim(&self, mut run: Run, prev: &[Point3], fits: &RigidFits, progress: Progress) -> Option<Run> {
+        let Some(capacity) = &self.capacity else { return Some(run) };
+        for _ in 0..MAX_RECLAIMS {
+            let stats = self.refresh(&mut run);
+            let (claims, loose) = capacity.claims(self.grid, &run.cells, &run.cur, &stats);
+            if claims.is_empty() {
+                break;
+            }
+            let mut trial = run.clone();
+            for &(i, x) in &claims {
+                trial.cur[i] = x;
+            }
+            trial.moved = trial.cur.iter().zip(&run.cur).map(|(a, b)| (a - b).norm()).collect();
+            trial.converged = false;
+            self.iterate(&mut trial, prev, fits, self.threshold2, progress)?;
+            let stats = self.refresh(&mut trial);
+            let (_, loose_after) = capacity.claims(self.grid, &trial.cells, &trial.cur, &stats);
+            log::debug!("reclaim: {} starved centers, loose voxels {loose} -> {loose_after}", claims.len());
+            run.timing.add_dropped(&FrameTiming { iterations: trial.timing.iterations - run.timing.iterations, ..Default::default() });
+            if (loose_after as Real) < RECLAIM_GAIN * loose as Real {
+                run = trial;
+            } else {
+                break;
+            }
+        }
+        Some(run)
+    }
+
+    /// Brings a run's cells up to its positions and returns their sums.
+    fn refresh(&self, run: &mut Run) -> CellStats {
+        let Run { cur, cells, moved, index, .. } = run;
+        if !moved.is_empty() {
+            *index = std::mem::replace(index, CenterIndex::new(&[])).moved_to(cur, moved);
+        }
+        let stats = cells.update(index, moved, false);
+        moved.clear();
+        moved.resize(cur.len(), 0.0);
+        stats
+    }
+
     /// Each center's term of E at `run`'s positions ([`center_energies`]).
     /// Brings the run's cells up to those positions.
     fn local_energies(&self, run: &mut Run, prev: &[Point3], fits: &RigidFits) -> Vec<Real> {
@@ -378,6 +438,7 @@ impl<'a> Tracker<'a> {
             let (guess, start) = guesses.into_iter().next().expect("one guess");
             let mut run = self.start(prev, start, fits, voxels, presmooth, 1);
             self.iterate(&mut run, prev, fits, fine, progress)?;
+            let run = self.reclaim(run, prev, fits, progress)?;
             let mut result = self.finish(run, prev, fits, voxels);
             result.timing.kept_guess = guess;
             return Some(result);
@@ -429,6 +490,7 @@ impl<'a> Tracker<'a> {
             kept.converged = false;
             self.iterate(&mut kept, prev, fits, fine, progress)?;
         }
+        let kept = self.reclaim(kept, prev, fits, progress)?;
         let mut result = self.finish(kept, prev, fits, voxels);
         for (_, dropped, _) in &runs {
             result.timing.add_dropped(&dropped.timing);

@@ -5,6 +5,7 @@
 
 pub mod affinity;
 pub mod checkpoint;
+mod claims;
 mod forward;
 pub mod lloyd;
 
