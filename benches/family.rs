@@ -10,7 +10,10 @@
 //! - `VOLTRACK_FAMILY`: `all` (default), `dev` (the takes tuning may look
 //!   at), `held-out` (the others), or names (prefixes), comma-separated;
 //! - `VOLTRACK_SEED`: the conversion's seed (`--seed`), default 0;
-//! - `VOLTRACK_RESOLUTION`, `VOLTRACK_CENTERS`: other than the defaults;
+//! - `VOLTRACK_RESOLUTION`, `VOLTRACK_CENTERS`, `VOLTRACK_CONFORM_ITERATIONS`:
+//!   other than the defaults; `VOLTRACK_FRAMES`: each take cut to its first
+//!   frames; `VOLTRACK_RECLAIM=1` (`--reclaim`),
+//!   `VOLTRACK_ABSOLUTE_IRREGULARITY=1` (`--absolute-irregularity`);
 //! - `VOLTRACK_FAMILY_JSON=FILE`: also write every take's figures as JSON
 //!   lines (per-frame errors included), for tables before and after a change.
 
@@ -25,6 +28,8 @@ const MAX_BOUND: f64 = 8.0;
 /// A take of at least this many frames must drift at most [`DRIFT_BOUND`].
 const LONG_TAKE: usize = 100;
 const DRIFT_BOUND: f64 = 2.0;
+/// Distances (percent of the diagonal) the JSON's far regions are measured at.
+const FAR_PROFILE: [f64; 5] = [1.0, 1.5, 2.0, 3.0, 5.0];
 
 fn chosen(spec: &TakeSpec, which: &str) -> bool {
     match which {
@@ -56,29 +61,38 @@ fn main() {
     if let Some(n) = env("VOLTRACK_CENTERS") {
         options.track.centers = n;
     }
+    if let Some(n) = env("VOLTRACK_CONFORM_ITERATIONS") {
+        options.conform.iterations = n;
+    }
+    options.track.reclaim = env::<u8>("VOLTRACK_RECLAIM") == Some(1);
+    if env::<u8>("VOLTRACK_ABSOLUTE_IRREGULARITY") == Some(1) {
+        options.refine.as_mut().expect("refinement at the defaults").relative_irregularity = false;
+    }
     let mut json = std::env::var("VOLTRACK_FAMILY_JSON").ok().map(|p| std::fs::File::create(p).expect("creating the JSON file"));
     println!(
-        "family at resolution {}, {} centers, seed {}, threads {}",
+        "family at resolution {}, {} centers, seed {}, threads {}{}{}",
         options.voxel.resolution,
         options.track.centers,
         options.track.seed,
-        rayon::current_num_threads()
+        rayon::current_num_threads(),
+        if options.track.reclaim { ", reclaim" } else { "" },
+        if options.refine.as_ref().is_some_and(|r| !r.relative_irregularity) { ", absolute irregularity" } else { "" }
     );
     println!(
         "{:<18} {:>4} {:>5} {:>5} {:>6} {:>6} {:>6} {:>6}  {:<18} {:<18} {:>7}",
         "take", "fr", "limb", "fast%", "mean", "p95", "max", "drift", "lost", "warned", "s"
     );
     let mut rows = Vec::new();
+    let cut: Option<usize> = env("VOLTRACK_FRAMES");
     for spec in family().into_iter().filter(|s| chosen(s, &which)) {
+        let spec = TakeSpec { frames: cut.map_or(spec.frames, |c| c.min(spec.frames)), ..spec };
         let take = build(&spec);
         let clock = Instant::now();
         let conv = convert(&take.meshes, &options, Default::default()).expect("converting");
-        let (_, outliers) = Measurements::fit_of(&conv, &take.meshes, Default::default()).expect("measuring the fit");
+        let (fit, outliers) = Measurements::fit_of(&conv, &take.meshes, Default::default()).expect("measuring the fit");
         let seconds = clock.elapsed().as_secs_f64();
-        let warnings = voltrack::metrics::lost_part_warnings(&conv.coverage, Some(&outliers));
-        let mut warned: Vec<usize> = warnings.iter().flat_map(|w| w.frames.iter().copied()).collect();
-        warned.sort_unstable();
-        warned.dedup();
+        let lost = voltrack::pipeline::lost_parts(&conv, Some((&fit, &outliers)));
+        let warned = lost.flagged.clone();
         let result = conv.mesh.frames.to_vec().expect("reading the result");
         let s = score(&take, &result);
         let missed: Vec<usize> = s.lost.iter().copied().filter(|f| !warned.contains(f)).collect();
@@ -99,12 +113,31 @@ fn main() {
         );
         std::io::stdout().flush().ok();
         if let Some(out) = json.as_mut() {
+            // Far regions at several distances, both ways, per frame: for
+            // choosing the warning's threshold.
+            let profile: Vec<Vec<[f64; 4]>> = result
+                .iter()
+                .zip(&take.meshes)
+                .enumerate()
+                .map(|(f, (positions, input))| {
+                    let surface = voltrack::metrics::Surface { positions, triangles: &take.meshes[0].triangles };
+                    let occupied = conv.sequence.frames[f].expand();
+                    let inside = |p: &voltrack::math::Point3| voltrack::metrics::fit::voxel_of(&conv.sequence.grid, p).is_some_and(|v| occupied.contains(v));
+                    voltrack::metrics::fit::far_profile(surface, input.into(), conv.sequence.bounds.diagonal(), &FAR_PROFILE, Some(&inside))
+                        .iter()
+                        .map(|(i, r)| [i.share, i.farthest, r.share, r.farthest])
+                        .collect()
+                })
+                .collect();
             let line = serde_json::json!({
                 "take": spec.name, "held_out": spec.held_out, "frames": spec.frames, "limb_voxels": take.limb_voxels,
                 "fastest_percent": take.fastest_percent, "seed": options.track.seed, "resolution": options.voxel.resolution,
                 "centers": options.track.centers, "mean": s.mean, "p95": s.p95, "max": s.max, "drift": s.drift,
                 "lost": s.lost, "warned": warned, "missed": missed, "seconds": seconds,
                 "per_frame_mean": s.per_frame_mean, "worst_part": s.worst_part,
+                "far_thresholds": FAR_PROFILE, "far_profile": profile,
+                "coverage": conv.coverage.frames.iter().map(|c| c.lost_share).collect::<Vec<_>>(),
+                "fit_p95": outliers.p95,
             });
             writeln!(out, "{line}").expect("writing the JSON file");
         }

@@ -9,8 +9,8 @@ pub mod lost;
 pub use coverage::{coverage, fit_outliers, Coverage, FitOutliers, FrameCoverage};
 
 pub use crate::refine::irregular::irregularity;
-pub use lost::{frame_runs, lost_part_warnings, LostPartWarning};
-pub use fit::{fit_to_input, surface_fit, DistanceSummary, FrameFit, SequenceFit, Surface};
+pub use lost::{frame_runs, lost_parts, FrameLoss, LostPartWarning, LostParts};
+pub use fit::{fit_to_input, surface_fit, DistanceSummary, FarRegion, FrameFit, SequenceFit, Surface};
 
 use crate::math::Real;
 use crate::model::Trajectories;

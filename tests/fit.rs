@@ -6,6 +6,7 @@ use voltrack::deform::DynamicMesh;
 use voltrack::io::FrameFiles;
 use voltrack::fixtures::{bending_bar_motion, BENDING_BAR_FRAMES};
 use voltrack::math::Real;
+use voltrack::metrics::fit::FarDistances;
 use voltrack::metrics::{fit_to_input, DistanceSummary};
 use voltrack::{Aabb, Error, Progress};
 
@@ -33,7 +34,7 @@ fn fit_of_the_true_motion_is_zero_and_of_a_still_mesh_is_not() {
         frames: (0..BENDING_BAR_FRAMES).map(|f| base.positions.iter().map(|p| bending_bar_motion(f, p)).collect()).collect(),
         base: base.clone(),
     };
-    let fit = fit_to_input(&truth, &FrameFiles::new(paths.clone()), diagonal, Progress::none()).unwrap();
+    let fit = fit_to_input(&truth, &FrameFiles::new(paths.clone()), diagonal, FarDistances::both(2.0), None, Progress::none()).unwrap();
     assert_eq!(fit.frames.len(), BENDING_BAR_FRAMES);
     assert_eq!(fit.diagonal, diagonal);
     for (f, x) in fit.frames.iter().enumerate() {
@@ -49,7 +50,7 @@ fn fit_of_the_true_motion_is_zero_and_of_a_still_mesh_is_not() {
     // Frame 0 unmoved for every frame: the bent end is off by up to its
     // sagitta, most in the last frame.
     let still = DynamicMesh { frames: vec![base.positions.clone(); BENDING_BAR_FRAMES].into(), base };
-    let fit = fit_to_input(&still, &FrameFiles::new(paths.clone()), diagonal, Progress::none()).unwrap();
+    let fit = fit_to_input(&still, &FrameFiles::new(paths.clone()), diagonal, FarDistances::both(2.0), None, Progress::none()).unwrap();
     assert_eq!(fit.frames[0].two_sided, DistanceSummary::default());
     let last = &fit.frames[BENDING_BAR_FRAMES - 1];
     assert!(last.result_to_input.max > 5.0 && last.input_to_result.max > 5.0, "{last:?}");
@@ -57,10 +58,10 @@ fn fit_of_the_true_motion_is_zero_and_of_a_still_mesh_is_not() {
     assert!(fit.frames.windows(2).all(|w| w[0].two_sided.mean < w[1].two_sided.mean), "{:?}", fit.frames);
 
     // A frame count that does not match, or a missing file, is an error.
-    assert!(matches!(fit_to_input(&still, &FrameFiles::new(paths[1..].to_vec()), diagonal, Progress::none()), Err(Error::InvalidInput(_))));
+    assert!(matches!(fit_to_input(&still, &FrameFiles::new(paths[1..].to_vec()), diagonal, FarDistances::both(2.0), None, Progress::none()), Err(Error::InvalidInput(_))));
     let mut missing = paths.clone();
     missing[3] = PathBuf::from("no_such_frame.obj");
-    match fit_to_input(&still, &FrameFiles::new(missing), diagonal, Progress::none()) {
+    match fit_to_input(&still, &FrameFiles::new(missing), diagonal, FarDistances::both(2.0), None, Progress::none()) {
         Err(e) => assert!(e.to_string().contains("no_such_frame.obj"), "{e}"),
         Ok(_) => panic!("a missing frame was measured"),
     }

@@ -507,7 +507,7 @@ fn sheet(n: u32, z: Real) -> TriangleMesh {
 
 #[test]
 fn surface_fit_known_cases() {
-    let fit = |result: &TriangleMesh, input: &TriangleMesh, diagonal: Real| surface_fit(Surface::from(result), Surface::from(input), diagonal);
+    let fit = |result: &TriangleMesh, input: &TriangleMesh, diagonal: Real| surface_fit(Surface::from(result), Surface::from(input), diagonal, voltrack::metrics::fit::FarDistances::both(2.0), None);
     // Identical surfaces: nothing anywhere.
     let sphere = fixtures::sphere(Point3::origin(), 1.0, 24, 12);
     let same = fit(&sphere, &sphere, 2.0);
@@ -552,10 +552,61 @@ fn surface_fit_does_not_depend_on_the_thread_count() {
     let mut result = fixtures::torus(Point3::origin(), 1.0, 0.3, 31, 17);
     result.positions.iter_mut().for_each(|p| *p += rng.point().coords * 0.05);
     let run = |threads| {
-        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| surface_fit(Surface::from(&result), Surface::from(&input), 2.7))
+        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| surface_fit(Surface::from(&result), Surface::from(&input), 2.7, voltrack::metrics::fit::FarDistances::both(2.0), None))
     };
     let one = run(1);
     assert_eq!(one, run(3));
     assert!(one.two_sided.mean > 0.0 && one.two_sided.max < 10.0, "{one:?}");
 }
 
+
+/// The largest far regions: a part of the input the result lacks is one
+/// region of the input's surface (its share of the area, its farthest
+/// point); a part the result carries where the input has none is one of
+/// the result's, unless it lies inside the input's volume (a surface the
+/// input hides where two parts touch); each direction has its own distance.
+#[test]
+fn far_regions_find_a_missing_part_and_skip_hidden_surfaces() {
+    use voltrack::metrics::fit::FarDistances;
+    let body = fixtures::sphere(Point3::origin(), 1.0, 24, 12);
+    let limb = fixtures::cube(Point3::new(4.0, 0.0, 0.0), 1.0);
+    let whole = fixtures::merge(&[body.clone(), limb.clone()]);
+    let diagonal = 10.0;
+    let fit = |result: &TriangleMesh, input: &TriangleMesh, far: FarDistances, inside: Option<voltrack::metrics::fit::InsideInput>| {
+        surface_fit(Surface::from(result), Surface::from(input), diagonal, far, inside)
+    };
+    // The result lacks the limb: the input's cube is one far region of its
+    // share of the area; its far corners are about 3.6 from the sphere (36 %
+    // of a diagonal of 10), its near ones 2.6.
+    let lost = fit(&body, &whole, FarDistances::both(2.0), None);
+    let area = |m: &TriangleMesh| m.triangles.iter().map(|t| (m.positions[t[1] as usize] - m.positions[t[0] as usize]).cross(&(m.positions[t[2] as usize] - m.positions[t[0] as usize])).norm() / 2.0).sum::<Real>();
+    let cube_share = 100.0 * area(&limb) / area(&whole);
+    assert_eq!(lost.far_input.vertices, 8, "{lost:?}");
+    assert!((lost.far_input.share - cube_share).abs() < 0.2 * cube_share, "{lost:?} against {cube_share}");
+    assert!(lost.far_input.farthest > 30.0 && lost.far_input.farthest < 50.0, "{lost:?}");
+    assert_eq!(lost.far_result.vertices, 0);
+    // Past the farthest distance, nothing is far.
+    assert_eq!(fit(&body, &whole, FarDistances { input: 50.0, result: 2.0 }, None).far_input.vertices, 0);
+    // The result carries the limb where the input has none: far one way
+    // only, at the result's own distance...
+    let carried = fit(&whole, &body, FarDistances { input: 2.0, result: 20.0 }, None);
+    assert_eq!(carried.far_input.vertices, 0);
+    assert_eq!(carried.far_result.vertices, 8, "{carried:?}");
+    assert_eq!(fit(&whole, &body, FarDistances { input: 2.0, result: 50.0 }, None).far_result.vertices, 0);
+    // ... and not at all when the input's volume holds it.
+    let inside = |p: &Point3| p.x > 2.0;
+    let hidden = fit(&whole, &body, FarDistances::both(2.0), Some(&inside));
+    assert_eq!(hidden.far_result.vertices, 0, "{hidden:?}");
+}
+
+/// The far distances never fall under `far_voxels` voxels: at a coarse
+/// grid a rebuilt surface is that far off without any part being lost.
+#[test]
+fn far_distances_keep_to_a_few_voxels() {
+    let params = voltrack::params::CoverageParams::default();
+    let fine = params.far_distances(100.0, 0.25);
+    assert_eq!((fine.input, fine.result), (params.far, params.far_result));
+    // Voxels of 2 % of the diagonal: 3 of them are 6 %.
+    let coarse = params.far_distances(100.0, 2.0);
+    assert!((coarse.input - 6.0).abs() < 1e-12 && (coarse.result - 6.0).abs() < 1e-12, "{coarse:?}");
+}

@@ -219,7 +219,7 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
         println!("refined: removed {} centers in {:.1} s; PCAC {:.4}  DFU {:.4}", r.removed.len(), r.seconds, q.pcac, q.dfu);
     }
     println!("wrote {}", output.display());
-    for w in voltrack::metrics::lost_part_warnings(&coverage, None).into_iter().map(|w| w.message) {
+    for w in voltrack::metrics::lost_parts(&coverage, None, &coverage.params).warnings().into_iter().map(|w| w.message) {
         println!("{w}");
     }
     Ok(())
@@ -463,7 +463,8 @@ fn convert(args: ConvertArgs) -> Result<()> {
     // What carries the name and the frame rate, and where they are written.
     let named = matches!(format, OutputFormat::Glb | OutputFormat::Vat | OutputFormat::Pc2 | OutputFormat::ObjSequence);
     let timed = matches!(format, OutputFormat::Glb | OutputFormat::Vat | OutputFormat::Pc2);
-    let warnings = voltrack::metrics::lost_part_warnings(&conv.coverage, fit.as_ref().map(|f| &f.1));
+    let lost = pipeline::lost_parts(&conv, fit.as_ref().map(|f| (&f.0, &f.1)));
+    let warnings = lost.warnings();
     if args.json {
         let mut stages: serde_json::Map<String, serde_json::Value> = seconds.iter().map(|(stage, s)| (stage.name().to_string(), (*s).into())).collect();
         stages.insert("total".into(), total.into());
@@ -484,6 +485,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
             "fit_percent": fit.as_ref().map(|f| f.0.summary()),
             "fit_outliers": fit.as_ref().map(|f| &f.1),
             "coverage": &conv.coverage,
+            "lost_parts": &lost,
             "warnings": warnings.iter().map(|w| &w.message).collect::<Vec<_>>(),
             "basis": glb_report.map(|r| serde_json::json!({
                 "targets": r.targets,

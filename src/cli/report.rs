@@ -323,39 +323,35 @@ fn fit_html(input: &ReportInput) -> String {
 }
 
 /// A box under the headline figures naming the frames where a part may
-/// have been lost; nothing when none were flagged.
+/// have been lost, one line per kind of evidence; nothing when none were
+/// flagged.
 fn warning_html(input: &ReportInput) -> String {
-    let coverage = &input.conversion.coverage;
-    let fit = &input.measurements.fit_outliers;
-    if coverage.flagged.is_empty() && fit.flagged.is_empty() {
+    let lost = lost_parts(input);
+    let warnings = lost.warnings();
+    if warnings.is_empty() {
         return String::new();
     }
     let mut h = String::from("<section class=\"warning\">\n<h2>Warning: a part may have been lost</h2>\n<ul>\n");
-    if let Some((worst, share)) = coverage.worst().filter(|_| !coverage.flagged.is_empty()) {
-        let _ = writeln!(
-            h,
-            "<li>Frames {}: input volume that no tracked cell reaches, up to {} of the frame's volume (frame {worst}). \
-             A fast or thin part (a limb) may have lost its centers, which then sit in the body or in another part \
-             while the captured part stands empty.</li>",
-            frame_runs(&coverage.flagged),
-            percent(100.0 * share)
-        );
-    }
-    if !fit.flagged.is_empty() {
-        let _ = writeln!(
-            h,
-            "<li>Frames {}: the result is far from the input (95th percentile of the distance above {}, against a usual {}): \
-             a part may have been lost, or torn between two parts whose centers were swapped.</li>",
-            frame_runs(&fit.flagged),
-            percent(fit.limit),
-            percent(fit.usual)
-        );
+    for w in &warnings {
+        let text = w.message.strip_prefix("warning: ").unwrap_or(&w.message);
+        let _ = writeln!(h, "<li>{}</li>", escape(&capitalised(text)));
     }
     h.push_str(
         "</ul>\n<p>Check these frames in the result. More centers (<code>--centers</code>) or a higher <code>--resolution</code> \
-         give a thin part more cells to be tracked by. The section on coverage below shows the figures per frame.</p>\n</section>\n",
+         give a thin part more cells to be tracked by. The section on lost parts below shows the figures per frame.</p>\n</section>\n",
     );
     h
+}
+
+/// The frames where the conversion may have lost a part.
+fn lost_parts(input: &ReportInput) -> voltrack::metrics::LostParts {
+    voltrack::pipeline::lost_parts(input.conversion, Some((&input.measurements.fit, &input.measurements.fit_outliers)))
+}
+
+/// `s` with its first letter upper case.
+fn capitalised(s: &str) -> String {
+    let mut c = s.chars();
+    c.next().map_or(String::new(), |first| first.to_uppercase().chain(c).collect())
 }
 
 /// Per frame: input volume no cell reaches, and the fit against its limit.
@@ -364,7 +360,7 @@ fn coverage_html(input: &ReportInput) -> String {
     let fit = &input.measurements.fit_outliers;
     let lost: Vec<(Real, Real)> = coverage.frames.iter().enumerate().map(|(f, c)| (f as Real, 100.0 * c.lost_share)).collect();
     let limit: Vec<(Real, Real)> = (0..coverage.frames.len()).map(|f| (f as Real, 100.0 * coverage.params.min_share)).collect();
-    let mut h = String::from("<section id=\"coverage\">\n<h2>Coverage: parts the tracking may have lost</h2>\n");
+    let mut h = String::from("<section id=\"coverage\">\n<h2>Lost parts: volume no cell reaches, surface far from the other</h2>\n");
     h.push_str(&figure(
         &line_plot(
             "Input volume no tracked cell reaches, per frame",
@@ -379,6 +375,31 @@ fn coverage_html(input: &ReportInput) -> String {
             significant(coverage.params.reach, 3),
             significant(coverage.params.min_region, 3),
             if coverage.flagged.is_empty() { "none is".to_string() } else { format!("frames {}", frame_runs(&coverage.flagged)) }
+        ),
+    ));
+    let lost = lost_parts(input);
+    let far = |of: fn(&voltrack::metrics::FrameLoss) -> Option<voltrack::metrics::FarRegion>| -> Vec<(Real, Real)> {
+        lost.frames.iter().enumerate().map(|(f, x)| (f as Real, of(x).map_or(0.0, |r| r.share))).collect()
+    };
+    let far_limit: Vec<(Real, Real)> = (0..lost.frames.len()).map(|f| (f as Real, lost.params.far_share)).collect();
+    h.push_str(&figure(
+        &line_plot(
+            "Surface far from the other surface, per frame",
+            &Axis::linear("frame").integer(),
+            &Axis::linear("largest connected region (% of the surface)").from_zero(),
+            &[
+                Series::new("input far from the result", far(|x| x.far_input)),
+                Series::new("result far from the input", far(|x| x.far_result)).color(2),
+                Series::new("flagged at", far_limit).color(1).dashed(),
+            ],
+        ),
+        &format!(
+            "The largest connected region of the input's surface farther than {} of the diagonal from the result (a part the result \
+             lost), and of the result's outside the input's volume and farther than {} from the input (a part carried or torn where the \
+             input has none), in % of that surface's area. Lower is better, 0 the best; a frame at or above the dashed line is flagged ({}).",
+            percent(lost.far_distances.map_or(lost.params.far, |d| d.input)),
+            percent(lost.far_distances.map_or(lost.params.far_result, |d| d.result)),
+            if lost.far.is_empty() { "none is".to_string() } else { format!("frames {}", frame_runs(&lost.far)) }
         ),
     ));
     let p95: Vec<(Real, Real)> = fit.p95.iter().enumerate().map(|(f, &v)| (f as Real, v)).collect();
@@ -400,29 +421,26 @@ fn coverage_html(input: &ReportInput) -> String {
             if fit.flagged.is_empty() { "none is".to_string() } else { format!("frames {}", frame_runs(&fit.flagged)) }
         ),
     ));
-    let open = if coverage.frames.len() <= 20 || !coverage.flagged.is_empty() || !fit.flagged.is_empty() { " open" } else { "" };
-    let _ = writeln!(h, "<details{open}>\n<summary>Coverage per frame</summary>");
+    let open = if coverage.frames.len() <= 20 || !lost.flagged.is_empty() { " open" } else { "" };
+    let _ = writeln!(h, "<details{open}>\n<summary>Lost parts per frame</summary>");
     h.push_str(
         "<table class=\"numbers\">\n<tr><th class=\"n\">frame</th><th class=\"n\">lost volume</th><th class=\"n\">largest region (cells)</th>\
-         <th class=\"n\">unreached voxels</th><th class=\"n\">farthest (&#215; reach)</th><th class=\"n\">fit p95</th><th>flagged</th></tr>\n",
+         <th class=\"n\">farthest (&#215; reach)</th><th class=\"n\">input far</th><th class=\"n\">result far</th><th class=\"n\">fit p95</th><th>flagged</th></tr>\n",
     );
     for (f, c) in coverage.frames.iter().enumerate() {
-        let (by_volume, by_fit) = (coverage.flagged.contains(&f), fit.flagged.contains(&f));
-        let why = match (by_volume, by_fit) {
-            (true, true) => "volume, fit",
-            (true, false) => "volume",
-            (false, true) => "fit",
-            (false, false) => "",
-        };
+        let why: Vec<&str> = [(&lost.unreached, "volume"), (&lost.far, "far"), (&lost.fit_outliers, "fit")].iter().filter(|(frames, _)| frames.contains(&f)).map(|(_, name)| *name).collect();
+        let share = |r: Option<voltrack::metrics::FarRegion>| r.map_or("-".into(), |r| percent(r.share));
         let _ = writeln!(
             h,
-            "<tr{}><td>{f}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"note\">{why}</td></tr>",
+            "<tr{}><td>{f}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"note\">{}</td></tr>",
             if why.is_empty() { "" } else { " class=\"flagged\"" },
             percent(100.0 * c.lost_share),
             significant(c.largest_region as Real / coverage.cell_voxels.max(1e-12), 3),
-            c.unreached,
             significant(c.farthest, 3),
+            share(lost.frames[f].far_input),
+            share(lost.frames[f].far_result),
             fit.p95.get(f).map_or("-".into(), |&v| percent(v)),
+            why.join(", "),
         );
     }
     h.push_str("</table>\n</details>\n</section>\n");

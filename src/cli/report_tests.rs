@@ -84,10 +84,10 @@ fn report_of_a_conversion() {
     assert!(html.contains("out &lt;b&gt;.glb"));
     assert!(html.contains("-r 48 -n 150"));
 
-    // Nine plots, each in a figure whose caption says which way is better.
+    // Ten plots, each in a figure whose caption says which way is better.
     let svgs = between(&html, "<svg", "</svg>");
-    assert_eq!(svgs.len(), 9, "plots");
-    assert_eq!(html.matches("<figure>").count(), 9);
+    assert_eq!(svgs.len(), 10, "plots");
+    assert_eq!(html.matches("<figure>").count(), 10);
     for caption in between(&html, "<figcaption>", "</figcaption>") {
         assert!(caption.contains("is better") || caption.contains("is faster"), "caption without a direction: {caption}");
     }
@@ -100,6 +100,7 @@ fn report_of_a_conversion() {
         "Tracking time per frame",
         "Tracking iterations per frame",
         "Input volume no tracked cell reaches, per frame",
+        "Surface far from the other surface, per frame",
         "Fit to the input against the sequence's usual, per frame",
     ] {
         let plot = svgs.iter().find(|s| s.contains(&format!(">{title}</text>"))).unwrap_or_else(|| panic!("no plot titled {title}"));
@@ -113,16 +114,18 @@ fn report_of_a_conversion() {
     // Coverage: the lost volume and the fit, each with its limit; the bar
     // is tracked well, so no warning and no flagged frame.
     assert_eq!(svgs[1].matches("<polyline").count(), 2);
-    assert_eq!(svgs[2].matches("<polyline").count(), 2);
+    // Far surface: each direction's largest far region and the limit.
+    assert_eq!(svgs[2].matches("<polyline").count(), 3);
+    assert_eq!(svgs[3].matches("<polyline").count(), 2);
     assert!(!html.contains("Warning: a part may have been lost") && !html.contains("class=\"flagged\""));
     // Irregularity and DFU: before and after refinement.
-    assert_eq!(svgs[3].matches("<polyline").count(), 2);
     assert_eq!(svgs[4].matches("<polyline").count(), 2);
-    assert!(svgs[3].contains("forward tracking") && svgs[3].contains("after refinement"));
+    assert_eq!(svgs[5].matches("<polyline").count(), 2);
+    assert!(svgs[4].contains("forward tracking") && svgs[4].contains("after refinement"));
     // Energy: one line per batch. Stages: one bar each.
-    assert_eq!(svgs[5].matches("<polyline").count(), conv.refined.as_ref().unwrap().batches.len());
+    assert_eq!(svgs[6].matches("<polyline").count(), conv.refined.as_ref().unwrap().batches.len());
     for stage in ["read", "voxelize", "track", "refine", "deform", "export"] {
-        assert!(svgs[6].contains(&format!(">{stage}</text>")), "no bar for {stage}");
+        assert!(svgs[7].contains(&format!(">{stage}</text>")), "no bar for {stage}");
     }
 
     // The numbers: header facts, qualities before and after, the fit table.
@@ -173,8 +176,8 @@ fn report_of_a_conversion() {
     let html = report_html(&ReportInput::new(&conv, &measured, &inputs, &voxel, &track, None, &deform, &Default::default()));
     assert_well_formed(&html);
     let svgs = between(&html, "<svg", "</svg>");
-    assert_eq!(svgs.len(), 8);
+    assert_eq!(svgs.len(), 9);
     assert!(!html.contains("Refinement: energy") && html.contains("<caption>Refinement</caption><tr><td>skipped</td></tr>"));
-    assert_eq!(svgs[3].matches("<polyline").count(), 1);
+    assert_eq!(svgs[4].matches("<polyline").count(), 1);
     assert!(html.contains("150 (not refined)"));
 }

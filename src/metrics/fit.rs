@@ -84,6 +84,27 @@ pub struct FrameFit {
     /// Both directions pooled, each with half the weight: evaluate.py's
     /// two-sided fidelity of this frame.
     pub two_sided: DistanceSummary,
+    /// The largest connected region of the input's surface farther from
+    /// the result than the threshold measured at: a part the result lost.
+    pub far_input: FarRegion,
+    /// The largest connected region of the result's surface farther from
+    /// the input than that and outside the input's volume (when known): a
+    /// part the result holds where the input has none. Inside the volume,
+    /// such surface is where two parts touch in the input, whose surfaces
+    /// merge there while the result keeps both, hidden inside.
+    pub far_result: FarRegion,
+}
+
+/// A connected region of one surface (vertices joined by its triangles'
+/// edges) that lies far from the other surface.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct FarRegion {
+    /// Its area (the area weights of its vertices), in percent of the
+    /// surface's area.
+    pub share: Real,
+    pub vertices: usize,
+    /// The largest distance in it, in percent of the diagonal.
+    pub farthest: Real,
 }
 
 /// A triangle surface borrowed from a mesh or a dynamic mesh's frame.
@@ -114,31 +135,108 @@ impl Surface<'_> {
         w
     }
 
-    /// (distance to `to`, area weight) of every vertex on this surface, in
-    /// vertex order, distances scaled by `scale`.
-    fn distances_to(&self, to: &SurfaceIndex, scale: Real) -> Vec<(Real, Real)> {
+    /// (distance to `to`, area weight) of every vertex on this surface
+    /// (None off it), distances scaled by `scale`.
+    fn distances_to(&self, to: &SurfaceIndex, scale: Real) -> Vec<Option<(Real, Real)>> {
         let weights = self.vertex_weights();
-        let on_surface: Vec<(usize, Real)> = weights.iter().enumerate().filter_map(|(i, w)| w.map(|w| (i, w))).collect();
-        on_surface.par_iter().map(|&(i, w)| (scale * to.distance(&self.positions[i]), w)).collect()
+        weights.par_iter().enumerate().map(|(i, w)| w.map(|w| (scale * to.distance(&self.positions[i]), w))).collect()
+    }
+
+    /// The largest connected region of the vertices whose distance in
+    /// `distances` ([`Surface::distances_to`]) is above `threshold`, but
+    /// for those `hidden` holds of: by area, the first found of equals.
+    fn largest_far_region(&self, distances: &[Option<(Real, Real)>], threshold: Real, hidden: &(dyn Fn(&Point3) -> bool + Sync)) -> FarRegion {
+        let far_now: Vec<bool> = distances.par_iter().enumerate().map(|(i, d)| d.is_some_and(|(d, _)| d > threshold) && !hidden(&self.positions[i])).collect();
+        let far = |i: u32| far_now[i as usize];
+        let mut parent: Vec<u32> = (0..distances.len() as u32).collect();
+        fn root(parent: &mut [u32], mut i: u32) -> u32 {
+            while parent[i as usize] != i {
+                parent[i as usize] = parent[parent[i as usize] as usize];
+                i = parent[i as usize];
+            }
+            i
+        }
+        for t in self.triangles {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                if far(a) && far(b) {
+                    let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+                    if ra != rb {
+                        parent[ra.max(rb) as usize] = ra.min(rb);
+                    }
+                }
+            }
+        }
+        let total: Real = distances.iter().flatten().map(|(_, w)| w).sum();
+        let mut regions: std::collections::BTreeMap<u32, FarRegion> = Default::default();
+        for i in 0..distances.len() as u32 {
+            if let Some((d, w)) = distances[i as usize].filter(|_| far_now[i as usize]) {
+                let r = regions.entry(root(&mut parent, i)).or_default();
+                r.share += w;
+                r.vertices += 1;
+                r.farthest = r.farthest.max(d);
+            }
+        }
+        let mut largest = regions.into_values().fold(FarRegion::default(), |a, b| if b.share > a.share { b } else { a });
+        largest.share *= if total > 0.0 { 100.0 / total } else { 0.0 };
+        largest
     }
 }
 
-/// The fit of `result` to `input` in one frame, in percent of `diagonal`
-/// (the input sequence's bounding-box diagonal, > 0). Both surfaces need
-/// triangles. The result does not depend on the thread count.
-pub fn surface_fit(result: Surface, input: Surface, diagonal: Real) -> FrameFit {
+pub use crate::params::FarDistances;
+
+/// Per vertex, (distance to the other surface, area weight); None off the surface.
+type Distances = Vec<Option<(Real, Real)>>;
+
+/// The result's vertices' distances to the input's surface and the input's
+/// to the result's, in percent of `diagonal`.
+fn distances_both_ways(result: Surface, input: Surface, diagonal: Real) -> (Distances, Distances) {
     let scale = 100.0 / diagonal;
     let (to_input, to_result) = rayon::join(
         || SurfaceIndex::new(input.positions, input.triangles),
         || SurfaceIndex::new(result.positions, result.triangles),
     );
-    let forward = result.distances_to(&to_input, scale);
-    let backward = input.distances_to(&to_result, scale);
+    (result.distances_to(&to_input, scale), input.distances_to(&to_result, scale))
+}
+
+/// Whether a point lies inside the input's volume, when known.
+pub type InsideInput<'a> = &'a (dyn Fn(&Point3) -> bool + Sync);
+
+/// The fit of `result` to `input` in one frame, in percent of `diagonal`
+/// (the input sequence's bounding-box diagonal, > 0), with the largest
+/// regions of either surface farther than `far` from the other, the
+/// result's outside the input's volume (`inside`; None
+/// counts every far point). Both surfaces need triangles. The result does
+/// not depend on the thread count.
+pub fn surface_fit(result: Surface, input: Surface, diagonal: Real, far: FarDistances, inside: Option<InsideInput>) -> FrameFit {
+    let (forward_all, backward_all) = distances_both_ways(result, input, diagonal);
+    let forward: Vec<(Real, Real)> = forward_all.iter().flatten().copied().collect();
+    let backward: Vec<(Real, Real)> = backward_all.iter().flatten().copied().collect();
     FrameFit {
         result_to_input: DistanceSummary::of_weighted(&forward),
         input_to_result: DistanceSummary::of_weighted(&backward),
         two_sided: DistanceSummary::of_weighted(&pool_halves(&forward, &backward)),
+        far_input: input.largest_far_region(&backward_all, far.input, &|_| false),
+        far_result: result.largest_far_region(&forward_all, far.result, inside.unwrap_or(&|_| false)),
     }
+}
+
+/// The linear index of the voxel of `grid` holding `p`, None outside the grid.
+pub fn voxel_of(grid: &crate::model::GridSpec, p: &Point3) -> Option<u32> {
+    let g = grid.to_grid(p);
+    let c: [Real; 3] = [g.x, g.y, g.z];
+    if c.iter().zip(grid.dims).any(|(&x, d)| !(x >= 0.0 && x < d as Real)) {
+        return None;
+    }
+    Some(grid.linear_index(c.map(|x| x as usize)) as u32)
+}
+
+/// The largest far regions of the input (first) and of the result (second)
+/// at each of `thresholds` (percent of `diagonal`), as [`surface_fit`]
+/// finds them at one: for choosing the threshold.
+pub fn far_profile(result: Surface, input: Surface, diagonal: Real, thresholds: &[Real], inside: Option<InsideInput>) -> Vec<(FarRegion, FarRegion)> {
+    let (forward, backward) = distances_both_ways(result, input, diagonal);
+    thresholds.iter().map(|&t| (input.largest_far_region(&backward, t, &|_| false), result.largest_far_region(&forward, t, inside.unwrap_or(&|_| false)))).collect()
 }
 
 /// Both sample sets with their weights rescaled to sum to ½ each, as
@@ -162,6 +260,8 @@ pub struct SequenceFit {
     /// The length the figures are relative to: the diagonal of the bounding
     /// box of every input frame (`VoxelSequence::bounds`), as evaluate.py's.
     pub diagonal: Real,
+    /// The distances past which a region counted as far.
+    pub far: FarDistances,
     /// Wall-clock seconds spent re-reading the input and measuring.
     pub seconds: f64,
 }
@@ -191,10 +291,14 @@ impl SequenceFit {
 /// two input frames, the next one being read while the current one is
 /// measured.
 /// `diagonal` is what the figures are percentages of: the input's
-/// bounding-box diagonal (`VoxelSequence::bounds.diagonal()`).
+/// bounding-box diagonal (`VoxelSequence::bounds.diagonal()`); `far` how
+/// far a region must lie to count in [`FrameFit::far_input`] and
+/// [`FrameFit::far_result`]; `volume`, when
+/// given, the input voxelised (the result's far regions inside it are
+/// not counted).
 ///
 /// Reports `(Stage::Export, frames measured, frames)` to `progress`.
-pub fn fit_to_input(mesh: &DynamicMesh, source: &dyn FrameSource, diagonal: Real, progress: Progress) -> Result<SequenceFit> {
+pub fn fit_to_input(mesh: &DynamicMesh, source: &dyn FrameSource, diagonal: Real, far: FarDistances, volume: Option<&crate::voxel::VoxelSequence>, progress: Progress) -> Result<SequenceFit> {
     if mesh.frames.len() != source.len() {
         return Err(Error::InvalidInput(format!(
             "the dynamic mesh has {} frames but the input has {}",
@@ -215,10 +319,12 @@ pub fn fit_to_input(mesh: &DynamicMesh, source: &dyn FrameSource, diagonal: Real
         let input = next.take().expect("read ahead")?;
         let positions = mesh.frames.get(f)?;
         let result = Surface { positions: &positions, triangles: &mesh.base.triangles };
-        let (fit, following) = rayon::join(|| surface_fit(result, Surface::from(&input), diagonal), || (f + 1 < total).then(|| read(f + 1)));
+        let occupied = volume.map(|v| (v.frames[f].expand(), &v.grid));
+        let inside = |p: &Point3| occupied.as_ref().is_some_and(|(o, grid)| voxel_of(grid, p).is_some_and(|v| o.contains(v)));
+        let (fit, following) = rayon::join(|| surface_fit(result, Surface::from(&input), diagonal, far, Some(&inside)), || (f + 1 < total).then(|| read(f + 1)));
         next = following;
         frames.push(fit);
         progress.report(Stage::Export, f + 1, total);
     }
-    Ok(SequenceFit { frames, diagonal, seconds: start.elapsed().as_secs_f64() })
+    Ok(SequenceFit { frames, diagonal, far, seconds: start.elapsed().as_secs_f64() })
 }

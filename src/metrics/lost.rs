@@ -1,8 +1,83 @@
-//! The warnings of parts the tracking may have lost, from the unreached
-//! volume ([`super::coverage`]) and the fit to the input
-//! ([`super::fit_outliers`]), as `convert` and `track` print them.
+//! Frames where the result may have lost a part, and the warnings
+//! `convert` and `track` print for them.
+//!
+//! A part the tracking lost shows in one of three ways, each checked on
+//! its own in every frame, however well the rest of the frame fits (a lost
+//! limb is a few percent of the surface, so no frame-wide figure shows it):
+//! - input volume that no tracked cell reaches ([`super::coverage`]): the
+//!   part's centers left, and the cells nearest to it stretch across it;
+//! - a connected region of the input's surface far from the result
+//!   ([`super::FrameFit::far_input`]): the mesh's part is elsewhere;
+//! - a connected region of the result's surface far from the input
+//!   ([`super::FrameFit::far_result`]): the mesh holds a part, or a
+//!   membrane torn between two, where the input has none.
+//!
+//! Frames whose fit is far worse than the sequence's usual
+//! ([`super::fit_outliers`]) are warned of too.
 
 use super::coverage::{runs, Coverage, FitOutliers};
+use super::fit::{FarDistances, FarRegion, SequenceFit};
+use crate::math::Real;
+use crate::params::CoverageParams;
+
+/// What one frame shows of a lost part.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct FrameLoss {
+    /// Share of the frame's occupied volume that no tracked cell reaches,
+    /// in connected regions ([`super::FrameCoverage::lost_share`]).
+    pub unreached: Real,
+    /// The largest region of the input's surface far from the result, and
+    /// of the result's far from the input (None without a mesh).
+    pub far_input: Option<FarRegion>,
+    pub far_result: Option<FarRegion>,
+    /// The frame's fit is far worse than the sequence's usual.
+    pub fit_outlier: bool,
+}
+
+/// Every frame's [`FrameLoss`] and the frames warned of.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct LostParts {
+    pub frames: Vec<FrameLoss>,
+    /// Frames with unreached volume ([`Coverage::flagged`]).
+    pub unreached: Vec<usize>,
+    /// Frames with a far region of either surface of at least
+    /// `params.far_share` percent of it.
+    pub far: Vec<usize>,
+    /// Frames whose fit is far worse than the usual.
+    pub fit_outliers: Vec<usize>,
+    /// All of those, in order.
+    pub flagged: Vec<usize>,
+    /// The distances past which a region counted as far
+    /// ([`CoverageParams::far_distances`]; None without a fit).
+    pub far_distances: Option<FarDistances>,
+    pub params: CoverageParams,
+}
+
+/// Finds the frames with a lost part from the unreached volume and, when
+/// the result's mesh was measured against the input (`fit`, with its
+/// outliers), its far regions. `params` must be those `coverage`, `fit`
+/// and `outliers` were measured with.
+pub fn lost_parts(coverage: &Coverage, fit: Option<(&SequenceFit, &FitOutliers)>, params: &CoverageParams) -> LostParts {
+    let frames: Vec<FrameLoss> = (0..coverage.frames.len())
+        .map(|f| FrameLoss {
+            unreached: coverage.frames[f].lost_share,
+            far_input: fit.and_then(|(s, _)| s.frames.get(f)).map(|x| x.far_input),
+            far_result: fit.and_then(|(s, _)| s.frames.get(f)).map(|x| x.far_result),
+            fit_outlier: fit.is_some_and(|(_, o)| o.flagged.contains(&f)),
+        })
+        .collect();
+    let far: Vec<usize> = frames
+        .iter()
+        .enumerate()
+        .filter(|(_, x)| [x.far_input, x.far_result].iter().flatten().any(|r| r.vertices > 0 && r.share >= params.far_share))
+        .map(|(f, _)| f)
+        .collect();
+    let fit_outliers: Vec<usize> = fit.map(|(_, o)| o.flagged.clone()).unwrap_or_default();
+    let mut flagged: Vec<usize> = coverage.flagged.iter().chain(&far).chain(&fit_outliers).copied().collect();
+    flagged.sort_unstable();
+    flagged.dedup();
+    LostParts { frames, unreached: coverage.flagged.clone(), far, fit_outliers, flagged, far_distances: fit.map(|(s, _)| s.far), params: params.clone() }
+}
 
 /// One warning: the frames it names and the sentence shown to the user.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -17,44 +92,65 @@ pub fn frame_runs(frames: &[usize]) -> String {
     runs(frames).iter().map(|&(a, b)| if a == b { a.to_string() } else { format!("{a}-{b}") }).collect::<Vec<_>>().join(", ")
 }
 
-/// Warnings of parts the tracking may have lost. With the result's fit to
-/// the input (`convert`), volume left unreached is warned of only where the
-/// fit is bad too (within a frame): a few unreached voxels where the result
-/// lies on the input are a cell lagging, not a part lost. Without it
-/// (`track`), the unreached volume is all there is to go by.
-pub fn lost_part_warnings(coverage: &Coverage, fit: Option<&FitOutliers>) -> Vec<LostPartWarning> {
-    let mut out = Vec::new();
-    let confirmed = |a: usize, b: usize| fit.is_none_or(|f| f.flagged.iter().any(|&k| k + 1 >= a && k <= b + 1));
-    for (a, b) in coverage.flagged_runs() {
-        if !confirmed(a, b) {
-            log::info!("frames {a}-{b}: some input volume is not reached by any tracked cell, but the result fits the input there");
-            continue;
+impl LostParts {
+    /// One warning per kind of evidence, naming its frames and the worst
+    /// figure among them.
+    pub fn warnings(&self) -> Vec<LostPartWarning> {
+        let mut out = Vec::new();
+        let largest = |frames: &[usize], of: &dyn Fn(&FrameLoss) -> Option<FarRegion>| {
+            frames.iter().filter_map(|&f| of(&self.frames[f])).fold(FarRegion::default(), |a, b| if b.share > a.share { b } else { a })
+        };
+        let far_input: Vec<usize> = self.far.iter().copied().filter(|&f| self.frames[f].far_input.is_some_and(|r| r.vertices > 0 && r.share >= self.params.far_share)).collect();
+        if !far_input.is_empty() {
+            let r = largest(&far_input, &|x| x.far_input);
+            out.push(LostPartWarning {
+                message: format!(
+                    "warning: frames {}: a part of the input's surface lies far from the result (a connected region of up to {:.2} % of the surface, up to {:.1} % of the diagonal away): \
+                     a part was lost or left behind there; check these frames, and try more --centers or a higher --resolution",
+                    frame_runs(&far_input),
+                    r.share,
+                    r.farthest
+                ),
+                frames: far_input,
+            });
         }
-        let frames = &coverage.frames[a..=b];
-        let worst = frames.iter().map(|c| c.lost_share).fold(0.0, f64::max);
-        let region = frames.iter().map(|c| c.largest_region).max().unwrap_or(0) as f64 / coverage.cell_voxels.max(1e-12);
-        let which = if a == b { format!("frame {a}") } else { format!("frames {a}-{b}") };
-        out.push(LostPartWarning {
-            frames: (a..=b).collect(),
-            message: format!(
-                "warning: {which}: up to {:.2} % of the input volume is not reached by any tracked cell (a connected region of {region:.1} cells' volume): \
-                 a fast or thin part may have been lost, its centers left in the body or another part; check these frames, \
-                 and try more --centers or a higher --resolution",
-                100.0 * worst
-            ),
-        });
+        let far_result: Vec<usize> = self.far.iter().copied().filter(|&f| self.frames[f].far_result.is_some_and(|r| r.vertices > 0 && r.share >= self.params.far_share)).collect();
+        if !far_result.is_empty() {
+            let r = largest(&far_result, &|x| x.far_result);
+            out.push(LostPartWarning {
+                message: format!(
+                    "warning: frames {}: a part of the result lies far from the input's surface (a connected region of up to {:.2} % of it, up to {:.1} % of the diagonal away): \
+                     a part was torn or carried where the input has none; check these frames",
+                    frame_runs(&far_result),
+                    r.share,
+                    r.farthest
+                ),
+                frames: far_result,
+            });
+        }
+        if !self.unreached.is_empty() {
+            let worst = self.unreached.iter().map(|&f| self.frames[f].unreached).fold(0.0, Real::max);
+            out.push(LostPartWarning {
+                message: format!(
+                    "warning: frames {}: up to {:.2} % of the input volume is not reached by any tracked cell: \
+                     a fast or thin part may have been lost, its centers left in the body or another part; check these frames, \
+                     and try more --centers or a higher --resolution",
+                    frame_runs(&self.unreached),
+                    100.0 * worst
+                ),
+                frames: self.unreached.clone(),
+            });
+        }
+        if !self.fit_outliers.is_empty() {
+            out.push(LostPartWarning {
+                message: format!(
+                    "warning: frames {}: the result fits the input far worse than in the rest of the take: \
+                     a part may have been lost or torn between two parts; --report FILE shows every frame's fit",
+                    frame_runs(&self.fit_outliers)
+                ),
+                frames: self.fit_outliers.clone(),
+            });
+        }
+        out
     }
-    if let Some(fit) = fit.filter(|f| !f.flagged.is_empty()) {
-        out.push(LostPartWarning {
-            frames: fit.flagged.clone(),
-            message: format!(
-                "warning: frames {}: the result is far from the input (p95 distance above {:.2} % of the diagonal, against a usual {:.2} %): \
-                 a part may have been lost or torn between two parts; --report FILE shows every frame's fit",
-                frame_runs(&fit.flagged),
-                fit.limit,
-                fit.usual
-            ),
-        });
-    }
-    out
 }

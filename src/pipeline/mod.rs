@@ -142,10 +142,19 @@ impl Measurements {
     /// than the rest: the part of [`Measurements::of`] every conversion's
     /// summary shows, since a lost part often leaves no input volume empty.
     pub fn fit_of(conv: &Conversion, source: &dyn FrameSource, progress: Progress) -> Result<(SequenceFit, FitOutliers)> {
-        let fit = fit_to_input(&conv.mesh, source, conv.sequence.bounds.diagonal(), progress)?;
-        let outliers = fit_outliers(&fit, &CoverageParams::default())?;
+        let params = &conv.coverage.params;
+        let diagonal = conv.sequence.bounds.diagonal();
+        let far = params.far_distances(diagonal, conv.sequence.grid.voxel_size);
+        let fit = fit_to_input(&conv.mesh, source, diagonal, far, Some(&conv.sequence), progress)?;
+        let outliers = fit_outliers(&fit, params)?;
         Ok((fit, outliers))
     }
+}
+
+/// The frames where `conv` may have lost a part: from its unreached volume
+/// and, when measured ([`Measurements::fit_of`]), its fit to the input.
+pub fn lost_parts(conv: &Conversion, fit: Option<(&SequenceFit, &FitOutliers)>) -> crate::metrics::LostParts {
+    crate::metrics::lost_parts(&conv.coverage, fit, &conv.coverage.params)
 }
 
 /// What forward tracking gave besides the trajectories, which refinement
