@@ -121,8 +121,7 @@ fn main() {
                 .enumerate()
                 .map(|(f, (positions, input))| {
                     let surface = voltrack::metrics::Surface { positions, triangles: &take.meshes[0].triangles };
-                    let occupied = conv.sequence.frames[f].expand();
-                    let inside = |p: &voltrack::math::Point3| voltrack::metrics::fit::voxel_of(&conv.sequence.grid, p).is_some_and(|v| occupied.contains(v));
+                    let inside = voltrack::metrics::fit::inside_volume(&conv.sequence, f);
                     voltrack::metrics::fit::far_profile(surface, input.into(), conv.sequence.bounds.diagonal(), &FAR_PROFILE, Some(&inside))
                         .iter()
                         .map(|(i, r)| [i.share, i.farthest, r.share, r.farthest])

@@ -33,8 +33,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let positions = conv.mesh.frames.get(f)?;
             let input = voltrack::FrameSource::mesh(&source, f)?;
             let result = Surface { positions: &positions, triangles: &conv.mesh.base.triangles };
-            let occupied = conv.sequence.frames[f].expand();
-            let inside = |p: &voltrack::math::Point3| voltrack::metrics::fit::voxel_of(&conv.sequence.grid, p).is_some_and(|v| occupied.contains(v));
+            let inside = voltrack::metrics::fit::inside_volume(&conv.sequence, f);
             let regions = far_profile(result, Surface::from(&input), diagonal, &DISTANCES, Some(&inside));
             profile.push(regions.iter().map(|(i, r)| [i.share, i.farthest, r.share, r.farthest]).collect::<Vec<_>>());
         }

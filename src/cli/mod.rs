@@ -219,7 +219,7 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
         println!("refined: removed {} centers in {:.1} s; PCAC {:.4}  DFU {:.4}", r.removed.len(), r.seconds, q.pcac, q.dfu);
     }
     println!("wrote {}", output.display());
-    for w in voltrack::metrics::lost_parts(&coverage, None, &coverage.params).warnings().into_iter().map(|w| w.message) {
+    for w in voltrack::metrics::lost_parts(&coverage, None).warnings().into_iter().map(|w| w.message) {
         println!("{w}");
     }
     Ok(())

@@ -221,14 +221,10 @@ pub fn surface_fit(result: Surface, input: Surface, diagonal: Real, far: FarDist
     }
 }
 
-/// The linear index of the voxel of `grid` holding `p`, None outside the grid.
-pub fn voxel_of(grid: &crate::model::GridSpec, p: &Point3) -> Option<u32> {
-    let g = grid.to_grid(p);
-    let c: [Real; 3] = [g.x, g.y, g.z];
-    if c.iter().zip(grid.dims).any(|(&x, d)| !(x >= 0.0 && x < d as Real)) {
-        return None;
-    }
-    Some(grid.linear_index(c.map(|x| x as usize)) as u32)
+/// Whether a point lies inside frame `f`'s occupied voxels of `volume`.
+pub fn inside_volume(volume: &crate::voxel::VoxelSequence, f: usize) -> impl Fn(&Point3) -> bool + Sync + '_ {
+    let occupied = volume.frames[f].expand();
+    move |p: &Point3| volume.grid.voxel_at(p).is_some_and(|v| occupied.contains(v as u32))
 }
 
 /// The largest far regions of the input (first) and of the result (second)
@@ -319,9 +315,9 @@ pub fn fit_to_input(mesh: &DynamicMesh, source: &dyn FrameSource, diagonal: Real
         let input = next.take().expect("read ahead")?;
         let positions = mesh.frames.get(f)?;
         let result = Surface { positions: &positions, triangles: &mesh.base.triangles };
-        let occupied = volume.map(|v| (v.frames[f].expand(), &v.grid));
-        let inside = |p: &Point3| occupied.as_ref().is_some_and(|(o, grid)| voxel_of(grid, p).is_some_and(|v| o.contains(v)));
-        let (fit, following) = rayon::join(|| surface_fit(result, Surface::from(&input), diagonal, far, Some(&inside)), || (f + 1 < total).then(|| read(f + 1)));
+        let inside = volume.map(|v| inside_volume(v, f));
+        let inside = inside.as_ref().map(|i| i as InsideInput);
+        let (fit, following) = rayon::join(|| surface_fit(result, Surface::from(&input), diagonal, far, inside), || (f + 1 < total).then(|| read(f + 1)));
         next = following;
         frames.push(fit);
         progress.report(Stage::Export, f + 1, total);

@@ -55,9 +55,10 @@ pub struct LostParts {
 
 /// Finds the frames with a lost part from the unreached volume and, when
 /// the result's mesh was measured against the input (`fit`, with its
-/// outliers), its far regions. `params` must be those `coverage`, `fit`
-/// and `outliers` were measured with.
-pub fn lost_parts(coverage: &Coverage, fit: Option<(&SequenceFit, &FitOutliers)>, params: &CoverageParams) -> LostParts {
+/// outliers), its far regions; by `coverage.params`, which `fit` and the
+/// outliers must have been measured with.
+pub fn lost_parts(coverage: &Coverage, fit: Option<(&SequenceFit, &FitOutliers)>) -> LostParts {
+    let params = &coverage.params;
     let frames: Vec<FrameLoss> = (0..coverage.frames.len())
         .map(|f| FrameLoss {
             unreached: coverage.frames[f].lost_share,
@@ -69,7 +70,7 @@ pub fn lost_parts(coverage: &Coverage, fit: Option<(&SequenceFit, &FitOutliers)>
     let far: Vec<usize> = frames
         .iter()
         .enumerate()
-        .filter(|(_, x)| [x.far_input, x.far_result].iter().flatten().any(|r| r.vertices > 0 && r.share >= params.far_share))
+        .filter(|(_, x)| [x.far_input, x.far_result].iter().any(|r| counts(*r, params)))
         .map(|(f, _)| f)
         .collect();
     let fit_outliers: Vec<usize> = fit.map(|(_, o)| o.flagged.clone()).unwrap_or_default();
@@ -77,6 +78,11 @@ pub fn lost_parts(coverage: &Coverage, fit: Option<(&SequenceFit, &FitOutliers)>
     flagged.sort_unstable();
     flagged.dedup();
     LostParts { frames, unreached: coverage.flagged.clone(), far, fit_outliers, flagged, far_distances: fit.map(|(s, _)| s.far), params: params.clone() }
+}
+
+/// Whether `region` is large enough to warn of (`params.far_share`).
+fn counts(region: Option<FarRegion>, params: &CoverageParams) -> bool {
+    region.is_some_and(|r| r.vertices > 0 && r.share >= params.far_share)
 }
 
 /// One warning: the frames it names and the sentence shown to the user.
@@ -100,7 +106,7 @@ impl LostParts {
         let largest = |frames: &[usize], of: &dyn Fn(&FrameLoss) -> Option<FarRegion>| {
             frames.iter().filter_map(|&f| of(&self.frames[f])).fold(FarRegion::default(), |a, b| if b.share > a.share { b } else { a })
         };
-        let far_input: Vec<usize> = self.far.iter().copied().filter(|&f| self.frames[f].far_input.is_some_and(|r| r.vertices > 0 && r.share >= self.params.far_share)).collect();
+        let far_input: Vec<usize> = self.far.iter().copied().filter(|&f| counts(self.frames[f].far_input, &self.params)).collect();
         if !far_input.is_empty() {
             let r = largest(&far_input, &|x| x.far_input);
             out.push(LostPartWarning {
@@ -114,7 +120,7 @@ impl LostParts {
                 frames: far_input,
             });
         }
-        let far_result: Vec<usize> = self.far.iter().copied().filter(|&f| self.frames[f].far_result.is_some_and(|r| r.vertices > 0 && r.share >= self.params.far_share)).collect();
+        let far_result: Vec<usize> = self.far.iter().copied().filter(|&f| counts(self.frames[f].far_result, &self.params)).collect();
         if !far_result.is_empty() {
             let r = largest(&far_result, &|x| x.far_result);
             out.push(LostPartWarning {

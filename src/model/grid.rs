@@ -67,8 +67,23 @@ impl GridSpec {
     /// World position of a voxel's center.
     #[inline]
     pub fn voxel_center(&self, index: usize) -> Point3 {
-        let c = self.voxel_coords(index);
+        self.center_at(self.voxel_coords(index))
+    }
+
+    /// World position of the center of the voxel at grid coordinates `c`.
+    #[inline]
+    pub fn center_at(&self, c: [usize; 3]) -> Point3 {
         self.origin + Vector3::new(c[0] as Real + 0.5, c[1] as Real + 0.5, c[2] as Real + 0.5) * self.voxel_size
+    }
+
+    /// The linear index of the voxel holding `p`; None outside the grid.
+    pub fn voxel_at(&self, p: &Point3) -> Option<usize> {
+        let g = self.to_grid(p);
+        let c: [Real; 3] = [g.x, g.y, g.z];
+        if c.iter().zip(self.dims).any(|(&x, d)| !(x >= 0.0 && x < d as Real)) {
+            return None;
+        }
+        Some(self.linear_index(c.map(|x| x as usize)))
     }
 
     /// Continuous grid coordinates (voxel units from the origin) of a world point.

@@ -154,7 +154,7 @@ impl Measurements {
 /// The frames where `conv` may have lost a part: from its unreached volume
 /// and, when measured ([`Measurements::fit_of`]), its fit to the input.
 pub fn lost_parts(conv: &Conversion, fit: Option<(&SequenceFit, &FitOutliers)>) -> crate::metrics::LostParts {
-    crate::metrics::lost_parts(&conv.coverage, fit, &conv.coverage.params)
+    crate::metrics::lost_parts(&conv.coverage, fit)
 }
 
 /// What forward tracking gave besides the trajectories, which refinement

@@ -66,7 +66,7 @@ impl Capacity {
         let Some(coords) = cells.voxel_coords() else { return (Vec::new(), 0) };
         let scale = coords.len() as Real / self.total;
         let starved: Vec<usize> = (0..cur.len()).filter(|&i| (stats.count[i] as Real) < STARVED * self.count[i] * scale).collect();
-        let at = |c: &[u16; 3]| grid.origin + nalgebra::Vector3::new(c[0] as Real + 0.5, c[1] as Real + 0.5, c[2] as Real + 0.5) * grid.voxel_size;
+        let at = |c: &[u16; 3]| grid.center_at(c.map(usize::from));
         // Loose voxels: (position, squared distance to their owner).
         let loose: Vec<(Point3, Real)> = coords
             .par_iter()
