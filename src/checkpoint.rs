@@ -55,6 +55,9 @@ impl Checkpointing {
 pub const CHECKPOINT_FILE: &str = "track.ckpt";
 /// Name of the refinement checkpoint file inside the checkpoint folder.
 pub const REFINE_CHECKPOINT_FILE: &str = "refine.ckpt";
+/// How every checkpoint file starts, whatever its kind and format version:
+/// a file of a checkpoint's name that does not may not be replaced.
+pub(crate) const MARK: &[u8] = b"voltrack-";
 /// Default of [`Checkpointing::refine_save_seconds`].
 pub const REFINE_SAVE_SECONDS: Real = 60.0;
 
@@ -107,12 +110,13 @@ impl<W: Write> Write for Hashing<'_, W> {
 }
 
 /// Writes `path` atomically (creating its folder): `magic`, what `state`
-/// writes, then the checksum of both.
+/// writes, then the checksum of both. A link at `path` is replaced, never
+/// followed.
 pub(crate) fn save(path: &Path, magic: &[u8], state: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result<()> {
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
-    crate::files::write_atomic(path, |file| {
+    crate::files::write_replacing(path, |file| {
         let mut hashed = Hashing { inner: file, hash: Fnv::new() };
         hashed.write_all(magic)?;
         state(&mut hashed)?;

@@ -13,7 +13,25 @@ pub fn write_atomic<F>(path: &Path, fill: F) -> Result<()>
 where
     F: FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
 {
-    let target = match Target::of(path)? {
+    write_to(path, Target::of(path)?, fill)
+}
+
+/// [`write_atomic`] for a file inside a folder voltrack fills (a
+/// checkpoint): a symbolic link there is replaced, never followed, so a link
+/// planted in an output folder cannot lead the write to another file.
+pub(crate) fn write_replacing<F>(path: &Path, fill: F) -> Result<()>
+where
+    F: FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
+{
+    write_to(path, Target::resolved(path, false)?, fill)
+}
+
+/// Writes `path`'s `target` as [`write_atomic`] says.
+fn write_to<F>(path: &Path, target: Target, fill: F) -> Result<()>
+where
+    F: FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
+{
+    let target = match target {
         Target::Through(device) => return write_through(&device, fill).map_err(|e| Error::write(path, e)),
         Target::Replace(target) => target,
     };
@@ -22,6 +40,7 @@ where
         let _ = std::fs::remove_file(&tmp);
         return Err(Error::write(path, e));
     }
+    remove_stale(&target);
     Ok(())
 }
 
@@ -35,7 +54,16 @@ enum Target {
 
 impl Target {
     fn of(path: &Path) -> Result<Target> {
+        Self::resolved(path, true)
+    }
+
+    /// Where writing `path` goes; a symbolic link is replaced rather than
+    /// followed unless `follow`.
+    fn resolved(path: &Path, follow: bool) -> Result<Target> {
         let is_link = std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
+        if is_link && !follow {
+            return Ok(Target::Replace(path.to_path_buf()));
+        }
         let target = if is_link { std::fs::canonicalize(path).map_err(|e| Error::write(path, format!("a symbolic link to nothing ({e})")))? } else { path.to_path_buf() };
         match std::fs::metadata(&target) {
             Ok(meta) if writes_through(&meta) => Ok(Target::Through(target)),
@@ -113,6 +141,7 @@ pub fn write_atomic_all(files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
             return Err(Error::write(path, e));
         }
     }
+    targets.iter().for_each(|t| remove_stale(t));
     // Devices last: what went to them cannot be taken back.
     for (path, fill, device) in through {
         write_through(&device, fill).map_err(|e| Error::write(path, e))?;
@@ -139,13 +168,182 @@ pub(crate) fn check_writable(path: &Path) -> Result<(&Path, &std::ffi::OsStr)> {
     Ok((dir, name))
 }
 
-/// [`write_atomic_all`] for files in `dir`, which is created if needed; on
-/// failure neither the files nor a directory this call created are left.
-pub(crate) fn write_atomic_into(dir: &Path, files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
-    // The directories this call creates, innermost first.
-    let created: Vec<&Path> = dir.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).collect();
-    std::fs::create_dir_all(dir).map_err(|e| Error::write(dir, e))?;
-    write_atomic_all(files).inspect_err(|_| created.iter().for_each(|d| drop(std::fs::remove_dir(d))))
+/// The list of the files voltrack wrote into a folder it fills (an OBJ
+/// sequence, voxelised frames): hidden, so that discovery never reads it.
+pub const FOLDER_MANIFEST: &str = ".voltrack-files";
+
+/// The manifest's first line.
+const MANIFEST_HEAD: &str = "voltrack output folder, replaced as a whole by the next run that writes it";
+
+/// Writes the folder `dir` as a whole: `files` (names inside it, each with
+/// what fills it) and a [`FOLDER_MANIFEST`], built in a hidden folder beside
+/// `dir` and swapped in for it, so that a failure or a kill at any moment
+/// leaves either the old folder or the new one, never a mix, and no file of
+/// an earlier run stays among the new ones. A link to a folder is followed
+/// (the folder it names is replaced); links inside the old folder are
+/// removed, never followed. An existing folder is replaced only when it
+/// holds nothing but what voltrack wrote there ([`foreign_entry`]).
+/// Missing parent folders are created, and removed again on failure.
+pub fn replace_dir(dir: &Path, files: Vec<(String, Fill<'_>)>) -> Result<Vec<PathBuf>> {
+    let exists = std::fs::symlink_metadata(dir).is_ok();
+    let target = if exists { std::fs::canonicalize(dir).map_err(|e| Error::write(dir, e))? } else { dir.to_path_buf() };
+    if exists && !target.is_dir() {
+        return Err(Error::write(dir, "a file of this name exists"));
+    }
+    let (Some(parent), Some(name)) = (target.parent(), target.file_name()) else {
+        return Err(Error::write(dir, "cannot be replaced as a whole: name a folder of its own"));
+    };
+    let parent = if parent.as_os_str().is_empty() { Path::new(".") } else { parent };
+    // The folders this call creates, innermost first.
+    let created: Vec<&Path> = parent.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).collect();
+    std::fs::create_dir_all(parent).map_err(|e| Error::write(dir, e))?;
+    let remove_created = || created.iter().for_each(|d| drop(std::fs::remove_dir(d)));
+    let staging = parent.join(format!(".{}.{}.partial", name.to_string_lossy(), std::process::id()));
+    let _ = std::fs::remove_dir_all(&staging);
+    if let Err(e) = std::fs::create_dir(&staging) {
+        remove_created();
+        return Err(Error::write(dir, e));
+    }
+    let mut names = Vec::with_capacity(files.len());
+    let built = files.into_iter().try_for_each(|(file, fill)| {
+        fill_temporary(&staging.join(&file), fill).map_err(|e| Error::write(&dir.join(&file), e))?;
+        names.push(file);
+        Ok(())
+    });
+    let built = built.and_then(|()| {
+        let manifest = staging.join(FOLDER_MANIFEST);
+        fill_temporary(&manifest, |w| writeln!(w, "{MANIFEST_HEAD}\n{}", names.join("\n"))).map_err(|e| Error::write(&dir.join(FOLDER_MANIFEST), e))
+    });
+    let swapped = built.and_then(|()| swap_in(dir, &staging, &target, exists));
+    if let Err(e) = swapped {
+        let _ = std::fs::remove_dir_all(&staging);
+        remove_created();
+        return Err(e);
+    }
+    remove_stale(&target);
+    Ok(names.iter().map(|n| dir.join(n)).collect())
+}
+
+/// Removes what killed runs left of their writes of `target`: its
+/// `.NAME.PID.partial` files and folders and `.NAME.PID.old` folders whose
+/// process is gone (a process still running may be writing them).
+fn remove_stale(target: &Path) {
+    let (Some(dir), Some(name)) = (target.parent(), target.file_name()) else { return };
+    let dir = if dir.as_os_str().is_empty() { Path::new(".") } else { dir };
+    let prefix = format!(".{}.", name.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for entry in entries.flatten() {
+        let file = entry.file_name().to_string_lossy().into_owned();
+        let Some(rest) = file.strip_prefix(&prefix) else { continue };
+        let Some(Ok(pid)) = rest.strip_suffix(".partial").or_else(|| rest.strip_suffix(".old")).map(str::parse::<u32>) else { continue };
+        if pid == std::process::id() || process_alive(pid) {
+            continue;
+        }
+        let path = entry.path();
+        match entry.file_type() {
+            Ok(t) if t.is_dir() => drop(std::fs::remove_dir_all(&path)),
+            Ok(_) => drop(std::fs::remove_file(&path)),
+            Err(_) => {}
+        }
+        log::info!("removed {}, left by an interrupted run", path.display());
+    }
+}
+
+/// Whether process `pid` runs; where that cannot be known, true.
+fn process_alive(pid: u32) -> bool {
+    if cfg!(target_os = "linux") {
+        Path::new("/proc").join(pid.to_string()).exists()
+    } else {
+        true
+    }
+}
+
+/// Puts the complete folder `staging` in the place of `target`, which holds
+/// an earlier run's folder if `exists`; that one is then removed.
+fn swap_in(dir: &Path, staging: &Path, target: &Path, exists: bool) -> Result<()> {
+    if !exists {
+        return std::fs::rename(staging, target).map_err(|e| Error::write(dir, e));
+    }
+    // What is there now is checked again: the run may have taken hours.
+    if let Some(entry) = foreign_entry(target) {
+        return Err(Error::write(dir, format!("{} appeared during the run and voltrack did not write it; the folder was left as it was", entry.display())));
+    }
+    if let Ok(meta) = std::fs::metadata(target) {
+        let _ = std::fs::set_permissions(staging, meta.permissions());
+    }
+    if exchange(staging, target).map_err(|e| Error::write(dir, e))? {
+        // `staging` now holds the old folder.
+        return std::fs::remove_dir_all(staging).map_err(|e| Error::write(dir, format!("the old folder, now {}: {e}", staging.display())));
+    }
+    // No atomic exchange on this file system: two renames.
+    let old = staging.with_extension("old");
+    let _ = std::fs::remove_dir_all(&old);
+    std::fs::rename(target, &old).map_err(|e| Error::write(dir, e))?;
+    if let Err(e) = std::fs::rename(staging, target) {
+        let _ = std::fs::rename(&old, target);
+        return Err(Error::write(dir, e));
+    }
+    std::fs::remove_dir_all(&old).map_err(|e| Error::write(dir, format!("the old folder, now {}: {e}", old.display())))
+}
+
+/// Exchanges two paths atomically (Linux's `renameat2` with
+/// `RENAME_EXCHANGE`); false where the file system or the system cannot.
+#[cfg(target_os = "linux")]
+fn exchange(a: &Path, b: &Path) -> std::io::Result<bool> {
+    use std::os::unix::ffi::OsStrExt;
+    let c = |p: &Path| std::ffi::CString::new(p.as_os_str().as_bytes()).map_err(std::io::Error::other);
+    let (a, b) = (c(a)?, c(b)?);
+    // SAFETY: both are valid NUL-terminated paths that outlive the call;
+    // renameat2 reads them and touches no other memory.
+    let r = unsafe { libc::syscall(libc::SYS_renameat2, libc::AT_FDCWD, a.as_ptr(), libc::AT_FDCWD, b.as_ptr(), libc::RENAME_EXCHANGE) };
+    if r == 0 {
+        return Ok(true);
+    }
+    let e = std::io::Error::last_os_error();
+    match e.raw_os_error() {
+        Some(libc::EINVAL | libc::ENOSYS | libc::EPERM | libc::ENOTSUP) => Ok(false),
+        _ => Err(e),
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn exchange(_: &Path, _: &Path) -> std::io::Result<bool> {
+    Ok(false)
+}
+
+/// The first entry of the folder `dir` that voltrack did not write there
+/// and would not replace: anything but the files its [`FOLDER_MANIFEST`]
+/// lists, OBJ frames that carry voltrack's header, symbolic links (which a
+/// run replaces, never follows) and voltrack's own temporaries. None also
+/// when `dir` cannot be listed (the write then fails with its own error).
+pub(crate) fn foreign_entry(dir: &Path) -> Option<PathBuf> {
+    let listed: Vec<String> = std::fs::read_to_string(dir.join(FOLDER_MANIFEST))
+        .ok()
+        .filter(|m| m.starts_with(MANIFEST_HEAD))
+        .map(|m| m.lines().skip(1).map(str::to_string).collect())
+        .unwrap_or_default();
+    let entries = std::fs::read_dir(dir).ok()?;
+    let mut names: Vec<(String, PathBuf)> = entries.filter_map(|e| e.ok()).map(|e| (e.file_name().to_string_lossy().into_owned(), e.path())).collect();
+    names.sort();
+    names.into_iter().find(|(name, path)| {
+        let Ok(meta) = std::fs::symlink_metadata(path) else { return false };
+        let ours = meta.file_type().is_symlink()
+            || name == FOLDER_MANIFEST
+            || is_temporary(name)
+            || (meta.is_file() && (listed.contains(name) || starts_with(path, b"# voltrack ")));
+        !ours
+    }).map(|(_, path)| path)
+}
+
+/// voltrack's temporaries: `.NAME.PID.partial` files and folders, probes.
+fn is_temporary(name: &str) -> bool {
+    (name.starts_with('.') && name.ends_with(".partial")) || name.starts_with(".voltrack-probe.")
+}
+
+/// Whether the file at `path` starts with `mark`.
+pub(crate) fn starts_with(path: &Path, mark: &[u8]) -> bool {
+    let mut head = vec![0u8; mark.len()];
+    std::fs::File::open(path).and_then(|mut f| std::io::Read::read_exact(&mut f, &mut head)).is_ok() && head == mark
 }
 
 /// Fails unless `dir` is a directory or can be made one: no file has its

@@ -46,7 +46,8 @@ fn assert_same(a: &TrackResult, b: &TrackResult) {
     assert_eq!(a.cell_counts, b.cell_counts);
 }
 
-/// Asks to stop from the `after + 1`-th time the tracker polls it, which is
+/// Asks to stop from the `after + 1`-th time the tracker polls it once frame
+/// 0 is placed (the placement polls too, at every Lloyd step), which is
 /// inside a frame's iterations (the damped and the undamped guess both poll,
 /// on two threads, but the frame in which the count is reached does not
 /// depend on their interleaving). Remembers the last frame count reported.
@@ -63,7 +64,7 @@ impl ProgressSink for StopAtPoll {
         }
     }
     fn cancelled(&self) -> bool {
-        self.polls.fetch_add(1, Ordering::Relaxed) >= self.after
+        self.reported.load(Ordering::Relaxed) >= 1 && self.polls.fetch_add(1, Ordering::Relaxed) >= self.after
     }
 }
 

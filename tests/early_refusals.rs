@@ -256,12 +256,13 @@ fn a_texture_glb_cannot_carry_is_left_out_at_once_not_failed_at_export() {
 fn an_output_a_rerun_would_read_as_a_frame_is_refused_for_patterns_too() {
     let dir = Scratch::new("early", "pattern-pickup");
     bar_sequence(&dir);
-    // Two takes of four frames each, read through a wildcard directory.
+    // One take in two folders of four frames each, read through a wildcard
+    // directory.
     for take in 0..2 {
         let t = dir.0.join(format!("takes/take_{take}"));
         std::fs::create_dir_all(&t).unwrap();
-        for f in 0..4 {
-            std::fs::copy(dir.0.join(format!("seq/frame_{}.obj", 4 * take + f)), t.join(format!("frame_{f}.obj"))).unwrap();
+        for f in 4 * take..4 * take + 4 {
+            std::fs::copy(dir.0.join(format!("seq/frame_{f}.obj")), t.join(format!("frame_{f}.obj"))).unwrap();
         }
     }
     let pattern = "takes/take_*/*.obj";

@@ -376,7 +376,7 @@ fn obj_lines_tobj_refuses_are_named() {
 
 #[test]
 fn non_finite_coordinates_are_named() {
-    for (name, value) in [("nan.obj", "nan"), ("inf.obj", "inf"), ("minus_inf.obj", "-inf"), ("overflow.obj", "1e39")] {
+    for (name, value) in [("nan.obj", "nan"), ("inf.obj", "inf"), ("minus_inf.obj", "-inf"), ("overflow.obj", "1e309")] {
         let bytes = format!("v 0 0 0\nv 1 0 0\nv 0 {value} 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\n");
         read_err(name, bytes.as_bytes(), &[&format!("{name}:3"), "non-finite"]);
     }
@@ -902,14 +902,38 @@ fn voxelize_with_colliding_frame_names_writes_nothing() {
 fn voxelize_writes_every_frame_or_none() {
     let dir = Scratch::new("hostile", "voxsets");
     bar_sequence(&dir, 3, 0, ("frame_0.obj", obj(&bar(0))));
-    // The last frame's output name is taken by a directory: the first two
-    // frames must not stay behind.
+    // The last frame's output name is taken by a directory voltrack did not
+    // make: refused before any work, nothing written.
     std::fs::create_dir_all(dir.join("vox/frame_2.binvox")).unwrap();
-    must_fail(&dir, &["voxelize", "seq", "-r", "16", "-o", "vox"], &["vox/frame_2.binvox", "directory"]);
+    must_refuse(&dir, &["voxelize", "seq", "-r", "16", "-o", "vox"], &["frame_2.binvox", "not written by voltrack"]);
     std::fs::remove_dir(dir.join("vox/frame_2.binvox")).unwrap();
     let o = run(&dir, &["voxelize", "seq", "-r", "16", "-o", "vox"]);
     assert!(o.status.success(), "{}", text(&o.stderr));
-    assert_eq!(std::fs::read_dir(dir.join("vox")).unwrap().count(), 3);
+    let shown = |d: &Path| std::fs::read_dir(d).unwrap().flatten().filter(|e| !e.file_name().to_string_lossy().starts_with('.')).count();
+    assert_eq!(shown(&dir.join("vox")), 3);
+}
+
+/// A folder written as a set ([`voltrack::files::replace_dir`]) whose
+/// writing fails halfway leaves the old folder as it was and nothing beside
+/// it; written completely, it replaces the old one whole.
+#[test]
+fn a_folder_written_as_a_set_replaces_the_old_one_whole_or_not_at_all() {
+    use voltrack::files::{replace_dir, Fill};
+    let dir = Scratch::new("hostile", "folder-sets");
+    let bytes = |b: &'static [u8]| -> Fill<'static> { Box::new(move |w| std::io::Write::write_all(w, b)) };
+    let failing = || -> Fill<'static> { Box::new(|_| Err(std::io::Error::other("disk full"))) };
+    let out = dir.join("frames");
+    replace_dir(&out, vec![("a.obj".into(), bytes(b"a1")), ("b.obj".into(), bytes(b"b1")), ("c.obj".into(), bytes(b"c1"))]).unwrap();
+    let before = dir.files();
+    let e = replace_dir(&out, vec![("a.obj".into(), bytes(b"a2")), ("b.obj".into(), failing())]).unwrap_err().to_string();
+    assert!(e.contains("b.obj") && e.contains("disk full"), "{e}");
+    assert_eq!(dir.files(), before, "a failed write changed the folder or left something beside it");
+    assert_eq!(std::fs::read(out.join("a.obj")).unwrap(), b"a1");
+    // Fewer files the second time: c.obj does not stay.
+    replace_dir(&out, vec![("a.obj".into(), bytes(b"a2")), ("b.obj".into(), bytes(b"b2"))]).unwrap();
+    let want: Vec<String> = [".voltrack-files", "a.obj", "b.obj"].iter().map(|n| format!("frames/{n}")).collect();
+    assert_eq!(dir.files(), want);
+    assert_eq!(std::fs::read(out.join("b.obj")).unwrap(), b"b2");
 }
 
 #[test]

@@ -284,7 +284,7 @@ fn obj_vertex_lines_tobj_misreads_are_named() {
         ("w_zero.obj", "v 0 1 0 0", "w = 0"),
         ("w_nan.obj", "v 0 1 0 NaN", "w = NaN"),
         ("w_inf.obj", "v 0 1 0 inf", "w = inf"),
-        ("w_overflow.obj", "v 0 1e30 0 1e-30", "non-finite"),
+        ("w_overflow.obj", "v 0 1e300 0 1e-300", "non-finite"),
         ("five.obj", "v 0 1 0 1 1", "5 numbers"),
         ("seven.obj", "v 0 1 0 1 0 0 1", "7 numbers"),
         ("nine.obj", "v 0 1 0 1 0 0 1 2 3", "9 numbers"),

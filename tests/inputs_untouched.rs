@@ -7,7 +7,10 @@
 //! same through `./seq/../seq/`, through a symlink, the input directory
 //! (also through `..` and a symlink), a sidecar name that is an input, the
 //! trajectories given to refine/metrics, and two outputs of one run aimed at
-//! the same file. Then, after every run:
+//! the same file; and (issue 49) output and checkpoint folders holding
+//! links to an input under the names voltrack writes there, which must be
+//! replaced, never followed, or files of the user's, which must be refused.
+//! Then, after every run:
 //!
 //! * every file of the fixture is byte for byte what it was (symlinks still
 //!   symlinks to the same target, nothing deleted);
@@ -101,8 +104,26 @@ fn make_fixture(root: &Path) -> BTreeMap<String, Entry> {
     std::os::unix::fs::symlink("traj.exr", root.join("link_traj.exr")).unwrap();
     // An existing output directory (for an OBJ sequence): not an input.
     std::fs::create_dir_all(root.join("out")).unwrap();
+    // Output and checkpoint folders with links to inputs planted under the
+    // names voltrack writes (replaced, never followed), and with files of
+    // the user's (refused).
+    for (dir, name) in PLANTED {
+        std::fs::create_dir_all(root.join(dir)).unwrap();
+        std::os::unix::fs::symlink("../seq/frame_3.obj", root.join(dir).join(name)).unwrap();
+    }
+    for (dir, name) in FOREIGN {
+        std::fs::create_dir_all(root.join(dir)).unwrap();
+        std::fs::write(root.join(dir).join(name), b"the user's own file\n").unwrap();
+    }
     snapshot(root)
 }
+
+/// Links to `seq/frame_3.obj` planted in output folders: (folder, name).
+const PLANTED: [(&str, &str); 5] =
+    [("ck_links", "track.ckpt"), ("ck_links", "refine.ckpt"), ("objs_links", "frame_0003.obj"), ("objs_links", "frame_0001.obj"), ("vox_links", "frame_3.binvox")];
+
+/// The user's own files in output folders: (folder, name).
+const FOREIGN: [(&str, &str); 4] = [("ck_foreign", "refine.ckpt"), ("ck_foreign2", "track.ckpt"), ("objs_foreign", "frame_0001.obj"), ("vox_foreign", "notes.txt")];
 
 /// What a case must do.
 #[derive(Clone, Copy, PartialEq)]
@@ -121,10 +142,12 @@ struct Case {
     needles: Vec<&'static str>,
     /// Runs of the same command line (2: a rerun must see the same input).
     runs: usize,
+    /// A folder whose planted links the run replaces.
+    replaces_in: Option<&'static str>,
 }
 
 fn case(name: impl Into<String>, argv: Vec<String>, expect: Expect, needles: &[&'static str]) -> Case {
-    Case { name: name.into(), argv, expect, needles: needles.to_vec(), runs: 1 }
+    Case { name: name.into(), argv, expect, needles: needles.to_vec(), runs: 1, replaces_in: None }
 }
 
 /// `convert seq -r 32 -n 20` followed by `extra`.
@@ -234,6 +257,30 @@ fn cases() -> Vec<Case> {
         out.push(case(format!("voxelize -o -> {what}"), voxelize(target), Refuse, needles));
     }
     out.push(case("voxelize -o seq/vox", voxelize("seq/vox"), NotPickedUp, &[]));
+
+    // Links planted in output and checkpoint folders are replaced, not
+    // followed; files of the user's there are refused.
+    let refine = |extra: &[&str]| strings(&["refine", "traj.exr", "--input", "seq", "-o", "r.exr"]).into_iter().chain(strings(extra)).collect::<Vec<_>>();
+    for (name, argv, folder) in [
+        ("convert --checkpoint", convert(&["-o", "out.glb", "--checkpoint", "ck_links"]), "ck_links"),
+        ("track --refine --checkpoint", track(&["-o", "t.exr", "--refine", "--checkpoint", "ck_links"]), "ck_links"),
+        ("refine --checkpoint", refine(&["--checkpoint", "ck_links"]), "ck_links"),
+        ("convert obj-sequence", convert(&["-o", "objs_links"]), "objs_links"),
+        ("voxelize", voxelize("vox_links"), "vox_links"),
+    ] {
+        let mut c = case(format!("{name} -> a folder with planted links"), argv, NotPickedUp, &[]);
+        c.replaces_in = Some(folder);
+        out.push(c);
+    }
+    for (name, argv, needles) in [
+        ("convert --checkpoint", convert(&["-o", "out.glb", "--checkpoint", "ck_foreign"]), &["refine.ckpt"]),
+        ("track --checkpoint", track(&["-o", "t.exr", "--checkpoint", "ck_foreign2"]), &["track.ckpt"]),
+        ("refine --checkpoint", refine(&["--checkpoint", "ck_foreign"]), &["refine.ckpt"]),
+        ("convert obj-sequence", convert(&["-o", "objs_foreign"]), &["frame_0001.obj"]),
+        ("voxelize", voxelize("vox_foreign"), &["notes.txt"]),
+    ] {
+        out.push(case(format!("{name} -> a folder with the user's files"), argv, Refuse, needles));
+    }
     out
 }
 
@@ -285,6 +332,15 @@ fn check(case: &Case, before: &BTreeMap<String, Entry>, dir: &Path, status: &Res
     let mut problems = Vec::new();
     let after = snapshot(dir);
     for (name, old) in before {
+        if case.replaces_in.is_some_and(|dir| name.strip_prefix(dir).is_some_and(|rest| rest.starts_with('/'))) && matches!(old, Entry::Link(_)) {
+            // Replaced by the run's own file, gone with the old folder, or
+            // left alone where the run writes no file of its name; never
+            // followed (the inputs it names are checked as every input is).
+            if matches!(after.get(name), Some(Entry::Link(t)) if Some(&Entry::Link(t.clone())) != Some(old)) {
+                problems.push(format!("{name}: the planted link was relinked"));
+            }
+            continue;
+        }
         match (old, after.get(name)) {
             (_, None) => problems.push(format!("{name} deleted")),
             (Entry::File(a), Some(Entry::File(b))) if a != b => problems.push(format!("{name} modified ({} -> {} bytes)", a.len(), b.len())),

@@ -94,7 +94,9 @@ enum Command {
 }
 
 pub fn run() -> Result<()> {
-    let cli = Cli::parse();
+    let matches = <Cli as clap::CommandFactory>::command().get_matches();
+    let cli = <Cli as clap::FromArgMatches>::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    check_ignored(&cli, &matches)?;
     bars::handle_interrupts().context("installing the Ctrl-C handler")?;
     match cli.command {
         Command::Convert(args) => convert(args),
@@ -108,6 +110,42 @@ pub fn run() -> Result<()> {
         }
         Command::Metrics { centers, input, json, plot } => metrics(centers, input, json, plot),
     }
+}
+
+/// Refuses options given on the command line that the rest of it makes
+/// pointless: a user who sets one expects it to change something.
+fn check_ignored(cli: &Cli, matches: &clap::ArgMatches) -> Result<()> {
+    let Some((_, sub)) = matches.subcommand() else { return Ok(()) };
+    let given = |id: &str| sub.ids().any(|i| i.as_str() == id) && sub.value_source(id) == Some(clap::parser::ValueSource::CommandLine);
+    let flag = |id: &str| format!("--{}", id.replace('_', "-"));
+    let refuse = |m: String| -> Result<()> { Err(voltrack::Error::InvalidParameter(m).into()) };
+    let track = match &cli.command {
+        Command::Convert(args) => Some(&args.track),
+        Command::Track { track, .. } => Some(track),
+        _ => None,
+    };
+    if track.is_some_and(|t| !matches!(t.affinity, options::AffinityArg::Iir)) && given("alpha") {
+        return refuse("--alpha weighs the IIR affinity's filter, which --affinity max does not use: drop it, or add --affinity iir".into());
+    }
+    if let Command::Track { refine: false, .. } = &cli.command {
+        if let Some(id) = options::REFINE_IDS.iter().find(|id| given(id)) {
+            return refuse(format!("{} shapes the refinement, which `track` runs only with --refine: add --refine, or drop it", flag(id)));
+        }
+    }
+    if let Command::Convert(args) = &cli.command {
+        if given("fps") {
+            if let Ok(format @ (OutputFormat::Exr | OutputFormat::ObjSequence)) = args.format() {
+                return refuse(format!("--fps times an animation, but the output is {}, which has no frame rate: drop it", format.name()));
+            }
+        }
+        let conform = ["conform_stiffness", "conform_bend_strain", "conform_joint_strain"];
+        if args.conform_iterations == 0 {
+            if let Some(id) = conform.iter().find(|id| given(id)) {
+                return refuse(format!("{} shapes the conform stage, which --conform-iterations 0 turns off: drop one of them", flag(id)));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The frames `inputs` name, voxelised.
@@ -175,7 +213,7 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
     let checkpoint = track.checkpointing()?;
     let mut plan = input.plan()?.file(&output, "the output");
     if let Some(c) = &checkpoint {
-        plan = plan.dir(&c.dir, "the checkpoint folder");
+        plan = plan.checkpoints(c);
     }
     plan.check()?;
     let bars = bars::Bars::new();
@@ -254,7 +292,7 @@ fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: 
     params.validate(tracked.0.centers)?;
     let mut plan = plan_reading(&input)?.reading_file(&centers).file(&output, "the output");
     if let Some(c) = &checkpoint {
-        plan = plan.dir(&c.dir, "the checkpoint folder");
+        plan = plan.checkpoints(c);
     }
     plan.check()?;
     let bars = bars::Bars::new();
@@ -354,7 +392,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
         plan = plan.file(report, "the report");
     }
     if let Some(c) = &checkpoint {
-        plan = plan.dir(&c.dir, "the checkpoint folder");
+        plan = plan.checkpoints(c);
     }
     plan.check()?;
     if format == OutputFormat::Vat {
@@ -378,6 +416,18 @@ fn convert(args: ConvertArgs) -> Result<()> {
         measure_tracked: args.report.is_some(),
     };
     let conv = pipeline::convert(&source, &options, bars.progress())?;
+    // Measured before the output is written: a frame that cannot be read
+    // again (or changed) fails the run with an earlier output still in place.
+    let measured = match &args.report {
+        Some(_) => Some(pipeline::Measurements::of(&conv, &source, bars.progress())?),
+        None => None,
+    };
+    let fit_only = match (&measured, format) {
+        // Trajectories alone: the mesh was not fitted and is not written.
+        (None, OutputFormat::Exr) => None,
+        (None, _) => Some(pipeline::Measurements::fit_of(&conv, &source, bars.progress())?),
+        (Some(_), _) => None,
+    };
     let clock = std::time::Instant::now();
     bars.progress().report(Stage::Export, 0, 1);
     let out = &args.output;
@@ -438,10 +488,10 @@ fn convert(args: ConvertArgs) -> Result<()> {
     bars.progress().report(Stage::Export, 1, 1);
     let mut seconds = conv.seconds.clone();
     seconds.push((Stage::Export, clock.elapsed().as_secs_f64()));
-    let fit = match &args.report {
-        Some(path) => {
-            let measured = pipeline::Measurements::of(&conv, &source, bars.progress())?;
-            let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let fit = match (&args.report, measured) {
+        (Some(path), Some(measured)) => {
+            // Arguments need not be UTF-8 (file names): shown as well as they can be.
+            let command = std::env::args_os().map(|a| a.to_string_lossy().into_owned()).collect::<Vec<_>>().join(" ");
             let report = report::ReportInput {
                 seconds: &seconds,
                 output: Some(out),
@@ -452,9 +502,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
             notes.push(format!("report: {}", path.display()));
             Some((measured.fit, measured.fit_outliers))
         }
-        // Trajectories alone: the mesh was not fitted and is not written.
-        None if format == OutputFormat::Exr => None,
-        None => Some(pipeline::Measurements::fit_of(&conv, &source, bars.progress())?),
+        _ => fit_only,
     };
     bars.finish();
     let size = output_size(out);

@@ -163,6 +163,9 @@ impl TrackArgs {
     }
 }
 
+/// The ids of [`RefineArgs`]' options.
+pub const REFINE_IDS: [&str; 9] = ["remove", "batches", "no_optimise", "absolute_irregularity", "beta_hat", "rho_gp", "rho_gm", "global_iterations", "cell_memory"];
+
 #[derive(Args)]
 pub struct RefineArgs {
     /// Irregular centers to remove in all [default: 1 % of the centers, at least 1] (range: 0..=centers - 2)
@@ -396,5 +399,18 @@ impl ConvertArgs {
             compress: self.compress,
             ..Default::default()
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `track` refuses these without --refine: the list must be the options.
+    #[test]
+    fn refine_ids_are_the_refine_options() {
+        let command = RefineArgs::augment_args(clap::Command::new("refine"));
+        let ids: Vec<&str> = command.get_arguments().map(|a| a.get_id().as_str()).collect();
+        assert_eq!(ids, REFINE_IDS);
     }
 }

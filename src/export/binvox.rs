@@ -1,6 +1,6 @@
 //! Voxel frames written as `.binvox` (Patrick Min's format, as `io` reads it).
 
-use crate::files::{write_atomic_into, Fill};
+use crate::files::{replace_dir, Fill};
 use crate::error::{Error, Result};
 use crate::math::Real;
 use crate::model::{GridSpec, Occupancy};
@@ -33,8 +33,9 @@ pub fn write_binvox(out: &mut impl Write, grid: &GridSpec, occ: &Occupancy) -> s
 }
 
 /// Writes every frame of a voxelised sequence as `.binvox` into `dir`
-/// (created if needed), named after the input files. On failure nothing is
-/// left: neither the frames written so far nor a directory it created.
+/// (created if needed), named after the input files. The folder is replaced
+/// as a whole ([`crate::files::replace_dir`]): on failure the old one stays
+/// as it was.
 pub fn write_binvox_frames(seq: &crate::voxel::VoxelSequence, dir: &Path) -> Result<Vec<PathBuf>> {
     let mut outputs: Vec<PathBuf> = Vec::with_capacity(seq.names.len());
     for (k, src) in seq.names.iter().enumerate() {
@@ -54,8 +55,10 @@ pub fn write_binvox_frames(seq: &crate::voxel::VoxelSequence, dir: &Path) -> Res
         .frames
         .iter()
         .zip(&outputs)
-        .map(|(occ, out)| (out.as_path(), Box::new(move |w: &mut BufWriter<std::fs::File>| write_binvox(w, &seq.grid, &occ.expand())) as Fill))
+        .map(|(occ, out)| {
+            let name = out.file_name().expect("named after a frame").to_string_lossy().into_owned();
+            (name, Box::new(move |w: &mut BufWriter<std::fs::File>| write_binvox(w, &seq.grid, &occ.expand())) as Fill)
+        })
         .collect();
-    write_atomic_into(dir, files)?;
-    Ok(outputs)
+    replace_dir(dir, files)
 }

@@ -217,6 +217,16 @@ fn quantised_error(frames: &PositionFrames, base: &TriangleMesh, animation: Opti
 }
 
 
+/// Where a mesh far from the origin for its size (a capture in map
+/// coordinates, [`Aabb::too_far_for_f32`](crate::model::mesh::Aabb::too_far_for_f32))
+/// is written from: the centre of its bounds, as f32 (what the node's
+/// translation holds), so that positions relative to it keep f32's
+/// precision; None for most captures, written as they are.
+fn far_origin(positions: &[Point3]) -> Option<[f32; 3]> {
+    let bounds = crate::model::mesh::Aabb::from_points(positions);
+    bounds.too_far_for_f32().then(|| [0, 1, 2].map(|k| ((bounds.min[k] + bounds.max[k]) / 2.0) as f32))
+}
+
 /// The quantisation of a compressed file (KHR_mesh_quantization): positions
 /// and position deltas as normalized SHORT in one common uniform scale (the
 /// node's, which glTF applies to both; uniform so that normals keep their
@@ -883,7 +893,9 @@ fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &Sce
     b.root.asset.extras = extras.asset;
     let array = Some(json::buffer::Target::ArrayBuffer);
     let quantizer = scene.compress.then(|| Quantizer::new(&mesh.positions, animation)).transpose()?;
-    let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
+    let origin = if scene.compress { None } else { far_origin(&mesh.positions) };
+    let at = origin.map_or([0.0; 3], |o| o.map(f64::from));
+    let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| [(p.x - at[0]) as f32, (p.y - at[1]) as f32, (p.z - at[2]) as f32]).collect();
     let mut attributes = BTreeMap::new();
     let position_accessor = match &quantizer {
         Some(q) => b.short3(&mesh.positions.iter().map(|p| q.position(p)).collect::<Vec<_>>(), true)?,
@@ -971,7 +983,7 @@ fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &Sce
     let node = b.root.push(json::Node {
         mesh: Some(mesh_index),
         name: Some(scene.name.clone()),
-        translation: quantizer.map(|q| q.center),
+        translation: quantizer.map(|q| q.center).or(origin),
         scale: quantizer.map(|q| [q.scale; 3]),
         ..Default::default()
     });

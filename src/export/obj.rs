@@ -54,28 +54,29 @@ fn write_object(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3],
 /// `frame_0000.obj`, `frame_0001.obj`, … (more digits past 10 000 frames, so
 /// names sort in frame order): the same object `name`, vertex order, faces
 /// and UVs in every file, only the positions change. Returns the paths in
-/// frame order. On failure no frame is left.
+/// frame order. The folder is replaced as a whole
+/// ([`crate::files::replace_dir`]): on failure the old one stays as it was,
+/// and no frame of an earlier, longer run is left among the new ones.
 pub fn write_obj_sequence(dir: &Path, mesh: &DynamicMesh, name: &str) -> Result<Vec<PathBuf>> {
     crate::model::check_name(name)?;
     super::basis::check_frames(mesh)?;
     let width = (mesh.frames.len() - 1).to_string().len().max(4);
-    let paths: Vec<PathBuf> = (0..mesh.frames.len()).map(|f| dir.join(format!("frame_{f:0width$}.obj"))).collect();
+    let names: Vec<String> = (0..mesh.frames.len()).map(|f| format!("frame_{f:0width$}.obj")).collect();
     // Each frame's own normals (welded at UV seams, as the GLB's), so every
     // file is smooth-shaded where it is imported.
     let normals = super::normals::FrameNormals::new(&mesh.base.triangles, &mesh.frames.get(0)?);
     let normals = &normals;
-    let files = paths
-        .iter()
+    let files = names
+        .into_iter()
         .enumerate()
-        .map(|(f, path)| {
+        .map(|(f, file)| {
             // Each frame is read as its file is written: one in memory at a time.
             let fill = move |w: &mut _| {
                 let positions = mesh.frames.get(f).map_err(std::io::Error::other)?;
                 write_named_obj(w, &mesh.base, &positions, name, Some(&normals.of(&positions)))
             };
-            (path.as_path(), Box::new(fill) as crate::files::Fill)
+            (file, Box::new(fill) as crate::files::Fill)
         })
         .collect();
-    crate::files::write_atomic_into(dir, files)?;
-    Ok(paths)
+    crate::files::replace_dir(dir, files)
 }

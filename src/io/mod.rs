@@ -73,21 +73,46 @@ pub fn read_mesh(path: &Path) -> Result<TriangleMesh> {
 }
 
 /// A sequence's frame files, read one at a time when a stage asks for a
-/// frame: memory holds only the frames being worked on.
+/// frame: memory holds only the frames being worked on. Stages read a frame
+/// more than once (voxelising, the mesh stages, the fit), so each read
+/// checks that the file is still the one read first.
 #[derive(Clone, Debug)]
 pub struct FrameFiles {
     paths: Vec<PathBuf>,
+    /// Each file's [`Stamp`] at its first read.
+    stamps: Vec<std::sync::OnceLock<Stamp>>,
+}
+
+/// What tells a file changed between two reads: its size, modification
+/// time and inode (a file replaced by a rename keeps neither).
+#[derive(Clone, Debug, PartialEq)]
+struct Stamp {
+    len: u64,
+    modified: Option<std::time::SystemTime>,
+    inode: u64,
+}
+
+impl Stamp {
+    fn of(path: &Path) -> Result<Stamp> {
+        let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+        #[cfg(unix)]
+        let inode = std::os::unix::fs::MetadataExt::ino(&meta);
+        #[cfg(not(unix))]
+        let inode = 0;
+        Ok(Stamp { len: meta.len(), modified: meta.modified().ok(), inode })
+    }
 }
 
 impl FrameFiles {
     /// The frames `inputs` name, as [`discover_frames`] finds and orders them.
     pub fn discover(inputs: &[PathBuf]) -> Result<Self> {
-        Ok(FrameFiles { paths: discover_frames(inputs)? })
+        Ok(Self::new(discover_frames(inputs)?))
     }
 
     /// These files, in this order.
     pub fn new(paths: Vec<PathBuf>) -> Self {
-        FrameFiles { paths }
+        let stamps = paths.iter().map(|_| std::sync::OnceLock::new()).collect();
+        FrameFiles { paths, stamps }
     }
 
     pub fn paths(&self) -> &[PathBuf] {
@@ -103,6 +128,17 @@ impl FrameSource for FrameFiles {
         self.paths[f].display().to_string()
     }
     fn frame(&self, f: usize) -> Result<Frame> {
-        read_frame(&self.paths[f])
+        let path = &self.paths[f];
+        let now = Stamp::of(path)?;
+        let first = self.stamps[f].get_or_init(|| now.clone());
+        if *first != now {
+            return Err(Error::InvalidInput(format!(
+                "{}: the file changed during the run ({} bytes, then {}); the result would not match it: run again once the capture is complete",
+                path.display(),
+                first.len,
+                now.len
+            )));
+        }
+        read_frame(path)
     }
 }

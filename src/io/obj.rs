@@ -42,12 +42,16 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     let with_normals = !models.is_empty() && models.iter().all(|m| !m.mesh.normals.is_empty());
     let mut uvs = Vec::new();
     let mut normals = Vec::new();
+    // Read in f64 and kept to f32 (what glTF and PLY floats hold, so that one
+    // capture gives the same result in every format) unless f32 would blur
+    // a capture far from the origin.
+    let all = || models.iter().flat_map(|m| m.mesh.positions.chunks_exact(3)).map(|p| Point3::new(p[0], p[1], p[2]));
+    let far = crate::model::mesh::Aabb::from_points(&all().collect::<Vec<_>>()).too_far_for_f32();
+    let kept = |c: f64| if far { c } else { c as f32 as f64 };
     for model in &models {
         let m = &model.mesh;
         let base = mesh.positions.len() as u32;
-        mesh.positions.extend(
-            m.positions.chunks_exact(3).map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)),
-        );
+        mesh.positions.extend(m.positions.chunks_exact(3).map(|p| Point3::new(kept(p[0]), kept(p[1]), kept(p[2]))));
         let indices: Vec<u32> = m.indices.iter().map(|&i| i + base).collect();
         if m.face_arities.is_empty() {
             // All triangles.
@@ -62,10 +66,10 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         }
         if with_uvs {
             // OBJ's v points up, glTF's down.
-            uvs.extend(m.texcoords.chunks_exact(2).map(|t| [t[0], 1.0 - t[1]]));
+            uvs.extend(m.texcoords.chunks_exact(2).map(|t| [t[0] as f32, 1.0 - t[1] as f32]));
         }
         if with_normals {
-            normals.extend(m.normals.chunks_exact(3).map(|n| [n[0], n[1], n[2]]));
+            normals.extend(m.normals.chunks_exact(3).map(|n| [n[0] as f32, n[1] as f32, n[2] as f32]));
         }
     }
     if with_uvs && uvs.len() == mesh.positions.len() {
@@ -98,7 +102,7 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
 /// Checks every vertex and face line, naming the line, where tobj names none
 /// or reads on:
 /// - a vertex is `x y z`, `x y z w` or `x y z r g b`, with `w` finite and not
-///   0, and finite coordinates once divided by `w` (as tobj does, in f32);
+///   0, and finite coordinates once divided by `w` (as tobj does, in f64);
 ///   tobj reports `w = 0` and a wrong count without a line, divides by a NaN
 ///   `w`, and renumbers vertices, so a non-finite coordinate could not be
 ///   traced back to its line afterwards;
@@ -120,7 +124,7 @@ fn check_lines(path: &Path, bytes: &[u8]) -> Result<()> {
             Some("v") => {
                 counts[0] += 1;
                 let values: Vec<&str> = words.collect();
-                let number = |t: &str| t.parse::<f32>().map_err(|_| err(format!("vertex {}: '{t}' is not a number", counts[0])));
+                let number = |t: &str| t.parse::<f64>().map_err(|_| err(format!("vertex {}: '{t}' is not a number", counts[0])));
                 match values.len() {
                     0..=2 => return Err(err("a vertex ('v') needs three numbers".into())),
                     3 | 4 | 6 => {}
@@ -131,7 +135,7 @@ fn check_lines(path: &Path, bytes: &[u8]) -> Result<()> {
                         )))
                     }
                 }
-                let numbers = values.iter().map(|t| number(t)).collect::<Result<Vec<f32>>>()?;
+                let numbers = values.iter().map(|t| number(t)).collect::<Result<Vec<f64>>>()?;
                 let w = if values.len() == 4 { numbers[3] } else { 1.0 };
                 if !w.is_finite() || w == 0.0 {
                     return Err(err(format!("vertex {}: its weight w = {w} is not a finite number other than 0", counts[0])));

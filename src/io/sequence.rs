@@ -35,6 +35,7 @@ pub fn discover_frames(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
                 )));
             }
             sort_natural(&mut found);
+            check_numbering(input, input, &found)?;
             frames.extend(found);
         } else if is_pattern(input) {
             let mut found = expand_pattern(input)?;
@@ -42,6 +43,7 @@ pub fn discover_frames(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
                 return Err(Error::InvalidInput(format!("{}: no file matches this pattern", input.display())));
             }
             sort_natural(&mut found);
+            check_numbering(input, &pattern_base(input), &found)?;
             frames.extend(found);
         } else if input.exists() {
             frames.push(input.clone());
@@ -84,6 +86,62 @@ pub(crate) fn would_discover(input: &Path, file: &Path) -> bool {
                 part == name
             }
         })
+}
+
+/// The runs of digits in `path` below `base`, as numbers (None when one is
+/// too long for a number).
+fn digit_runs(base: &Path, path: &Path) -> Option<Vec<u64>> {
+    let rel = path.strip_prefix(base).unwrap_or(path).to_string_lossy().into_owned();
+    rel.split(|c: char| !c.is_ascii_digit()).filter(|r| !r.is_empty()).map(|r| r.parse().ok()).collect()
+}
+
+/// Frames found in a folder or by a pattern (`input`, below `base`), in
+/// order: two files of one frame number (a pattern joining two takes, or
+/// two sequences in one folder) are an error, since tracking one object
+/// through the other's frames cannot be right; a frame number skipped
+/// (frame 12 missing between 11 and 13) is warned of. The frame number is
+/// the last run of digits that differs between the files
+/// (`take_2/frame_0007_lod0.obj`: 7), checked only when every file has as
+/// many runs.
+fn check_numbering(input: &Path, base: &Path, frames: &[PathBuf]) -> Result<()> {
+    let Some(runs) = frames.iter().map(|f| digit_runs(base, f)).collect::<Option<Vec<_>>>() else { return Ok(()) };
+    let count = runs.first().map_or(0, Vec::len);
+    if count == 0 || runs.iter().any(|r| r.len() != count) {
+        return Ok(());
+    }
+    let Some(varying) = (0..count).rev().find(|&k| runs.iter().any(|r| r[k] != runs[0][k])) else { return Ok(()) };
+    let mut by_number: Vec<(u64, usize)> = runs.iter().enumerate().map(|(k, r)| (r[varying], k)).collect();
+    by_number.sort();
+    if let Some(w) = by_number.windows(2).find(|w| w[0].0 == w[1].0) {
+        return Err(Error::InvalidInput(format!(
+            "{}: {} and {} are both frame {}: this joins two sequences; give each take on its own (or list the files in the order meant)",
+            input.display(),
+            frames[w[0].1].display(),
+            frames[w[1].1].display(),
+            w[0].0
+        )));
+    }
+    // The step between frames is the most common one (a take may keep every
+    // second frame); a longer one is a frame missing.
+    let steps: Vec<u64> = by_number.windows(2).map(|w| w[1].0 - w[0].0).collect();
+    let Some(step) = steps.iter().copied().max_by_key(|s| (steps.iter().filter(|t| *t == s).count(), std::cmp::Reverse(*s))) else { return Ok(()) };
+    let gaps: Vec<String> = by_number
+        .windows(2)
+        .filter(|w| w[1].0 - w[0].0 > step)
+        .map(|w| format!("{} to {} (after {})", w[0].0, w[1].0, frames[w[0].1].file_name().unwrap_or_default().to_string_lossy()))
+        .collect();
+    if !gaps.is_empty() {
+        let more = if gaps.len() > 3 { format!(" and {} more", gaps.len() - 3) } else { String::new() };
+        log::warn!("{}: frames missing: the numbers jump from {}{more}; the missing frames are not read", input.display(), gaps[..gaps.len().min(3)].join(", "));
+    }
+    Ok(())
+}
+
+/// The literal folder a pattern starts from (before its first wildcard).
+fn pattern_base(pattern: &Path) -> PathBuf {
+    let components: Vec<std::path::Component> = pattern.components().collect();
+    let first_wild = components.iter().position(|c| has_wildcard(&c.as_os_str().to_string_lossy())).unwrap_or(components.len());
+    components[..first_wild].iter().collect()
 }
 
 fn has_wildcard(s: &str) -> bool {
@@ -172,16 +230,33 @@ fn common_stem(stems: &[String]) -> String {
     prefix.trim_end_matches(['_', '-', '.', ' ']).to_string()
 }
 
-/// The entries of `dir` whose name passes `keep`: regular files if `files`,
-/// else directories.
+/// The entries of `dir` whose name passes `keep`: regular files (or links
+/// to them) if `files`, else directories. With `files`, an entry whose name
+/// passes and has a frame's extension but that is not a file (a folder, a FIFO, a socket, a link to
+/// nothing) is an error: skipping it would lose a frame without a word.
 fn list_dir(dir: &Path, files: bool, keep: impl Fn(&str) -> bool) -> Result<Vec<PathBuf>> {
     let entries = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
     let mut out = Vec::new();
     for entry in entries {
         let p = entry.map_err(|e| Error::io(dir, e))?.path();
-        let kind_ok = if files { p.is_file() } else { p.is_dir() };
-        if kind_ok && p.file_name().and_then(|n| n.to_str()).is_some_and(&keep) {
-            out.push(p);
+        if !p.file_name().and_then(|n| n.to_str()).is_some_and(&keep) {
+            continue;
+        }
+        if !files {
+            if p.is_dir() {
+                out.push(p);
+            }
+            continue;
+        }
+        match std::fs::metadata(&p) {
+            Ok(meta) if meta.is_file() => out.push(p),
+            // A pattern's `*` may match other things beside the frames.
+            _ if !is_supported(&p) => {}
+            Ok(meta) => {
+                let what = if meta.is_dir() { "a folder" } else { "not a regular file (a FIFO, socket or device)" };
+                return Err(Error::InvalidInput(format!("{}: named like a frame but {what}; move it out of the folder", p.display())));
+            }
+            Err(_) => return Err(Error::InvalidInput(format!("{}: named like a frame but a link to nothing; fix or remove the link", p.display()))),
         }
     }
     Ok(out)
@@ -257,6 +332,20 @@ fn natural_key(s: &str) -> Vec<Chunk> {
 
 #[cfg(test)]
 mod tests {
+    /// The frame number is the run of digits that varies: a suffix that does
+    /// not is no clash; two takes numbered alike are; one take split over two
+    /// folders is not.
+    #[test]
+    fn frame_numbers_are_the_digits_that_vary() {
+        let paths = |v: &[&str]| v.iter().map(PathBuf::from).collect::<Vec<_>>();
+        let check = |base: &str, v: &[&str]| check_numbering(Path::new(base), Path::new(base), &paths(v));
+        assert!(check("d", &["d/f_0001_lod0.obj", "d/f_0002_lod0.obj", "d/f_0003_lod0.obj"]).is_ok());
+        let e = check("t", &["t/take_1/f_0.obj", "t/take_1/f_1.obj", "t/take_2/f_0.obj", "t/take_2/f_1.obj"]).unwrap_err().to_string();
+        assert!(e.contains("take_1/f_0.obj") && e.contains("take_2/f_0.obj"), "{e}");
+        assert!(check("t", &["t/a/f_0.obj", "t/a/f_1.obj", "t/b/f_2.obj", "t/b/f_3.obj"]).is_ok());
+        assert!(check("d", &["d/walk.obj", "d/run.obj"]).is_ok());
+    }
+
     use super::*;
 
     fn sorted(names: &[&str]) -> Vec<String> {

@@ -312,6 +312,9 @@ pub fn fit_to_input(mesh: &DynamicMesh, source: &dyn FrameSource, diagonal: Real
     let mut frames = Vec::with_capacity(total);
     let mut next = if total > 0 { Some(read(0)) } else { None };
     for f in 0..total {
+        if progress.cancelled() {
+            return Err(Error::Interrupted { saved: None });
+        }
         let input = next.take().expect("read ahead")?;
         let positions = mesh.frames.get(f)?;
         let result = Surface { positions: &positions, triangles: &mesh.base.triangles };

@@ -55,6 +55,14 @@ impl Aabb {
     pub fn longest_side(&self) -> Real {
         self.extent().max()
     }
+    /// Whether f32 coordinates (what glTF and most PLY files hold) would
+    /// blur what lies in this box by more than 1e-6 of its size: it lies
+    /// farther than 16 times its size from the origin (f32 keeps 24 bits),
+    /// as a capture in map coordinates does.
+    pub fn too_far_for_f32(&self) -> bool {
+        let far = (0..3).map(|k| self.min[k].abs().max(self.max[k].abs())).fold(0.0, Real::max);
+        !self.is_empty() && self.longest_side() > 0.0 && far > 16.0 * self.longest_side()
+    }
     pub fn diagonal(&self) -> Real {
         self.extent().norm()
     }

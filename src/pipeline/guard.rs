@@ -16,14 +16,21 @@ enum Kind {
     /// A file written beside the named output without being named itself:
     /// it may replace only a file that starts with `mark` (an earlier run's).
     Sidecar { mark: &'static str },
-    /// A directory the run creates if needed and fills with files.
+    /// A directory the run creates if needed and fills with files, replaced
+    /// as a whole ([`crate::files::replace_dir`]).
     Dir,
+    /// A directory the run writes `files` into, one at a time (checkpoints),
+    /// leaving everything else there alone: an existing file of one of
+    /// those names is replaced only if it starts with `mark`.
+    FilesIn { files: Vec<PathBuf>, mark: &'static [u8] },
 }
 
 #[derive(Clone, Debug)]
 struct Planned {
     path: PathBuf,
     kind: Kind,
+    /// For a sidecar: the output it is written beside.
+    beside: Option<usize>,
     /// What it is, for messages ("the output", "the report").
     what: String,
 }
@@ -45,22 +52,33 @@ impl OutputPlan {
 
     /// A file the run writes; `what` names it in messages.
     pub fn file(mut self, path: &Path, what: &str) -> Self {
-        self.outputs.push(Planned { path: path.to_path_buf(), kind: Kind::File, what: what.into() });
+        self.outputs.push(Planned { path: path.to_path_buf(), kind: Kind::File, beside: None, what: what.into() });
         self
     }
 
     /// A file written beside a named output (a texture's JSON, a point
     /// cache's mesh), under a name the user did not give: an existing file
     /// there is replaced only if its first bytes hold `mark`, as voltrack
-    /// writes it.
+    /// writes it. It belongs to the last [`file`](Self::file) planned.
     pub fn sidecar(mut self, path: &Path, what: &str, mark: &'static str) -> Self {
-        self.outputs.push(Planned { path: path.to_path_buf(), kind: Kind::Sidecar { mark }, what: what.into() });
+        let beside = self.outputs.iter().rposition(|o| matches!(o.kind, Kind::File));
+        self.outputs.push(Planned { path: path.to_path_buf(), kind: Kind::Sidecar { mark }, beside, what: what.into() });
         self
     }
 
-    /// A directory the run fills with files (created if missing).
+    /// A directory the run fills with files (created if missing) and
+    /// replaces as a whole: it may hold only what voltrack wrote there.
     pub fn dir(mut self, path: &Path, what: &str) -> Self {
-        self.outputs.push(Planned { path: path.to_path_buf(), kind: Kind::Dir, what: what.into() });
+        self.outputs.push(Planned { path: path.to_path_buf(), kind: Kind::Dir, beside: None, what: what.into() });
+        self
+    }
+
+    /// The checkpoint folder of `checkpointing` (created if missing): its
+    /// files may replace only earlier checkpoints, or links.
+    pub fn checkpoints(mut self, checkpointing: &crate::checkpoint::Checkpointing) -> Self {
+        let files = vec![checkpointing.path(), checkpointing.refine_path()];
+        let kind = Kind::FilesIn { files, mark: crate::checkpoint::MARK };
+        self.outputs.push(Planned { path: checkpointing.dir.clone(), kind, beside: None, what: "the checkpoint folder".into() });
         self
     }
 
@@ -81,13 +99,16 @@ impl OutputPlan {
     /// Checks the plan; the first problem found is the error.
     pub fn check(&self) -> Result<()> {
         let inputs: Vec<(PathBuf, &PathBuf)> = self.inputs.iter().filter_map(|p| Some((std::fs::canonicalize(p).ok()?, p))).collect();
+        // Another name of an input (a hard link) is the input too.
+        let input_files: Vec<(FileId, &PathBuf)> = self.inputs.iter().filter_map(|p| Some((FileId::of(p)?, p))).collect();
         let ids: Vec<PathBuf> = self
             .outputs
             .iter()
-            .map(|out| match out.kind {
+            .map(|out| match &out.kind {
                 Kind::File => check_file(out),
-                Kind::Sidecar { mark } => check_file(out).and_then(|id| check_ours(out, id, mark)),
-                Kind::Dir => check_dir(out),
+                Kind::Sidecar { mark } => check_file(out).and_then(|id| check_ours(out, id, mark)).and_then(|id| self.check_beside_file(out, id)),
+                Kind::Dir => check_dir(out).and_then(|id| check_replaceable(out, id)),
+                Kind::FilesIn { files, mark } => check_dir(out).and_then(|id| check_files_in(out, id, files, mark)),
             })
             .collect::<Result<_>>()?;
         for (k, (out, id)) in self.outputs.iter().zip(&ids).enumerate() {
@@ -97,24 +118,37 @@ impl OutputPlan {
                     format!("{} would replace the input {}; voltrack never writes over its input: choose another name", out.what, given.display()),
                 ));
             }
+            if let Some((_, given)) = input_files.iter().find(|(f, _)| matches!(out.kind, Kind::File | Kind::Sidecar { .. }) && FileId::of(id) == Some(*f)) {
+                return Err(Error::refuse(
+                    &out.path,
+                    format!("{} is another name (a hard link) of the input {}; voltrack never writes over its input: choose another name", out.what, given.display()),
+                ));
+            }
             if let Some(first) = (0..k).find(|&j| ids[j] == *id) {
                 return Err(Error::refuse(&out.path, format!("{} and {} would be the same file", self.outputs[first].what, out.what)));
             }
-            let dir_holding = self.outputs.iter().zip(&ids).find(|(o, d)| matches!(o.kind, Kind::Dir) && Some(d.as_path()) == id.parent());
+            let dir_holding = self.outputs.iter().zip(&ids).find(|(o, d)| matches!(o.kind, Kind::Dir | Kind::FilesIn { .. }) && Some(d.as_path()) == id.parent());
             if let (Kind::File | Kind::Sidecar { .. }, Some((dir, _))) = (&out.kind, dir_holding) {
                 return Err(Error::refuse(&out.path, format!("{} would be mixed with the files of {}: write it elsewhere", out.what, dir.what)));
             }
             match out.kind {
                 Kind::File | Kind::Sidecar { .. } => self.check_not_picked_up(out, id)?,
                 Kind::Dir => self.check_not_an_input_dir(out, id)?,
+                Kind::FilesIn { .. } => {}
             }
         }
         Ok(())
     }
 
-    /// An output the next run on the same input would read as a frame.
+    /// An output the next run on the same input would read as a frame:
+    /// frames given one by one are read from their folder next time.
     fn check_not_picked_up(&self, out: &Planned, id: &Path) -> Result<()> {
-        match self.sources.iter().find(|source| would_discover(source, id)) {
+        let folders = self.sources.iter().filter(|s| s.is_file()).map(|s| match s.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        });
+        let sources: Vec<PathBuf> = self.sources.iter().cloned().chain(folders).collect();
+        match sources.iter().find(|source| would_discover(source, id)) {
             Some(source) => Err(Error::refuse(
                 &out.path,
                 format!(
@@ -125,6 +159,19 @@ impl OutputPlan {
             )),
             None => Ok(()),
         }
+    }
+
+    /// A sidecar beside an output that is a device or a FIFO would be a
+    /// new file beside the device (`/dev/null.obj`).
+    fn check_beside_file(&self, out: &Planned, id: PathBuf) -> Result<PathBuf> {
+        let Some(main) = out.beside.map(|k| &self.outputs[k]) else { return Ok(id) };
+        if std::fs::metadata(&main.path).is_ok_and(|m| crate::files::writes_through(&m)) {
+            return Err(Error::refuse(
+                &main.path,
+                format!("{} would be written beside {}, which is not a regular file ({}): name a file for {}", out.what, main.what, out.path.display(), main.what),
+            ));
+        }
+        Ok(id)
     }
 
     /// A directory of outputs that holds input files (or is an input
@@ -140,6 +187,59 @@ impl OutputPlan {
             None => Ok(()),
         }
     }
+}
+
+/// A file's identity on its file system, the same for all its hard links.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct FileId(u64, u64);
+
+impl FileId {
+    /// None when `path` does not exist (or off Unix).
+    fn of(path: &Path) -> Option<FileId> {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            std::fs::metadata(path).ok().filter(|m| m.is_file()).map(|m| FileId(m.dev(), m.ino()))
+        }
+        #[cfg(not(unix))]
+        {
+            let _ = path;
+            None
+        }
+    }
+}
+
+/// A folder replaced as a whole must hold only what voltrack wrote there,
+/// and must not be the root, the current folder or one holding it.
+fn check_replaceable(out: &Planned, id: PathBuf) -> Result<PathBuf> {
+    let holds_cwd = std::env::current_dir().ok().and_then(|d| std::fs::canonicalize(d).ok()).is_some_and(|cwd| cwd.starts_with(&id));
+    if id.parent().is_none() || holds_cwd {
+        return Err(Error::refuse(&out.path, format!("{} is replaced as a whole, and this folder holds the current one: name a folder of its own", out.what)));
+    }
+    if let Some(entry) = crate::files::foreign_entry(&id) {
+        return Err(Error::refuse(
+            &out.path,
+            format!(
+                "{} is replaced as a whole, and {} in it was not written by voltrack: move it, or name an empty or new folder",
+                out.what,
+                entry.file_name().unwrap_or_default().to_string_lossy()
+            ),
+        ));
+    }
+    Ok(id)
+}
+
+/// Each of `files` may be missing, a link (replaced, not followed) or a
+/// file that starts with `mark` (written by an earlier run).
+fn check_files_in(out: &Planned, id: PathBuf, files: &[PathBuf], mark: &[u8]) -> Result<PathBuf> {
+    for file in files {
+        let Ok(meta) = std::fs::symlink_metadata(file) else { continue };
+        if meta.file_type().is_symlink() || (meta.is_file() && crate::files::starts_with(file, mark)) {
+            continue;
+        }
+        return Err(Error::refuse(file, format!("{} would replace this, which voltrack did not write: move it or choose another folder", out.what)));
+    }
+    Ok(id)
 }
 
 /// What a path names once symlinks and `..` are resolved; for a file that

@@ -10,7 +10,7 @@
 use super::affinity::Affinity;
 use super::checkpoint::{self, Checkpointing, Snapshot};
 use crate::spatial::cells::{assign, carry_owners, Assignment, CellMoments, CellStats, CenterIndex, NO_OWNER};
-use super::lloyd::seed_centers;
+use super::lloyd::seed_centers_until;
 use crate::model::{GridSpec, Rigid, RigidFits, Trajectories};
 use crate::error::{Error, Result, Saved};
 use crate::math::{Point3, Real};
@@ -122,8 +122,18 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
             }
             let start = Instant::now();
             let voxels0 = &seq.frames[0].indices();
-            let (centers0, lloyd_steps) =
-                seed_centers(grid, voxels0, params.centers, params.seed, params.lloyd_iterations, params.over_relaxation, params.threshold * scale);
+            let placed = seed_centers_until(
+                grid,
+                voxels0,
+                params.centers,
+                params.seed,
+                params.lloyd_iterations,
+                params.over_relaxation,
+                params.threshold * scale,
+                &|| progress.cancelled(),
+            );
+            // Nothing to save yet.
+            let (centers0, lloyd_steps) = placed.ok_or(Error::Interrupted { saved: None })?;
             let mut traj = Trajectories::new(frames, params.centers);
             traj.frame_mut(0).copy_from_slice(&centers0);
             let mut owners = vec![NO_OWNER; voxels0.len()];

@@ -16,6 +16,13 @@ use crate::model::GridSpec;
 /// halfway to their centroids), which shows as drift from the true motion,
 /// plainest on a rigid body, whose centers should not drift at all.
 pub fn seed_centers(grid: &GridSpec, voxels: &[u32], n: usize, seed: u64, iterations: usize, omega: Real, threshold: Real) -> (Vec<Point3>, usize) {
+    seed_centers_until(grid, voxels, n, seed, iterations, omega, threshold, &|| false).expect("never stopped")
+}
+
+/// [`seed_centers`], None once `stop` says so (it is asked at every step:
+/// a step over a large frame takes seconds).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn seed_centers_until(grid: &GridSpec, voxels: &[u32], n: usize, seed: u64, iterations: usize, omega: Real, threshold: Real, stop: &dyn Fn() -> bool) -> Option<(Vec<Point3>, usize)> {
     assert!(n >= 1 && n <= voxels.len());
     // Partial Fisher-Yates over the voxel list.
     let mut rng = SplitMix64::new(seed);
@@ -30,6 +37,9 @@ pub fn seed_centers(grid: &GridSpec, voxels: &[u32], n: usize, seed: u64, iterat
     let mut steps = 0;
     let mut index = CenterIndex::new(&centers);
     while steps < iterations {
+        if stop() {
+            return None;
+        }
         steps += 1;
         if !moved.is_empty() {
             index = index.moved_to(&centers, &moved);
@@ -45,5 +55,5 @@ pub fn seed_centers(grid: &GridSpec, voxels: &[u32], n: usize, seed: u64, iterat
             break;
         }
     }
-    (centers, steps)
+    Some((centers, steps))
 }

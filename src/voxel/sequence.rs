@@ -95,6 +95,9 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
     let mut summaries: Vec<Summary> = (0..source.len())
         .into_par_iter()
         .map(|f| {
+            if progress.cancelled() {
+                return Err(Error::Interrupted { saved: None });
+            }
             let frame = source.frame(f)?;
             counter.tick();
             Ok(match frame {
@@ -151,6 +154,9 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
         .into_par_iter()
         .map(|f| {
             let path = paths[f];
+            if progress.cancelled() {
+                return Err(Error::Interrupted { saved: None });
+            }
             let read;
             let mesh = if f == 0 {
                 &first_mesh
@@ -161,7 +167,7 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
                 };
                 &read
             };
-            let v = voxelize_detailed(mesh, &grid);
+            let v = voxelize_detailed(mesh, &grid, &|| progress.cancelled()).ok_or(Error::Interrupted { saved: None })?;
             counter.tick();
             if v.occupancy.is_empty() {
                 return Err(Error::mesh(

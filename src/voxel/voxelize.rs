@@ -27,8 +27,13 @@ const ABSTAIN: u8 = 8; // bit `3 + axis`
 
 /// Occupied voxels of one closed or open mesh on `grid`.
 pub fn voxelize(mesh: &TriangleMesh, grid: &GridSpec) -> Occupancy {
-    voxelize_detailed(mesh, grid).occupancy
+    voxelize_detailed(mesh, grid, &|| false).expect("never stopped").occupancy
 }
+
+/// Triangles cast, and columns filled, between two looks at `stop`: a
+/// frame at the largest resolutions takes minutes, and Ctrl-C must act
+/// within a second.
+const STOP_EVERY: usize = 4096;
 
 /// [`voxelize`]'s result with how sure it is.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -41,8 +46,9 @@ pub(crate) struct Voxelization {
     pub unvouched: usize,
 }
 
-/// [`voxelize`], also counting the occupied voxels no axis vouches for.
-pub(crate) fn voxelize_detailed(mesh: &TriangleMesh, grid: &GridSpec) -> Voxelization {
+/// [`voxelize`], also counting the occupied voxels no axis vouches for;
+/// None once `stop` says so.
+pub(crate) fn voxelize_detailed(mesh: &TriangleMesh, grid: &GridSpec, stop: &dyn Fn() -> bool) -> Option<Voxelization> {
     let verts: Vec<[Real; 3]> = mesh.positions.iter().map(|p| grid.to_grid(p).into()).collect();
     // Sub-box of voxels whose centers can be inside: [lo, hi).
     let mut lo = [usize::MAX; 3];
@@ -56,19 +62,25 @@ pub(crate) fn voxelize_detailed(mesh: &TriangleMesh, grid: &GridSpec) -> Voxeliz
         }
     }
     if (0..3).any(|k| lo[k] >= hi[k]) {
-        return Voxelization::default();
+        return Some(Voxelization::default());
     }
     let n = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+    if stop() {
+        return None;
+    }
     let mut votes = vec![0u8; n[0] * n[1] * n[2]];
     let mut crossings = Vec::new();
     for axis in 0..3 {
-        cast_axis(mesh, &verts, axis, lo, n, &mut crossings);
-        fill_axis(&crossings, axis, lo, n, &mut votes);
+        cast_axis(mesh, &verts, axis, lo, n, &mut crossings, stop)?;
+        fill_axis(&crossings, axis, lo, n, &mut votes, stop)?;
     }
     let mut indices = Vec::new();
     let mut unvouched = 0;
     let mut local = 0;
     for k in 0..n[2] {
+        if stop() {
+            return None;
+        }
         for j in 0..n[1] {
             let row = grid.linear_index([lo[0], lo[1] + j, lo[2] + k]);
             for i in 0..n[0] {
@@ -80,7 +92,7 @@ pub(crate) fn voxelize_detailed(mesh: &TriangleMesh, grid: &GridSpec) -> Voxeliz
             }
         }
     }
-    Voxelization { occupancy: Occupancy { indices }, unvouched }
+    Some(Voxelization { occupancy: Occupancy { indices }, unvouched })
 }
 
 /// Majority of the reliable axes; when every axis passed through a hole, the
@@ -106,11 +118,14 @@ struct Crossing {
 }
 
 /// Rasterises every triangle onto the columns of `axis` and records crossings,
-/// sorted by column then depth.
-fn cast_axis(mesh: &TriangleMesh, verts: &[[Real; 3]], axis: usize, lo: [usize; 3], n: [usize; 3], out: &mut Vec<Crossing>) {
+/// sorted by column then depth; None once `stop` says so.
+fn cast_axis(mesh: &TriangleMesh, verts: &[[Real; 3]], axis: usize, lo: [usize; 3], n: [usize; 3], out: &mut Vec<Crossing>, stop: &dyn Fn() -> bool) -> Option<()> {
     let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
     out.clear();
-    for t in &mesh.triangles {
+    for (k, t) in mesh.triangles.iter().enumerate() {
+        if k % STOP_EVERY == 0 && stop() {
+            return None;
+        }
         let [p0, p1, p2] = t.map(|i| verts[i as usize]);
         let area = edge_fn([p0[u], p0[v]], [p1[u], p1[v]], [p2[u], p2[v]]);
         if area == 0.0 || !area.is_finite() {
@@ -148,6 +163,7 @@ fn cast_axis(mesh: &TriangleMesh, verts: &[[Real; 3]], axis: usize, lo: [usize; 
         }
     }
     out.sort_unstable_by(|x, y| x.column.cmp(&y.column).then(x.depth.total_cmp(&y.depth)));
+    Some(())
 }
 
 /// Twice the signed area of (p, q, r): > 0 when r is left of p→q.
@@ -178,14 +194,20 @@ fn covered(p: [Real; 2], q: [Real; 2], r: [Real; 2]) -> Option<Real> {
     }
 }
 
-/// Turns one axis's crossings into inside/abstain bits of the sub-box.
-fn fill_axis(crossings: &[Crossing], axis: usize, lo: [usize; 3], n: [usize; 3], votes: &mut [u8]) {
+/// Turns one axis's crossings into inside/abstain bits of the sub-box; None
+/// once `stop` says so.
+fn fill_axis(crossings: &[Crossing], axis: usize, lo: [usize; 3], n: [usize; 3], votes: &mut [u8], stop: &dyn Fn() -> bool) -> Option<()> {
     let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
     let stride = [1, n[0], n[0] * n[1]];
     let inside_bit = INSIDE << axis;
     let abstain_bit = ABSTAIN << axis;
     let mut start = 0;
+    let mut columns = 0usize;
     while start < crossings.len() {
+        columns += 1;
+        if columns % STOP_EVERY == 0 && stop() {
+            return None;
+        }
         let column = crossings[start].column as usize;
         let mut end = start;
         while end < crossings.len() && crossings[end].column as usize == column {
@@ -220,4 +242,5 @@ fn fill_axis(crossings: &[Crossing], axis: usize, lo: [usize; 3], n: [usize; 3],
             }
         }
     }
+    Some(())
 }
