@@ -632,3 +632,17 @@ fn vat_options_on_the_command_line() {
     assert!(stderr.contains("vertex-animation texture"), "{stderr}");
     assert_eq!(dir.files(), ["p.exr", "p.glb", "p.json"]);
 }
+
+/// Piped to a log (as in CI), a run still shows it is alive: one line as
+/// each stage begins, in pipeline order, on stderr; stdout keeps only the
+/// summary (issue 48).
+#[test]
+fn a_run_logged_to_a_file_prints_a_line_per_stage() {
+    let dir = Scratch::new("cli", "plain-progress");
+    let out = run(&dir, &convert_args("a.glb", &[]));
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stderr = text(&out.stderr);
+    let stages: Vec<&str> = stderr.lines().filter_map(|l| l.strip_prefix("voltrack: ")?.strip_suffix(" ...")).collect();
+    assert_eq!(stages, ["read", "voxelize", "track", "refine", "deform", "conform", "export"], "{stderr}");
+    assert!(!text(&out.stdout).contains("voltrack: "), "progress on stdout");
+}

@@ -958,3 +958,18 @@ fn files_written_as_a_set_appear_together_or_not_at_all() {
     assert_eq!(dir.files(), ["a.exr", "a.json"]);
     assert_eq!(std::fs::read(&b).unwrap(), b"two");
 }
+
+/// Issue 49, item 14: messages that said the wrong thing. A `.glb` without
+/// the binary header was reported as bad JSON; an index past i64 as "not a
+/// whole number"; a tiny memory limit as "0.0 GiB" with "about 2" fitting.
+#[test]
+fn messages_say_what_is_wrong() {
+    read_err("magic.glb", b"GLTF\x02\x00\x00\x00{\"asset\":{}}", &["not a binary glTF", "'GLTF'"]);
+    read_err("big.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999\n", &["big.obj:4", "too large"]);
+    let dir = Scratch::new("hostile", "memory-message");
+    bar_sequence(&dir, 3, 0, ("frame_0.obj", obj(&bar(0))));
+    let stderr = must_refuse(&dir, &["convert", "seq", "-r", "64", "-o", "x.glb", "--max-memory", "0.000001"], &["KiB", "the 1.0 KiB allowed"]);
+    assert!(!stderr.contains("0.0 GiB"), "{stderr}");
+    let stderr = must_refuse(&dir, &["convert", "seq", "-r", "64", "-o", "x.glb", "--max-memory", "0.000000001"], &["no resolution fits"]);
+    assert!(!stderr.contains("about 2"), "{stderr}");
+}

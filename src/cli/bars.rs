@@ -1,10 +1,12 @@
-//! Progress bars on a terminal, nothing when stderr is piped; and Ctrl-C,
+//! Progress bars on a terminal, a line per stage (and every 10 s) when
+//! stderr is a log; and Ctrl-C,
 //! which the library sees through the same progress callback.
 
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
+use std::time::{Duration, Instant};
 use voltrack::progress::ProgressSink;
 use voltrack::{Progress, Stage};
 
@@ -26,12 +28,37 @@ pub struct Bars {
     multi: Option<MultiProgress>,
     current: Mutex<Option<(Stage, ProgressBar)>>,
     announced: AtomicBool,
+    /// Without a terminal (a log, CI): the stage last shown, when it began
+    /// and when its last line was printed.
+    plain: Mutex<Option<(Stage, Instant, Instant)>>,
 }
+
+/// Without a terminal, a line per stage and one this often within a stage,
+/// so a log shows the run is alive.
+const PLAIN_EVERY: Duration = Duration::from_secs(10);
 
 impl Bars {
     pub fn new() -> Self {
         let multi = std::io::stderr().is_terminal().then(|| MultiProgress::with_draw_target(ProgressDrawTarget::stderr()));
-        Bars { multi, current: Mutex::new(None), announced: AtomicBool::new(false) }
+        Bars { multi, current: Mutex::new(None), announced: AtomicBool::new(false), plain: Mutex::new(None) }
+    }
+
+    /// A line when a stage begins, and every [`PLAIN_EVERY`] within it.
+    fn plain_report(&self, stage: Stage, done: usize, total: usize) {
+        let now = Instant::now();
+        let mut plain = self.plain.lock().unwrap();
+        match &mut *plain {
+            Some((shown, began, printed)) if *shown == stage => {
+                if now.duration_since(*printed) >= PLAIN_EVERY {
+                    eprintln!("voltrack: {} {done}/{total} ({:.0} s)", stage.name(), now.duration_since(*began).as_secs_f64());
+                    *printed = now;
+                }
+            }
+            _ => {
+                eprintln!("voltrack: {} ...", stage.name());
+                *plain = Some((stage, now, now));
+            }
+        }
     }
 
     pub fn progress(&self) -> Progress<'_> {
@@ -59,7 +86,7 @@ impl ProgressSink for Bars {
     }
 
     fn report(&self, stage: Stage, done: usize, total: usize) {
-        let Some(multi) = &self.multi else { return };
+        let Some(multi) = &self.multi else { return self.plain_report(stage, done, total) };
         let mut cur = self.current.lock().unwrap();
         if cur.as_ref().map(|(s, _)| *s) != Some(stage) {
             if let Some((_, bar)) = cur.take() {

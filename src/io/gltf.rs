@@ -21,6 +21,13 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         let text = e.to_string();
         Error::parse(path, None, if text.starts_with("invalid glTF") { text } else { format!("invalid glTF: {text}") })
     };
+    // A .glb that does not start with the binary header would be taken for
+    // JSON and fail as "expected value at line 1 column 1".
+    let named_glb = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb"));
+    if named_glb && !bytes.starts_with(b"glTF") {
+        let head: String = bytes.iter().take(4).map(|&b| if b.is_ascii_graphic() { b as char } else { '.' }).collect();
+        return Err(Error::parse(path, None, format!("not a binary glTF: a .glb starts with 'glTF', this file with '{head}'")));
+    }
     // The crate subtracts the header's size from the declared length unchecked.
     if let Some(declared) = bytes.strip_prefix(b"glTF").and_then(|b| b.get(4..8)) {
         let declared = u32::from_le_bytes(declared.try_into().expect("4 bytes"));

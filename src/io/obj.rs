@@ -165,7 +165,13 @@ fn check_lines(path: &Path, bytes: &[u8]) -> Result<()> {
                     }
                     for (slot, field) in fields.iter().enumerate().filter(|(_, f)| !f.is_empty()) {
                         let ((one, many), count) = (KINDS[slot], counts[slot]);
-                        let index = field.parse::<i64>().map_err(|_| err(format!("{one} index '{field}' is not a whole number")))?;
+                        let index = field.parse::<i64>().map_err(|e| {
+                            let why = match e.kind() {
+                                std::num::IntErrorKind::PosOverflow | std::num::IntErrorKind::NegOverflow => "is too large for an index",
+                                _ => "is not a whole number",
+                            };
+                            err(format!("{one} index '{field}' {why}"))
+                        })?;
                         let problem = match index {
                             0 => Some("OBJ indices start at 1".to_string()),
                             i if i > 0 && i.unsigned_abs() > count => Some(format!("only {count} {many} are defined above this line")),

@@ -80,14 +80,28 @@ impl MemoryEstimate {
         // resolution; the rest grows as its cube.
         let kept = self.kept_cells.min(kept_cell_share(limit));
         let fits = (resolution as f64 * ((0.9 * limit - kept) / self.bytes).cbrt()).floor() as usize;
-        let gib = |b: f64| b / (1u64 << 30) as f64;
+        let fits = if fits >= 2 { format!("the largest resolution that fits is about {fits}") } else { "no resolution fits".into() };
         Err(Error::InvalidParameter(format!(
-            "resolution {resolution} over {frames} frames needs about {:.1} GiB, more than the {:.1} GiB allowed (the memory available now, unless a limit is set); \
-             the largest resolution that fits is about {}, or raise the memory limit if this estimate is too high",
-            gib(bytes),
-            gib(limit),
-            fits.max(2)
+            "resolution {resolution} over {frames} frames needs about {}, more than the {} allowed (the memory available now, unless a limit is set); \
+             {fits}, or raise the memory limit if this estimate is too high",
+            size(bytes),
+            size(limit),
         )))
+    }
+}
+
+/// `bytes` in the largest of GiB, MiB and KiB that keeps it at 1 or more,
+/// with two significant digits at least (never "0.0 GiB").
+fn size(bytes: f64) -> String {
+    let (value, unit) = [(30, "GiB"), (20, "MiB"), (10, "KiB")]
+        .into_iter()
+        .map(|(shift, unit)| (bytes / (1u64 << shift) as f64, unit))
+        .find(|(v, _)| *v >= 1.0)
+        .unwrap_or((bytes / 1024.0, "KiB"));
+    if value >= 10.0 {
+        format!("{value:.0} {unit}")
+    } else {
+        format!("{value:.1} {unit}")
     }
 }
 
