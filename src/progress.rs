@@ -11,6 +11,8 @@ pub enum Stage {
     Refine,
     Deform,
     Conform,
+    /// Measuring the result against every input frame.
+    Fit,
     Export,
 }
 
@@ -23,6 +25,7 @@ impl Stage {
             Stage::Refine => "refine",
             Stage::Deform => "deform",
             Stage::Conform => "conform",
+            Stage::Fit => "fit",
             Stage::Export => "export",
         }
     }

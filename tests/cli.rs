@@ -194,7 +194,7 @@ fn convert_prints_a_json_summary() {
     assert_eq!((basis["targets"].as_u64(), basis["components"].is_null()), (Some(FRAMES as u64 - 1), true), "{basis}");
     assert_eq!(basis["reconstruction_error_max"].as_f64(), Some(0.0));
     let seconds = summary["seconds"].as_object().unwrap();
-    for stage in ["read", "voxelize", "track", "refine", "deform", "conform", "export", "total"] {
+    for stage in ["read", "voxelize", "track", "refine", "deform", "conform", "fit", "export", "total"] {
         assert!(seconds.get(stage).and_then(|s| s.as_f64()).is_some_and(|s| s >= 0.0), "{stage}: {seconds:?}");
     }
     let stages: f64 = seconds.iter().filter(|(k, _)| *k != "total").map(|(_, v)| v.as_f64().unwrap()).sum();
@@ -643,6 +643,6 @@ fn a_run_logged_to_a_file_prints_a_line_per_stage() {
     assert!(out.status.success(), "{}", text(&out.stderr));
     let stderr = text(&out.stderr);
     let stages: Vec<&str> = stderr.lines().filter_map(|l| l.strip_prefix("voltrack: ")?.strip_suffix(" ...")).collect();
-    assert_eq!(stages, ["read", "voxelize", "track", "refine", "deform", "conform", "export"], "{stderr}");
+    assert_eq!(stages, ["read", "voxelize", "track", "refine", "deform", "conform", "fit", "export"], "{stderr}");
     assert!(!text(&out.stdout).contains("voltrack: "), "progress on stdout");
 }

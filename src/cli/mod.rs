@@ -487,6 +487,9 @@ fn convert(args: ConvertArgs) -> Result<()> {
     };
     bars.progress().report(Stage::Export, 1, 1);
     let mut seconds = conv.seconds.clone();
+    if let Some(s) = measured.as_ref().map(|m| m.fit.seconds).or(fit_only.as_ref().map(|f| f.0.seconds)) {
+        seconds.push((Stage::Fit, s));
+    }
     seconds.push((Stage::Export, clock.elapsed().as_secs_f64()));
     let fit = match (&args.report, measured) {
         (Some(path), Some(measured)) => {

@@ -293,7 +293,7 @@ impl SequenceFit {
 /// given, the input voxelised (the result's far regions inside it are
 /// not counted).
 ///
-/// Reports `(Stage::Export, frames measured, frames)` to `progress`.
+/// Reports `(Stage::Fit, frames measured, frames)` to `progress`.
 pub fn fit_to_input(mesh: &DynamicMesh, source: &dyn FrameSource, diagonal: Real, far: FarDistances, volume: Option<&crate::voxel::VoxelSequence>, progress: Progress) -> Result<SequenceFit> {
     if mesh.frames.len() != source.len() {
         return Err(Error::InvalidInput(format!(
@@ -308,7 +308,7 @@ pub fn fit_to_input(mesh: &DynamicMesh, source: &dyn FrameSource, diagonal: Real
     let start = Instant::now();
     let read = |f: usize| source.mesh(f);
     let total = source.len();
-    progress.report(Stage::Export, 0, total);
+    progress.report(Stage::Fit, 0, total);
     let mut frames = Vec::with_capacity(total);
     let mut next = if total > 0 { Some(read(0)) } else { None };
     for f in 0..total {
@@ -323,7 +323,7 @@ pub fn fit_to_input(mesh: &DynamicMesh, source: &dyn FrameSource, diagonal: Real
         let (fit, following) = rayon::join(|| surface_fit(result, Surface::from(&input), diagonal, far, inside), || (f + 1 < total).then(|| read(f + 1)));
         next = following;
         frames.push(fit);
-        progress.report(Stage::Export, f + 1, total);
+        progress.report(Stage::Fit, f + 1, total);
     }
     Ok(SequenceFit { frames, diagonal, far, seconds: start.elapsed().as_secs_f64() })
 }

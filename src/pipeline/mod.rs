@@ -128,7 +128,7 @@ impl Measurements {
     /// forward-tracked trajectories were measured when tracked): the refined
     /// trajectories by assigning cells in every frame again, and the fit of
     /// the dynamic mesh to each input frame, read again from `source` one at
-    /// a time (progress is reported as `Stage::Export`, one step per frame).
+    /// a time (progress is reported as `Stage::Fit`, one step per frame).
     pub fn of(conv: &Conversion, source: &dyn FrameSource, progress: Progress) -> Result<Self> {
         let tracked = conv.tracked.quality.clone().ok_or_else(|| {
             Error::InvalidParameter("the conversion did not measure its forward-tracked trajectories: set ConvertOptions::measure_tracked".into())
