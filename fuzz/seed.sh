@@ -9,8 +9,13 @@ mkdir -p corpus/obj corpus/ply corpus/gltf corpus/binvox
 cp ../fixtures/shapes/*.obj ../fixtures/bending_bar/frame_0.obj corpus/obj/
 cp ../fixtures/shapes/*.ply corpus/ply/
 cp ../fixtures/shapes/*.glb corpus/gltf/
+# voxelize replaces its output folder whole and refuses one holding other
+# files (the corpus grows as the fuzzer runs): written apart, then copied.
+grids=$(mktemp -d)
 cargo run --release --quiet --manifest-path ../Cargo.toml -- \
-    voxelize ../fixtures/shapes/cube.obj ../fixtures/shapes/torus.obj ../fixtures/shapes/open_cup.obj -r 12 -o corpus/binvox >/dev/null
+    voxelize ../fixtures/shapes/cube.obj ../fixtures/shapes/torus.obj ../fixtures/shapes/open_cup.obj -r 12 -o "$grids/binvox" >/dev/null 2>&1
+cp "$grids"/binvox/*.binvox corpus/binvox/
+rm -rf "$grids"
 for format in obj ply gltf binvox; do
     cp seeds/"$format"/* "corpus/$format/"
     if [ -d "../tests/corpus/$format" ]; then

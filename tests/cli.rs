@@ -646,3 +646,22 @@ fn a_run_logged_to_a_file_prints_a_line_per_stage() {
     assert_eq!(stages, ["read", "voxelize", "track", "refine", "deform", "conform", "fit", "export"], "{stderr}");
     assert!(!text(&out.stdout).contains("voltrack: "), "progress on stdout");
 }
+
+/// Per-frame morph targets are named after the input files (issue 48):
+/// `walk_0002.obj`'s target is `walk_0002`, not the index `frame_0001`.
+#[test]
+fn morph_targets_are_named_after_the_input_files() {
+    let dir = Scratch::new("cli", "target-names");
+    std::fs::create_dir_all(dir.join("seq")).unwrap();
+    for f in 0..FRAMES {
+        std::fs::copy(fixture().join(format!("frame_{f}.obj")), dir.join(&format!("seq/walk_{:04}.obj", f + 1))).unwrap();
+    }
+    let mut args = vec!["convert", "seq", "-o", "a.glb"];
+    args.extend(SMALL);
+    ok(&dir, &args);
+    let doc = gltf::Gltf::from_slice(&std::fs::read(dir.join("a.glb")).unwrap()).unwrap();
+    let extras = doc.meshes().next().unwrap().extras().as_ref().map(|e| e.get().to_string()).unwrap();
+    let names: Vec<String> = serde_json::from_value(json(&extras)["targetNames"].clone()).unwrap();
+    let want: Vec<String> = (2..=FRAMES).map(|f| format!("walk_{f:04}")).collect();
+    assert_eq!(names, want);
+}

@@ -436,7 +436,10 @@ fn convert(args: ConvertArgs) -> Result<()> {
     let mut vat_layout = None;
     let files = match format {
         OutputFormat::Glb => {
-            let report = voltrack::export::gltf::write_dynamic_glb(out, &conv.mesh, &args.gltf_options(name.clone()), bars.progress())?;
+            // Targets named after the input files, not frame indices.
+            let frame_names = source.paths().iter().map(|p| p.file_stem().unwrap_or_default().to_string_lossy().into_owned()).collect();
+            let gltf = voltrack::export::gltf::GltfExportOptions { frame_names, ..args.gltf_options(name.clone()) };
+            let report = voltrack::export::gltf::write_dynamic_glb(out, &conv.mesh, &gltf, bars.progress())?;
             if let Some(k) = report.basis {
                 if args.basis.is_none() {
                     notes.push(format!(

@@ -50,6 +50,11 @@ pub struct GltfExportOptions {
     /// extensions required. The report's reconstruction error then includes
     /// the quantisation. Default false.
     pub compress: bool,
+    /// The frames' names (the input files' stems), which per-frame targets
+    /// are named after: frame `f`'s target is `frame_names[f]`. Default
+    /// empty: `frame_0001`, `frame_0002`, … by index, as also where the
+    /// names are not one per frame or not distinct.
+    pub frame_names: Vec<String>,
 }
 
 impl Default for GltfExportOptions {
@@ -61,6 +66,7 @@ impl Default for GltfExportOptions {
             max_basis_error: 0.001,
             normals: true,
             compress: false,
+            frame_names: Vec::new(),
         }
     }
 }
@@ -130,7 +136,10 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
     basis::check_frames(mesh)?;
     let frames = &mesh.frames;
     let diagonal = frames.bounds()?.diagonal();
-    let (basis, error) = basis::choose(frames, options.basis, options.max_basis_error * diagonal, progress)?;
+    let (mut basis, error) = basis::choose(frames, options.basis, options.max_basis_error * diagonal, progress)?;
+    if basis.components.is_none() {
+        name_targets_after_frames(&mut basis, &options.frame_names);
+    }
     let relative = |e: Real| if diagonal > 0.0 { e / diagonal } else { 0.0 };
     let first = frames.get(0)?.into_owned();
     let normals = options.normals.then(|| FrameNormals::new(&mesh.base.triangles, &first));
@@ -298,6 +307,21 @@ impl Quantizer {
 fn byte4(v: &[f32; 3]) -> [i8; 4] {
     let b = |x: f32| (x.clamp(-1.0, 1.0) * 127.0).round() as i8;
     [b(v[0]), b(v[1]), b(v[2]), 0]
+}
+
+/// Per-frame targets named after their frames (`names`, one per frame,
+/// distinct, not blank, no control characters), else left as they are.
+fn name_targets_after_frames(basis: &mut MorphBasis, names: &[String]) {
+    let usable = |n: &String| !n.trim().is_empty() && !n.chars().any(char::is_control);
+    if names.len() != basis.targets() + 1 || !names.iter().all(usable) {
+        return;
+    }
+    let mut sorted: Vec<&String> = names.iter().collect();
+    sorted.sort();
+    sorted.dedup();
+    if sorted.len() == names.len() {
+        basis.names = names[1..].to_vec();
+    }
 }
 
 /// The morph animation of `basis` with its targets' `deltas`: weights keyed

@@ -21,6 +21,9 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         let text = e.to_string();
         Error::parse(path, None, if text.starts_with("invalid glTF") { text } else { format!("invalid glTF: {text}") })
     };
+    // serde_json refuses a byte-order mark before the JSON; the crate reads
+    // the binary header after one too.
+    let bytes = super::strip_bom(bytes);
     // A .glb that does not start with the binary header would be taken for
     // JSON and fail as "expected value at line 1 column 1".
     let named_glb = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb"));
@@ -35,8 +38,7 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
             return Err(invalid(&format!("the GLB header declares a length of {declared} bytes, less than the header itself")));
         }
     }
-    // serde_json refuses a byte-order mark before the JSON.
-    let gltf = gltf::Gltf::from_slice_without_validation(super::strip_bom(bytes)).map_err(|e| invalid(&e))?;
+    let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| invalid(&e))?;
     let blob = gltf.blob;
     let json = gltf.document.into_json();
     // gltf-json's validation indexes the accessors by POSITION unchecked.
