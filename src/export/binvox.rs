@@ -37,28 +37,24 @@ pub fn write_binvox(out: &mut impl Write, grid: &GridSpec, occ: &Occupancy) -> s
 /// as a whole ([`crate::files::replace_dir`]): on failure the old one stays
 /// as it was.
 pub fn write_binvox_frames(seq: &crate::voxel::VoxelSequence, dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut outputs: Vec<PathBuf> = Vec::with_capacity(seq.names.len());
+    let mut names: Vec<String> = Vec::with_capacity(seq.names.len());
     for (k, src) in seq.names.iter().enumerate() {
-        let stem = Path::new(src).file_stem().unwrap_or_default().to_string_lossy();
-        let out = dir.join(format!("{stem}.binvox"));
-        if let Some(j) = outputs.iter().position(|o| *o == out) {
+        let name = format!("{}.binvox", Path::new(src).file_stem().unwrap_or_default().to_string_lossy());
+        if let Some(j) = names.iter().position(|n| *n == name) {
             return Err(Error::InvalidInput(format!(
                 "{} and {} would both be written as {}: rename one",
                 seq.names[j],
                 seq.names[k],
-                out.display()
+                dir.join(&name).display()
             )));
         }
-        outputs.push(out);
+        names.push(name);
     }
     let files = seq
         .frames
         .iter()
-        .zip(&outputs)
-        .map(|(occ, out)| {
-            let name = out.file_name().expect("named after a frame").to_string_lossy().into_owned();
-            (name, Box::new(move |w: &mut BufWriter<std::fs::File>| write_binvox(w, &seq.grid, &occ.expand())) as Fill)
-        })
+        .zip(names)
+        .map(|(occ, name)| (name, Box::new(move |w: &mut BufWriter<std::fs::File>| write_binvox(w, &seq.grid, &occ.expand())) as Fill))
         .collect();
     replace_dir(dir, files)
 }

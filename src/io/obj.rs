@@ -45,8 +45,9 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     // Read in f64 and kept to f32 (what glTF and PLY floats hold, so that one
     // capture gives the same result in every format) unless f32 would blur
     // a capture far from the origin.
-    let all = || models.iter().flat_map(|m| m.mesh.positions.chunks_exact(3)).map(|p| Point3::new(p[0], p[1], p[2]));
-    let far = crate::model::mesh::Aabb::from_points(&all().collect::<Vec<_>>()).too_far_for_f32();
+    let mut bounds = crate::model::mesh::Aabb::empty();
+    models.iter().flat_map(|m| m.mesh.positions.chunks_exact(3)).for_each(|p| bounds.grow(&Point3::new(p[0], p[1], p[2])));
+    let far = bounds.too_far_for_f32();
     let kept = |c: f64| if far { c } else { c as f32 as f64 };
     for model in &models {
         let m = &model.mesh;

@@ -123,8 +123,10 @@ fn check_numbering(input: &Path, base: &Path, frames: &[PathBuf]) -> Result<()> 
     }
     // The step between frames is the most common one (a take may keep every
     // second frame); a longer one is a frame missing.
-    let steps: Vec<u64> = by_number.windows(2).map(|w| w[1].0 - w[0].0).collect();
-    let Some(step) = steps.iter().copied().max_by_key(|s| (steps.iter().filter(|t| *t == s).count(), std::cmp::Reverse(*s))) else { return Ok(()) };
+    let mut steps: Vec<u64> = by_number.windows(2).map(|w| w[1].0 - w[0].0).collect();
+    steps.sort_unstable();
+    // The most frequent step, the smallest of equally frequent ones.
+    let Some((step, _)) = steps.chunk_by(|a, b| a == b).map(|run| (run[0], run.len())).max_by_key(|&(s, n)| (n, std::cmp::Reverse(s))) else { return Ok(()) };
     let gaps: Vec<String> = by_number
         .windows(2)
         .filter(|w| w[1].0 - w[0].0 > step)
