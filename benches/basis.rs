@@ -38,19 +38,40 @@ fn main() {
     // long sequence's are (`DeformParams::memory`).
     let in_file = std::env::var("VOLTRACK_BENCH_IN_FILE").is_ok_and(|v| v == "1");
     let base = fixtures::torus(Point3::origin(), 1.0, 0.3, 100, 50);
-    println!("{} vertices, threads {}, frames {}", base.positions.len(), rayon::current_num_threads(), if in_file { "in a file" } else { "in memory" });
-    println!("| frames | Auto s | Auto components | Components(16) s | s per 1000 frames (Auto, 16) |");
+    println!(
+        "{} vertices, threads {}, frames {}",
+        base.positions.len(),
+        rayon::current_num_threads(),
+        if in_file { "in a file" } else { "in memory" }
+    );
+    println!(
+        "| frames | Auto s | Auto components | Components(16) s | s per 1000 frames (Auto, 16) |"
+    );
     println!("|---|---|---|---|---|");
     let positions = |f: usize, noise: Real| {
-        let mut frames = PositionFrames::new(base.positions.len(), f, if in_file { 0 } else { usize::MAX }).expect("a temporary file");
+        let mut frames = PositionFrames::new(
+            base.positions.len(),
+            f,
+            if in_file { 0 } else { usize::MAX },
+        )
+        .expect("a temporary file");
         let mut state = 0x5eed_u64;
         for g in 0..f {
             let mut jitter = || {
                 // A linear congruential step: noise of no structure, reproducible.
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 noise * ((state >> 11) as Real / (1u64 << 53) as Real - 0.5)
             };
-            frames.push(base.positions.iter().map(|p| motion(g, p) + Vector3::new(jitter(), jitter(), jitter())).collect()).expect("written");
+            frames
+                .push(
+                    base.positions
+                        .iter()
+                        .map(|p| motion(g, p) + Vector3::new(jitter(), jitter(), jitter()))
+                        .collect(),
+                )
+                .expect("written");
         }
         frames
     };
@@ -58,20 +79,30 @@ fn main() {
         let frames = positions(f, 0.0);
         let tolerance = 0.001 * frames.bounds().expect("read").diagonal();
         let clock = Instant::now();
-        let (auto, _) = choose(&frames, BasisChoice::Auto, tolerance, Default::default()).expect("Auto basis");
+        let (auto, _) =
+            choose(&frames, BasisChoice::Auto, tolerance, Default::default()).expect("Auto basis");
         let auto_s = clock.elapsed().as_secs_f64();
         let clock = Instant::now();
-        choose(&frames, BasisChoice::Components(16), tolerance, Default::default()).expect("16 components");
+        choose(
+            &frames,
+            BasisChoice::Components(16),
+            tolerance,
+            Default::default(),
+        )
+        .expect("16 components");
         let k16_s = clock.elapsed().as_secs_f64();
         println!(
             "| {f} | {auto_s:.2} | {} | {k16_s:.2} | {:.2}, {:.2} |",
-            auto.components.map_or("per frame".into(), |k| k.to_string()),
+            auto.components
+                .map_or("per frame".into(), |k| k.to_string()),
             1000.0 * auto_s / f as f64,
             1000.0 * k16_s / f as f64
         );
     }
     println!();
-    println!("With noise of 1 % of the torus' radius on every coordinate, which no small basis fits:");
+    println!(
+        "With noise of 1 % of the torus' radius on every coordinate, which no small basis fits:"
+    );
     println!("| frames | Auto s | Auto components | peak memory added, MB |");
     println!("|---|---|---|---|");
     for &f in &counts {
@@ -79,9 +110,16 @@ fn main() {
         let tolerance = 0.001 * frames.bounds().expect("read").diagonal();
         let before = peak::reset();
         let clock = Instant::now();
-        let (auto, _) = choose(&frames, BasisChoice::Auto, tolerance, Default::default()).expect("Auto basis");
+        let (auto, _) =
+            choose(&frames, BasisChoice::Auto, tolerance, Default::default()).expect("Auto basis");
         let auto_s = clock.elapsed().as_secs_f64();
-        let added = before.zip(peak::high_water()).map_or("n/a".into(), |(a, b)| format!("{:.1}", (b - a) / 1e3));
-        println!("| {f} | {auto_s:.2} | {} | {added} |", auto.components.map_or("per frame".into(), |k| k.to_string()));
+        let added = before
+            .zip(peak::high_water())
+            .map_or("n/a".into(), |(a, b)| format!("{:.1}", (b - a) / 1e3));
+        println!(
+            "| {f} | {auto_s:.2} | {} | {added} |",
+            auto.components
+                .map_or("per frame".into(), |k| k.to_string())
+        );
     }
 }

@@ -11,7 +11,9 @@ use voltrack::params::{DeformParams, RefineParams, TrackParams};
 use voltrack::voxel::VoxelParams;
 
 fn main() {
-    let dir = std::env::var("VOLTRACK_BENCH_DATA").unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/crane_tvm").into());
+    let dir = std::env::var("VOLTRACK_BENCH_DATA").unwrap_or_else(|_| {
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/crane_tvm").into()
+    });
     if !std::path::Path::new(&dir).is_dir() {
         println!("convert bench: {dir} not found, skipped");
         return;
@@ -19,13 +21,27 @@ fn main() {
     let clock = Instant::now();
     let conv = voltrack::pipeline::convert(
         &voltrack::io::FrameFiles::discover(&[dir.clone().into()]).unwrap(),
-        &voltrack::pipeline::ConvertOptions { voxel: VoxelParams::default(), track: TrackParams::default(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: Default::default(), checkpoint: None, ..Default::default() },
+        &voltrack::pipeline::ConvertOptions {
+            voxel: VoxelParams::default(),
+            track: TrackParams::default(),
+            refine: Some(RefineParams::default()),
+            deform: DeformParams::default(),
+            conform: Default::default(),
+            checkpoint: None,
+            ..Default::default()
+        },
         Default::default(),
     )
     .expect("converting");
     let export = Instant::now();
     let out = std::env::temp_dir().join(format!("voltrack-bench-{}.glb", std::process::id()));
-    let report = write_dynamic_glb(&out, &conv.mesh, &GltfExportOptions::default(), Default::default()).expect("exporting");
+    let report = write_dynamic_glb(
+        &out,
+        &conv.mesh,
+        &GltfExportOptions::default(),
+        Default::default(),
+    )
+    .expect("exporting");
     let export_seconds = export.elapsed().as_secs_f64();
     let wall = clock.elapsed().as_secs_f64();
     let _ = std::fs::remove_file(&out);
@@ -40,9 +56,21 @@ fn main() {
         rayon::current_num_threads()
     );
     for (stage, s) in &stages {
-        println!("{:>10} {s:>8.2} s {:>6.1} %", stage.name(), 100.0 * s / total);
+        println!(
+            "{:>10} {s:>8.2} s {:>6.1} %",
+            stage.name(),
+            100.0 * s / total
+        );
     }
-    let share = |of: &[voltrack::Stage]| 100.0 * stages.iter().filter(|(s, _)| of.contains(s)).map(|s| s.1).sum::<f64>() / total;
+    let share = |of: &[voltrack::Stage]| {
+        100.0
+            * stages
+                .iter()
+                .filter(|(s, _)| of.contains(s))
+                .map(|s| s.1)
+                .sum::<f64>()
+            / total
+    };
     use voltrack::Stage::{Conform, Deform, Export};
     println!(
         "{:>10} {total:>8.2} s (wall {wall:.2} s); deform + export {:.1} % of the total, with conform {:.1} %; GLB {:.1} MiB, {} targets",

@@ -36,7 +36,9 @@ fn chosen(spec: &TakeSpec, which: &str) -> bool {
         "all" => true,
         "dev" => !spec.held_out,
         "held-out" => spec.held_out,
-        names => names.split(',').any(|n| !n.is_empty() && spec.name.starts_with(n.trim())),
+        names => names
+            .split(',')
+            .any(|n| !n.is_empty() && spec.name.starts_with(n.trim())),
     }
 }
 
@@ -44,11 +46,24 @@ fn frames_text(frames: &[usize]) -> String {
     if frames.is_empty() {
         return "-".into();
     }
-    runs(frames).iter().map(|&(a, b)| if a == b { a.to_string() } else { format!("{a}-{b}") }).collect::<Vec<_>>().join(",")
+    runs(frames)
+        .iter()
+        .map(|&(a, b)| {
+            if a == b {
+                a.to_string()
+            } else {
+                format!("{a}-{b}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(",")
 }
 
 fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
-    std::env::var(name).ok().map(|v| v.parse().unwrap_or_else(|_| panic!("{name}={v} is not a number")))
+    std::env::var(name).ok().map(|v| {
+        v.parse()
+            .unwrap_or_else(|_| panic!("{name}={v} is not a number"))
+    })
 }
 
 fn main() {
@@ -66,17 +81,35 @@ fn main() {
     }
     options.track.reclaim = env::<u8>("VOLTRACK_RECLAIM") == Some(1);
     if env::<u8>("VOLTRACK_ABSOLUTE_IRREGULARITY") == Some(1) {
-        options.refine.as_mut().expect("refinement at the defaults").relative_irregularity = false;
+        options
+            .refine
+            .as_mut()
+            .expect("refinement at the defaults")
+            .relative_irregularity = false;
     }
-    let mut json = std::env::var("VOLTRACK_FAMILY_JSON").ok().map(|p| std::fs::File::create(p).expect("creating the JSON file"));
+    let mut json = std::env::var("VOLTRACK_FAMILY_JSON")
+        .ok()
+        .map(|p| std::fs::File::create(p).expect("creating the JSON file"));
     println!(
         "family at resolution {}, {} centers, seed {}, threads {}{}{}",
         options.voxel.resolution,
         options.track.centers,
         options.track.seed,
         rayon::current_num_threads(),
-        if options.track.reclaim { ", reclaim" } else { "" },
-        if options.refine.as_ref().is_some_and(|r| !r.relative_irregularity) { ", absolute irregularity" } else { "" }
+        if options.track.reclaim {
+            ", reclaim"
+        } else {
+            ""
+        },
+        if options
+            .refine
+            .as_ref()
+            .is_some_and(|r| !r.relative_irregularity)
+        {
+            ", absolute irregularity"
+        } else {
+            ""
+        }
     );
     println!(
         "{:<18} {:>4} {:>5} {:>5} {:>6} {:>6} {:>6} {:>6}  {:<18} {:<18} {:>7}",
@@ -85,17 +118,26 @@ fn main() {
     let mut rows = Vec::new();
     let cut: Option<usize> = env("VOLTRACK_FRAMES");
     for spec in family().into_iter().filter(|s| chosen(s, &which)) {
-        let spec = TakeSpec { frames: cut.map_or(spec.frames, |c| c.min(spec.frames)), ..spec };
+        let spec = TakeSpec {
+            frames: cut.map_or(spec.frames, |c| c.min(spec.frames)),
+            ..spec
+        };
         let take = build(&spec);
         let clock = Instant::now();
         let conv = convert(&take.meshes, &options, Default::default()).expect("converting");
-        let (fit, outliers) = Measurements::fit_of(&conv, &take.meshes, Default::default()).expect("measuring the fit");
+        let (fit, outliers) = Measurements::fit_of(&conv, &take.meshes, Default::default())
+            .expect("measuring the fit");
         let seconds = clock.elapsed().as_secs_f64();
         let lost = voltrack::pipeline::lost_parts(&conv, Some((&fit, &outliers)));
         let warned = lost.flagged.clone();
         let result = conv.mesh.frames.to_vec().expect("reading the result");
         let s = score(&take, &result);
-        let missed: Vec<usize> = s.lost.iter().copied().filter(|f| !warned.contains(f)).collect();
+        let missed: Vec<usize> = s
+            .lost
+            .iter()
+            .copied()
+            .filter(|f| !warned.contains(f))
+            .collect();
         println!(
             "{:<18} {:>4} {:>5.1} {:>5.1} {:>6.3} {:>6.3} {:>6.2} {:>6.2}  {:<18} {:<18} {:>7.1}{}",
             spec.name,
@@ -109,7 +151,11 @@ fn main() {
             frames_text(&s.lost),
             frames_text(&warned),
             seconds,
-            if missed.is_empty() { String::new() } else { format!("  missed {}", frames_text(&missed)) }
+            if missed.is_empty() {
+                String::new()
+            } else {
+                format!("  missed {}", frames_text(&missed))
+            }
         );
         std::io::stdout().flush().ok();
         if let Some(out) = json.as_mut() {
@@ -120,12 +166,21 @@ fn main() {
                 .zip(&take.meshes)
                 .enumerate()
                 .map(|(f, (positions, input))| {
-                    let surface = voltrack::metrics::Surface { positions, triangles: &take.meshes[0].triangles };
+                    let surface = voltrack::metrics::Surface {
+                        positions,
+                        triangles: &take.meshes[0].triangles,
+                    };
                     let inside = voltrack::metrics::fit::inside_volume(&conv.sequence, f);
-                    voltrack::metrics::fit::far_profile(surface, input.into(), conv.sequence.bounds.diagonal(), &FAR_PROFILE, Some(&inside))
-                        .iter()
-                        .map(|(i, r)| [i.share, i.farthest, r.share, r.farthest])
-                        .collect()
+                    voltrack::metrics::fit::far_profile(
+                        surface,
+                        input.into(),
+                        conv.sequence.bounds.diagonal(),
+                        &FAR_PROFILE,
+                        Some(&inside),
+                    )
+                    .iter()
+                    .map(|(i, r)| [i.share, i.farthest, r.share, r.farthest])
+                    .collect()
                 })
                 .collect();
             let line = serde_json::json!({
@@ -149,9 +204,17 @@ fn main() {
     let within = rows.iter().filter(|r| r.1.max <= MAX_BOUND).count();
     let mut means: Vec<f64> = rows.iter().map(|r| r.1.mean).collect();
     means.sort_by(f64::total_cmp);
-    let median = if means.len() % 2 == 1 { means[means.len() / 2] } else { 0.5 * (means[means.len() / 2 - 1] + means[means.len() / 2]) };
+    let median = if means.len() % 2 == 1 {
+        means[means.len() / 2]
+    } else {
+        0.5 * (means[means.len() / 2 - 1] + means[means.len() / 2])
+    };
     let long: Vec<_> = rows.iter().filter(|r| r.0.frames >= LONG_TAKE).collect();
-    let drifting: Vec<&str> = long.iter().filter(|r| r.1.drift > DRIFT_BOUND).map(|r| r.0.name).collect();
+    let drifting: Vec<&str> = long
+        .iter()
+        .filter(|r| r.1.drift > DRIFT_BOUND)
+        .map(|r| r.0.name)
+        .collect();
     let lost: usize = rows.iter().map(|r| r.1.lost.len()).sum();
     let missed: usize = rows.iter().map(|r| r.2.len()).sum();
     let seconds: f64 = rows.iter().map(|r| r.3).sum();

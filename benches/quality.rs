@@ -14,37 +14,71 @@ use voltrack::pipeline::{measure, measure_with_counts, Quality};
 use voltrack::voxel::{voxelize_sequence, VoxelParams};
 
 fn env(key: &str, default: usize) -> usize {
-    std::env::var(key).ok().and_then(|s| s.parse().ok()).unwrap_or(default)
+    std::env::var(key)
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(default)
 }
 
 fn top(q: &Quality, k: usize) -> String {
-    q.largest_irregularity(k).iter().map(|x| format!("{x:.3e}")).collect::<Vec<_>>().join(" ")
+    q.largest_irregularity(k)
+        .iter()
+        .map(|x| format!("{x:.3e}"))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 fn main() {
     let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data");
-    let names = std::env::var("VOLTRACK_BENCH_SEQUENCES").unwrap_or_else(|_| "walker,crane_tvm,collision".into());
-    let (r, n, frames) = (env("VOLTRACK_BENCH_R", 256), env("VOLTRACK_BENCH_CENTERS", 1000), env("VOLTRACK_BENCH_FRAMES", usize::MAX));
-    println!("R = {r}, N = {n}, seed 0, threads {}", rayon::current_num_threads());
-    let mut table1 = vec!["| sequence | frames | PCAC max | PCAC iir | DFU max | DFU iir | track s/frame max | iir |".to_string(), "|---|---|---|---|---|---|---|---|".into()];
+    let names = std::env::var("VOLTRACK_BENCH_SEQUENCES")
+        .unwrap_or_else(|_| "walker,crane_tvm,collision".into());
+    let (r, n, frames) = (
+        env("VOLTRACK_BENCH_R", 256),
+        env("VOLTRACK_BENCH_CENTERS", 1000),
+        env("VOLTRACK_BENCH_FRAMES", usize::MAX),
+    );
+    println!(
+        "R = {r}, N = {n}, seed 0, threads {}",
+        rayon::current_num_threads()
+    );
+    let mut table1 = vec![
+        "| sequence | frames | PCAC max | PCAC iir | DFU max | DFU iir | track s/frame max | iir |"
+            .to_string(),
+        "|---|---|---|---|---|---|---|---|".into(),
+    ];
     let mut table2 = vec!["| sequence | variant | centers | PCAC | DFU | largest I_i (top 5 of 20) | refine s | global iterations |".to_string(), "|---|---|---|---|---|---|---|---|".into()];
     let mut irregular = Vec::new();
     for name in names.split(',') {
-        let Ok(mut paths) = voltrack::io::discover_frames(&[format!("{data}/{name}").into()]) else {
+        let Ok(mut paths) = voltrack::io::discover_frames(&[format!("{data}/{name}").into()])
+        else {
             println!("{name}: not found, skipped");
             continue;
         };
         paths.truncate(frames);
-        let seq = voxelize_sequence(&voltrack::io::FrameFiles::new(paths.to_vec()), &VoxelParams { resolution: r, ..Default::default() }, Default::default()).expect("voxelising");
+        let seq = voxelize_sequence(
+            &voltrack::io::FrameFiles::new(paths.to_vec()),
+            &VoxelParams {
+                resolution: r,
+                ..Default::default()
+            },
+            Default::default(),
+        )
+        .expect("voxelising");
         let mut results = Vec::new();
         for affinity in [AffinityKind::Max, AffinityKind::Iir] {
-            let params = TrackParams { centers: n, affinity, ..Default::default() };
+            let params = TrackParams {
+                centers: n,
+                affinity,
+                ..Default::default()
+            };
             let clock = Instant::now();
-            let tracked = voltrack::track::track(&seq, &params, Default::default()).expect("tracking");
+            let tracked =
+                voltrack::track::track(&seq, &params, Default::default()).expect("tracking");
             let per_frame = clock.elapsed().as_secs_f64() / seq.frames.len() as f64;
             results.push((tracked, per_frame));
         }
-        let forward = |r: &voltrack::track::TrackResult| measure_with_counts(&r.trajectories, &r.cell_counts);
+        let forward =
+            |r: &voltrack::track::TrackResult| measure_with_counts(&r.trajectories, &r.cell_counts);
         let (qm, qi) = (forward(&results[0].0), forward(&results[1].0));
         table1.push(format!(
             "| {name} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} |",
@@ -65,19 +99,52 @@ fn main() {
         table2.push(row("forward only", &qm, forward.centers, 0.0, "-".into()));
         irregular.push(format!("{name} forward only: {}", top(&qm, 20)));
         println!("{}", table2.last().unwrap());
-        let variants = [("removal only (20)", 20, 1, false), ("n_rem 20, n_go 1", 20, 1, true), ("n_rem 4, n_go 5", 20, 5, true), ("n_rem 1, n_go 20", 20, 20, true)];
+        let variants = [
+            ("removal only (20)", 20, 1, false),
+            ("n_rem 20, n_go 1", 20, 1, true),
+            ("n_rem 4, n_go 5", 20, 5, true),
+            ("n_rem 1, n_go 20", 20, 20, true),
+        ];
         for (variant, remove, batches, optimise) in variants {
-            let params = RefineParams { remove: Some(remove), batches, optimise, ..Default::default() };
-            let refined = voltrack::refine::refine(forward.clone(), &seq, &params, Default::default()).expect("refining");
+            let params = RefineParams {
+                remove: Some(remove),
+                batches,
+                optimise,
+                ..Default::default()
+            };
+            let refined =
+                voltrack::refine::refine(forward.clone(), &seq, &params, Default::default())
+                    .expect("refining");
             let q = measure(&refined.trajectories, &seq);
-            let iterations: Vec<String> = refined.refinement.batches.iter().map(|b| (b.len().saturating_sub(1)).to_string()).collect();
-            let iterations = if iterations.is_empty() { "-".into() } else { iterations.join("+") };
-            table2.push(row(variant, &q, refined.trajectories.centers, refined.refinement.seconds, iterations));
+            let iterations: Vec<String> = refined
+                .refinement
+                .batches
+                .iter()
+                .map(|b| (b.len().saturating_sub(1)).to_string())
+                .collect();
+            let iterations = if iterations.is_empty() {
+                "-".into()
+            } else {
+                iterations.join("+")
+            };
+            table2.push(row(
+                variant,
+                &q,
+                refined.trajectories.centers,
+                refined.refinement.seconds,
+                iterations,
+            ));
             irregular.push(format!("{name} {variant}: {}", top(&q, 20)));
             println!("{}", table2.last().unwrap());
         }
     }
-    println!("\nForward tracking, max against IIR affinity:\n{}", table1.join("\n"));
-    println!("\nIrregular-center removal and global optimisation:\n{}", table2.join("\n"));
+    println!(
+        "\nForward tracking, max against IIR affinity:\n{}",
+        table1.join("\n")
+    );
+    println!(
+        "\nIrregular-center removal and global optimisation:\n{}",
+        table2.join("\n")
+    );
     println!("\nLargest 20 I_i:\n{}", irregular.join("\n"));
 }

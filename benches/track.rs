@@ -13,8 +13,13 @@ use voltrack::params::TrackParams;
 use voltrack::voxel::{voxelize_sequence, VoxelParams};
 
 fn main() {
-    let dir = std::env::var("VOLTRACK_BENCH_DATA").unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/crane_tvm").into());
-    let frames: usize = std::env::var("VOLTRACK_BENCH_FRAMES").ok().and_then(|s| s.parse().ok()).unwrap_or(usize::MAX);
+    let dir = std::env::var("VOLTRACK_BENCH_DATA").unwrap_or_else(|_| {
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/crane_tvm").into()
+    });
+    let frames: usize = std::env::var("VOLTRACK_BENCH_FRAMES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(usize::MAX);
     let mut paths = match voltrack::io::discover_frames(&[dir.clone().into()]) {
         Ok(p) => p,
         Err(e) => {
@@ -23,19 +28,56 @@ fn main() {
         }
     };
     paths.truncate(frames);
-    let only: Option<usize> = std::env::var("VOLTRACK_BENCH_RESOLUTION").ok().and_then(|s| s.parse().ok());
+    let only: Option<usize> = std::env::var("VOLTRACK_BENCH_RESOLUTION")
+        .ok()
+        .and_then(|s| s.parse().ok());
     let single = std::env::var_os("VOLTRACK_BENCH_SINGLE_GUESS").is_some();
-    let params = TrackParams { damped_guess: if single { None } else { TrackParams::default().damped_guess }, ..Default::default() };
-    println!("threads: {}; {}", rayon::current_num_threads(), if single { "single guess" } else { "constant-velocity and damped guesses (default)" });
-    for (r, n) in [(256, 1000), (512, 2000)].into_iter().filter(|&(r, _)| only.map_or(true, |o| o == r)) {
+    let params = TrackParams {
+        damped_guess: if single {
+            None
+        } else {
+            TrackParams::default().damped_guess
+        },
+        ..Default::default()
+    };
+    println!(
+        "threads: {}; {}",
+        rayon::current_num_threads(),
+        if single {
+            "single guess"
+        } else {
+            "constant-velocity and damped guesses (default)"
+        }
+    );
+    for (r, n) in [(256, 1000), (512, 2000)]
+        .into_iter()
+        .filter(|&(r, _)| only.map_or(true, |o| o == r))
+    {
         let clock = Instant::now();
-        let seq = voxelize_sequence(&voltrack::io::FrameFiles::new(paths.to_vec()), &VoxelParams { resolution: r, ..Default::default() }, Default::default()).expect("voxelising");
+        let seq = voxelize_sequence(
+            &voltrack::io::FrameFiles::new(paths.to_vec()),
+            &VoxelParams {
+                resolution: r,
+                ..Default::default()
+            },
+            Default::default(),
+        )
+        .expect("voxelising");
         let read_voxelize = clock.elapsed().as_secs_f64();
         let occupied: usize = seq.frames.iter().map(|f| f.len()).sum::<usize>() / seq.frames.len();
-        let res = voltrack::track::track(&seq, &TrackParams { centers: n, ..params.clone() }, Default::default()).expect("tracking");
+        let res = voltrack::track::track(
+            &seq,
+            &TrackParams {
+                centers: n,
+                ..params.clone()
+            },
+            Default::default(),
+        )
+        .expect("tracking");
         let tracked = &res.timings[1..];
         let k = tracked.len() as f64;
-        let mean = |f: fn(&voltrack::track::FrameTiming) -> f64| tracked.iter().map(f).sum::<f64>() / k;
+        let mean =
+            |f: fn(&voltrack::track::FrameTiming) -> f64| tracked.iter().map(f).sum::<f64>() / k;
         println!(
             "crane_tvm R={r} N={n}: {} frames, {occupied} occupied voxels/frame; read+voxelise {:.2} s ({:.1} ms/frame); frame 0 (Lloyd) {:.2} s",
             seq.frames.len(),

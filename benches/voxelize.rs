@@ -11,17 +11,33 @@ use voltrack::model::GridSpec;
 use voltrack::voxel::{voxelize, VoxelParams};
 
 fn dancer(c: &mut Criterion) {
-    let dir = std::env::var("VOLTRACK_BENCH_DATA").unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/dancer").into());
+    let dir = std::env::var("VOLTRACK_BENCH_DATA")
+        .unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/dancer").into());
     let Ok(paths) = voltrack::io::discover_frames(&[dir.clone().into()]) else {
         eprintln!("voxelize bench: {dir} not found, skipped");
         return;
     };
-    let seq = voltrack::voxel::voxelize_sequence(&voltrack::io::FrameFiles::new(paths.to_vec()), &VoxelParams { resolution: 256, ..Default::default() }, Default::default())
-        .expect("voxelising the sequence");
+    let seq = voltrack::voxel::voxelize_sequence(
+        &voltrack::io::FrameFiles::new(paths.to_vec()),
+        &VoxelParams {
+            resolution: 256,
+            ..Default::default()
+        },
+        Default::default(),
+    )
+    .expect("voxelising the sequence");
     let mesh = voltrack::io::read_mesh(&paths[0]).expect("reading frame 0");
-    let one_core = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("thread pool");
-    let name = format!("dancer frame 0 ({} triangles) R=256, 1 thread", mesh.triangles.len());
-    c.bench_function(&name, |b| b.iter(|| one_core.install(|| voxelize(black_box(&mesh), &seq.grid))));
+    let one_core = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("thread pool");
+    let name = format!(
+        "dancer frame 0 ({} triangles) R=256, 1 thread",
+        mesh.triangles.len()
+    );
+    c.bench_function(&name, |b| {
+        b.iter(|| one_core.install(|| voxelize(black_box(&mesh), &seq.grid)))
+    });
 }
 
 fn fixtures(c: &mut Criterion) {

@@ -13,11 +13,35 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (traj, attrs) = voltrack::io::exr::read_trajectories_exr(centers)?;
     let resolution = voltrack::pipeline::resolution_of(&attrs, centers)?;
     let files = voltrack::io::FrameFiles::discover(&[args[2].clone().into()])?;
-    let seq = voltrack::voxel::voxelize_sequence(&files, &voltrack::voxel::VoxelParams { resolution, ..Default::default() }, Default::default())?;
-    let reaches: Vec<f64> = if args.len() > 3 { args[3..].iter().map(|s| s.parse()).collect::<Result<_, _>>()? } else { vec![CoverageParams::default().reach] };
+    let seq = voltrack::voxel::voxelize_sequence(
+        &files,
+        &voltrack::voxel::VoxelParams {
+            resolution,
+            ..Default::default()
+        },
+        Default::default(),
+    )?;
+    let reaches: Vec<f64> = if args.len() > 3 {
+        args[3..]
+            .iter()
+            .map(|s| s.parse())
+            .collect::<Result<_, _>>()?
+    } else {
+        vec![CoverageParams::default().reach]
+    };
     for reach in reaches {
-        let c = voltrack::metrics::coverage(&traj, &seq, &CoverageParams { reach, ..Default::default() })?;
-        println!("reach {reach}: {:.1} voxels per cell; flagged {:?}", c.cell_voxels, c.flagged);
+        let c = voltrack::metrics::coverage(
+            &traj,
+            &seq,
+            &CoverageParams {
+                reach,
+                ..Default::default()
+            },
+        )?;
+        println!(
+            "reach {reach}: {:.1} voxels per cell; flagged {:?}",
+            c.cell_voxels, c.flagged
+        );
         for (f, x) in c.frames.iter().enumerate() {
             println!(
                 "{f:5} unreached {:7}  lost {:7} ({:.3} %)  largest region {:5.1} cells  farthest {:.2} x reach",

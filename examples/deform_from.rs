@@ -21,7 +21,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (traj, attrs) = voltrack::io::exr::read_trajectories_exr(args[0].as_ref())?;
     let resolution = voltrack::pipeline::resolution_of(&attrs, args[0].as_ref())?;
     let files = voltrack::io::FrameFiles::discover(&[args[1].clone().into()])?;
-    let seq = voltrack::voxel::voxelize_sequence(&files, &VoxelParams { resolution, ..Default::default() }, Default::default())?;
+    let seq = voltrack::voxel::voxelize_sequence(
+        &files,
+        &VoxelParams {
+            resolution,
+            ..Default::default()
+        },
+        Default::default(),
+    )?;
     let env = |k: &str| std::env::var(k).ok().and_then(|s| s.parse::<f64>().ok());
     let mut params = DeformParams::default();
     if let Some(k) = args.get(3) {
@@ -45,18 +52,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         stiffness: env("VOLTRACK_CONFORM_STIFFNESS").unwrap_or(defaults.stiffness),
         point_weight: env("VOLTRACK_CONFORM_POINT_WEIGHT").unwrap_or(defaults.point_weight),
         max_distance: env("VOLTRACK_CONFORM_MAX_DISTANCE").unwrap_or(defaults.max_distance),
-        min_normal_cosine: env("VOLTRACK_CONFORM_NORMAL_COSINE").unwrap_or(defaults.min_normal_cosine),
+        min_normal_cosine: env("VOLTRACK_CONFORM_NORMAL_COSINE")
+            .unwrap_or(defaults.min_normal_cosine),
         bend_strain: env("VOLTRACK_CONFORM_BEND_STRAIN").unwrap_or(defaults.bend_strain),
         joint_strain: env("VOLTRACK_CONFORM_JOINT_STRAIN").unwrap_or(defaults.joint_strain),
-        least_edge_weight: env("VOLTRACK_CONFORM_LEAST_EDGE_WEIGHT").unwrap_or(defaults.least_edge_weight),
+        least_edge_weight: env("VOLTRACK_CONFORM_LEAST_EDGE_WEIGHT")
+            .unwrap_or(defaults.least_edge_weight),
         ..defaults
     };
     let mesh = voltrack::deform::conform(mesh, &files, &seq.bounds, &conform, Default::default())?;
     if args[2].ends_with(".glb") {
-        let report = voltrack::export::gltf::write_dynamic_glb(args[2].as_ref(), &mesh, &Default::default(), Default::default())?;
+        let report = voltrack::export::gltf::write_dynamic_glb(
+            args[2].as_ref(),
+            &mesh,
+            &Default::default(),
+            Default::default(),
+        )?;
         println!("wrote {} ({} targets)", args[2], report.targets);
     } else {
-        let files = voltrack::export::obj::write_obj_sequence(args[2].as_ref(), &mesh, voltrack::model::DEFAULT_NAME)?;
+        let files = voltrack::export::obj::write_obj_sequence(
+            args[2].as_ref(),
+            &mesh,
+            voltrack::model::DEFAULT_NAME,
+        )?;
         println!("wrote {} OBJ files into {}", files.len(), args[2]);
     }
     Ok(())

@@ -12,7 +12,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
     let dir = std::path::PathBuf::from(args.next().ok_or("usage: family DIR [NAME...]")?);
     let names: Vec<String> = args.collect();
-    for spec in family().into_iter().filter(|s| names.is_empty() || names.iter().any(|n| s.name.starts_with(n.as_str()))) {
+    for spec in family()
+        .into_iter()
+        .filter(|s| names.is_empty() || names.iter().any(|n| s.name.starts_with(n.as_str())))
+    {
         let clock = std::time::Instant::now();
         let take = build(&spec);
         let out = dir.join(spec.name);
@@ -23,12 +26,49 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             std::fs::write(out.join(format!("frame_{f:04}.obj")), obj)?;
         }
         let first = &take.meshes[0].positions;
-        let traj: Vec<f32> = (0..take.meshes.len()).flat_map(|f| take.truth.frame(f, first)).flat_map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect();
+        let traj: Vec<f32> = (0..take.meshes.len())
+            .flat_map(|f| take.truth.frame(f, first))
+            .flat_map(|p| [p.x as f32, p.y as f32, p.z as f32])
+            .collect();
         let v = first.len();
         let npz = npz(&[
-            ("traj", npy("<f4", &[take.meshes.len(), v, 3], &traj.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>())),
-            ("ambiguous", npy("|b1", &[v], &take.truth.ambiguous.iter().map(|&a| a as u8).collect::<Vec<u8>>())),
-            ("label", npy("<i4", &[v], &take.truth.labels.iter().flat_map(|&l| (l as i32).to_le_bytes()).collect::<Vec<u8>>())),
+            (
+                "traj",
+                npy(
+                    "<f4",
+                    &[take.meshes.len(), v, 3],
+                    &traj
+                        .iter()
+                        .flat_map(|x| x.to_le_bytes())
+                        .collect::<Vec<u8>>(),
+                ),
+            ),
+            (
+                "ambiguous",
+                npy(
+                    "|b1",
+                    &[v],
+                    &take
+                        .truth
+                        .ambiguous
+                        .iter()
+                        .map(|&a| a as u8)
+                        .collect::<Vec<u8>>(),
+                ),
+            ),
+            (
+                "label",
+                npy(
+                    "<i4",
+                    &[v],
+                    &take
+                        .truth
+                        .labels
+                        .iter()
+                        .flat_map(|&l| (l as i32).to_le_bytes())
+                        .collect::<Vec<u8>>(),
+                ),
+            ),
         ]);
         std::fs::write(out.join("gt.npz"), npz)?;
         let vertices: Vec<usize> = take.meshes.iter().map(|m| m.positions.len()).collect();
@@ -53,8 +93,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
 /// A .npy file: the header for `descr` and `shape`, then `data`.
 fn npy(descr: &str, shape: &[usize], data: &[u8]) -> Vec<u8> {
-    let dims = shape.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", ");
-    let shape = if shape.len() == 1 { format!("({dims},)") } else { format!("({dims})") };
+    let dims = shape
+        .iter()
+        .map(|d| d.to_string())
+        .collect::<Vec<_>>()
+        .join(", ");
+    let shape = if shape.len() == 1 {
+        format!("({dims},)")
+    } else {
+        format!("({dims})")
+    };
     let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
     // The header, magic and lengths included, ends on a multiple of 64 with a newline.
     while (10 + header.len() + 1) % 64 != 0 {
@@ -119,7 +167,11 @@ fn crc32(data: &[u8]) -> u32 {
     for &b in data {
         crc ^= b as u32;
         for _ in 0..8 {
-            crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
         }
     }
     !crc

@@ -40,26 +40,49 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut totals = (0.0, 0.0, 0usize, 0usize);
     for mut spec in family().into_iter().filter(chosen) {
         if let Some(f) = frames {
-            spec = TakeSpec { frames: f.min(spec.frames), ..spec };
+            spec = TakeSpec {
+                frames: f.min(spec.frames),
+                ..spec
+            };
         }
         let take = build(&spec);
-        let voxel = VoxelParams { resolution: env("VOLTRACK_RESOLUTION").unwrap_or(256), ..Default::default() };
+        let voxel = VoxelParams {
+            resolution: env("VOLTRACK_RESOLUTION").unwrap_or(256),
+            ..Default::default()
+        };
         let seq = voxelize_sequence(&take.meshes, &voxel, Default::default())?;
-        let params = TrackParams { seed: env("VOLTRACK_SEED").unwrap_or(0), centers: env("VOLTRACK_CENTERS").unwrap_or(1000), ..Default::default() };
+        let params = TrackParams {
+            seed: env("VOLTRACK_SEED").unwrap_or(0),
+            centers: env("VOLTRACK_CENTERS").unwrap_or(1000),
+            ..Default::default()
+        };
         let clock = std::time::Instant::now();
         let tracked = voltrack::track::track(&seq, &params, Default::default())?;
         let seconds = clock.elapsed().as_secs_f64();
         let traj = if env::<u8>("VOLTRACK_REFINE") == Some(1) {
-            voltrack::refine::refine(tracked.trajectories.clone(), &seq, &RefineParams::default(), Default::default())?.trajectories
+            voltrack::refine::refine(
+                tracked.trajectories.clone(),
+                &seq,
+                &RefineParams::default(),
+                Default::default(),
+            )?
+            .trajectories
         } else {
             tracked.trajectories.clone()
         };
         let first = &take.meshes[0].positions;
-        let index = kiddo::ImmutableKdTree::<f64, 3>::new_from_slice(&first.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>()).expect("a tree of the vertices");
+        let index = kiddo::ImmutableKdTree::<f64, 3>::new_from_slice(
+            &first.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>(),
+        )
+        .expect("a tree of the vertices");
         let labels: Vec<usize> = (0..traj.centers)
             .map(|i| {
                 let c = traj.get(0, i);
-                take.truth.labels[index.query(&[c.x, c.y, c.z]).nearest_one::<kiddo::SquaredEuclidean<f64>>().execute().item as usize] as usize
+                take.truth.labels[index
+                    .query(&[c.x, c.y, c.z])
+                    .nearest_one::<kiddo::SquaredEuclidean<f64>>()
+                    .execute()
+                    .item as usize] as usize
             })
             .collect();
         let voxel_size = seq.grid.voxel_size;
@@ -68,12 +91,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for f in 0..traj.frames {
             let mut by_part: Vec<Vec<Real>> = vec![Vec::new(); take.truth.parts.len()];
             for (i, &k) in labels.iter().enumerate() {
-                let e = (traj.get(f, i) - take.truth.motions[f][k] * traj.get(0, i)).norm() / voxel_size;
+                let e = (traj.get(f, i) - take.truth.motions[f][k] * traj.get(0, i)).norm()
+                    / voxel_size;
                 all.push(e);
                 by_part[k].push(e);
             }
             // A part is lost when most of its centers are, not one stray.
-            let (k, e) = by_part.iter_mut().enumerate().filter(|(_, p)| !p.is_empty()).map(|(k, p)| (k, median(p))).fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+            let (k, e) = by_part
+                .iter_mut()
+                .enumerate()
+                .filter(|(_, p)| !p.is_empty())
+                .map(|(k, p)| (k, median(p)))
+                .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
             if e > worst.0 {
                 worst = (e, f, take.truth.parts[k].clone());
             }
@@ -82,10 +111,25 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let t = &tracked.timings[f];
                 let empty = tracked.cell_counts[f].iter().filter(|&&n| n == 0).count();
                 if let Ok(part) = std::env::var("VOLTRACK_PART") {
-                    let k = take.truth.parts.iter().position(|p| *p == part).expect("a part of the take");
+                    let k = take
+                        .truth
+                        .parts
+                        .iter()
+                        .position(|p| *p == part)
+                        .expect("a part of the take");
                     let mine: Vec<usize> = (0..traj.centers).filter(|&i| labels[i] == k).collect();
-                    let errors: Vec<String> = mine.iter().map(|&i| format!("{:.1}", (traj.get(f, i) - take.truth.motions[f][k] * traj.get(0, i)).norm() / voxel_size)).collect();
-                    let counts: Vec<u32> = mine.iter().map(|&i| tracked.cell_counts[f][i]).collect();
+                    let errors: Vec<String> = mine
+                        .iter()
+                        .map(|&i| {
+                            format!(
+                                "{:.1}",
+                                (traj.get(f, i) - take.truth.motions[f][k] * traj.get(0, i)).norm()
+                                    / voxel_size
+                            )
+                        })
+                        .collect();
+                    let counts: Vec<u32> =
+                        mine.iter().map(|&i| tracked.cell_counts[f][i]).collect();
                     println!("        {part}: errors {errors:?} cells {counts:?}");
                 }
                 println!("  {f:4} mean {:6.2}  >10: {:4}  empty cells {empty:3}  worst {:<16} median {e:6.2}  {:?} {} it", row.iter().sum::<Real>() / row.len() as Real, row.iter().filter(|&&e| e > 10.0).count(), take.truth.parts[k], t.kept_guess, t.iterations);

@@ -23,19 +23,41 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let (fit, outliers) = Measurements::fit_of(&conv, &source, Default::default())?;
         let lost = voltrack::pipeline::lost_parts(&conv, Some((&fit, &outliers)));
         if let Ok(out) = std::env::var("VOLTRACK_GLB_DIR") {
-            let name = std::path::Path::new(&dir).file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "result".into());
+            let name = std::path::Path::new(&dir)
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "result".into());
             let path = std::path::Path::new(&out).join(format!("{name}.glb"));
-            voltrack::export::gltf::write_dynamic_glb(&path, &conv.mesh, &Default::default(), Default::default())?;
+            voltrack::export::gltf::write_dynamic_glb(
+                &path,
+                &conv.mesh,
+                &Default::default(),
+                Default::default(),
+            )?;
         }
         let diagonal = conv.sequence.bounds.diagonal();
         let mut profile = Vec::new();
         for f in 0..conv.mesh.frames.len() {
             let positions = conv.mesh.frames.get(f)?;
             let input = voltrack::FrameSource::mesh(&source, f)?;
-            let result = Surface { positions: &positions, triangles: &conv.mesh.base.triangles };
+            let result = Surface {
+                positions: &positions,
+                triangles: &conv.mesh.base.triangles,
+            };
             let inside = voltrack::metrics::fit::inside_volume(&conv.sequence, f);
-            let regions = far_profile(result, Surface::from(&input), diagonal, &DISTANCES, Some(&inside));
-            profile.push(regions.iter().map(|(i, r)| [i.share, i.farthest, r.share, r.farthest]).collect::<Vec<_>>());
+            let regions = far_profile(
+                result,
+                Surface::from(&input),
+                diagonal,
+                &DISTANCES,
+                Some(&inside),
+            );
+            profile.push(
+                regions
+                    .iter()
+                    .map(|(i, r)| [i.share, i.farthest, r.share, r.farthest])
+                    .collect::<Vec<_>>(),
+            );
         }
         let line = serde_json::json!({
             "input": dir,

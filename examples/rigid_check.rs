@@ -16,27 +16,50 @@
 //! `--conform-bend-strain`, `--conform-joint-strain`).
 
 use voltrack::math::{Point3, Real};
-use voltrack::params::{ConformParams, DeformParams, RefineParams, TrackParams};
 use voltrack::model::{fit_rigid, Rigid};
+use voltrack::params::{ConformParams, DeformParams, RefineParams, TrackParams};
 use voltrack::voxel::VoxelParams;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mode = std::env::args().nth(1).unwrap_or_else(|| "centers".into());
     let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data");
-    let env = |k: &str, d: usize| std::env::var(k).ok().and_then(|s| s.parse().ok()).unwrap_or(d);
+    let env = |k: &str, d: usize| {
+        std::env::var(k)
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(d)
+    };
     let resolution = env("VOLTRACK_R", 256);
     let prism = voltrack::io::discover_frames(&[format!("{data}/pentagonal_prism").into()])?;
-    let truth: Vec<Vec<Point3>> = prism.iter().map(|p| voltrack::io::read_mesh(p).map(|m| m.positions)).collect::<Result<_, _>>()?;
-    let motions: Vec<Rigid> = truth.iter().map(|f| fit_rigid(&truth[0], f, (0..f.len()).map(|i| (i, 1.0)))).collect();
+    let truth: Vec<Vec<Point3>> = prism
+        .iter()
+        .map(|p| voltrack::io::read_mesh(p).map(|m| m.positions))
+        .collect::<Result<_, _>>()?;
+    let motions: Vec<Rigid> = truth
+        .iter()
+        .map(|f| fit_rigid(&truth[0], f, (0..f.len()).map(|i| (i, 1.0))))
+        .collect();
     let fit_residual = truth
         .iter()
         .zip(&motions)
-        .flat_map(|(f, m)| truth[0].iter().zip(f).map(move |(p, q)| (m.apply(p) - q).norm()))
+        .flat_map(|(f, m)| {
+            truth[0]
+                .iter()
+                .zip(f)
+                .map(move |(p, q)| (m.apply(p) - q).norm())
+        })
         .fold(0.0, Real::max);
-    let voxel = VoxelParams { resolution, ..Default::default() };
+    let voxel = VoxelParams {
+        resolution,
+        ..Default::default()
+    };
     let (frames, voxel_size): (Vec<Vec<Point3>>, Real) = match mode.as_str() {
         "centers" => {
-            let seq = voltrack::voxel::voxelize_sequence(&voltrack::io::FrameFiles::new(prism.to_vec()), &voxel, Default::default())?;
+            let seq = voltrack::voxel::voxelize_sequence(
+                &voltrack::io::FrameFiles::new(prism.to_vec()),
+                &voxel,
+                Default::default(),
+            )?;
             let params = TrackParams {
                 centers: env("VOLTRACK_CENTERS", 200),
                 lloyd_iterations: env("VOLTRACK_LLOYD", TrackParams::default().lloyd_iterations),
@@ -44,36 +67,61 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             };
             let tracked = voltrack::track::track(&seq, &params, Default::default())?;
             let t = &tracked.trajectories;
-            ((0..t.frames).map(|f| t.frame(f).to_vec()).collect(), seq.grid.voxel_size)
+            (
+                (0..t.frames).map(|f| t.frame(f).to_vec()).collect(),
+                seq.grid.voxel_size,
+            )
         }
         "vertices" => {
             let inputs = [format!("{data}/pent_tvm").into()];
             let real = |k: &str| std::env::var(k).ok().and_then(|s| s.parse::<Real>().ok());
             let defaults = TrackParams::default();
-            let track = TrackParams { centers: env("VOLTRACK_CENTERS", 1000), threshold: real("VOLTRACK_THRESHOLD").unwrap_or(defaults.threshold), ..defaults };
+            let track = TrackParams {
+                centers: env("VOLTRACK_CENTERS", 1000),
+                threshold: real("VOLTRACK_THRESHOLD").unwrap_or(defaults.threshold),
+                ..defaults
+            };
             let defaults = ConformParams::default();
             let conform = ConformParams {
                 stiffness: real("VOLTRACK_CONFORM_STIFFNESS").unwrap_or(defaults.stiffness),
                 bend_strain: real("VOLTRACK_CONFORM_BEND_STRAIN").unwrap_or(defaults.bend_strain),
-                joint_strain: real("VOLTRACK_CONFORM_JOINT_STRAIN").unwrap_or(defaults.joint_strain),
+                joint_strain: real("VOLTRACK_CONFORM_JOINT_STRAIN")
+                    .unwrap_or(defaults.joint_strain),
                 ..defaults
             };
             let conv = voltrack::pipeline::convert(
-        &voltrack::io::FrameFiles::discover(&inputs)?,
-        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: conform.clone(), checkpoint: None, ..Default::default() },
-        Default::default(),
-    )?;
+                &voltrack::io::FrameFiles::discover(&inputs)?,
+                &voltrack::pipeline::ConvertOptions {
+                    voxel: voxel.clone(),
+                    track: track.clone(),
+                    refine: Some(RefineParams::default()),
+                    deform: DeformParams::default(),
+                    conform: conform.clone(),
+                    checkpoint: None,
+                    ..Default::default()
+                },
+                Default::default(),
+            )?;
             (conv.mesh.frames.to_vec()?, conv.sequence.grid.voxel_size)
         }
         other => return Err(format!("unknown mode {other}: centers or vertices").into()),
     };
     if frames.len() != motions.len() {
-        return Err(format!("{} frames tracked, {} in the ground truth", frames.len(), motions.len()).into());
+        return Err(format!(
+            "{} frames tracked, {} in the ground truth",
+            frames.len(),
+            motions.len()
+        )
+        .into());
     }
     let mut all = Vec::new();
     let mut worst_frame = (0, 0.0);
     for (f, (points, m)) in frames.iter().zip(&motions).enumerate() {
-        let errors: Vec<Real> = frames[0].iter().zip(points).map(|(p0, p)| (m.apply(p0) - p).norm() / voxel_size).collect();
+        let errors: Vec<Real> = frames[0]
+            .iter()
+            .zip(points)
+            .map(|(p0, p)| (m.apply(p0) - p).norm() / voxel_size)
+            .collect();
         let max = errors.iter().copied().fold(0.0, Real::max);
         if std::env::var_os("VOLTRACK_VERBOSE").is_some() {
             println!("frame {f}: max {max:.3} voxels");
@@ -89,7 +137,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for (points, m) in frames.iter().zip(&motions) {
         let fitted = fit_rigid(&frames[0], points, (0..points.len()).map(|i| (i, 1.0)));
         for (p0, p) in frames[0].iter().zip(points) {
-            collective = Real::max(collective, (fitted.apply(p0) - m.apply(p0)).norm() / voxel_size);
+            collective = Real::max(
+                collective,
+                (fitted.apply(p0) - m.apply(p0)).norm() / voxel_size,
+            );
             own = Real::max(own, (fitted.apply(p0) - p).norm() / voxel_size);
         }
     }

@@ -23,6 +23,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let mesh = DynamicMesh { base, frames };
     let report = write_vat(out.as_ref(), &mesh, &VatOptions::default())?;
-    println!("{} vertices, {count} frames: texture, mesh, sidecar {:?} bytes", mesh.base.positions.len(), report.bytes);
+    println!(
+        "{} vertices, {count} frames: texture, mesh, sidecar {:?} bytes",
+        mesh.base.positions.len(),
+        report.bytes
+    );
     Ok(())
 }

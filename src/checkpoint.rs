@@ -37,7 +37,12 @@ pub struct Checkpointing {
 
 impl Checkpointing {
     pub fn new(dir: impl Into<PathBuf>) -> Self {
-        Checkpointing { dir: dir.into(), every: 10, refine_save_seconds: REFINE_SAVE_SECONDS, resume: false }
+        Checkpointing {
+            dir: dir.into(),
+            every: 10,
+            refine_save_seconds: REFINE_SAVE_SECONDS,
+            resume: false,
+        }
     }
 
     /// The tracking checkpoint file inside `dir`.
@@ -80,7 +85,11 @@ impl Fnv {
     pub(crate) fn run(params: &impl serde::Serialize, grid: &crate::model::GridSpec) -> Self {
         let mut h = Fnv::new();
         h.bytes(env!("CARGO_PKG_VERSION").as_bytes());
-        h.bytes(serde_json::to_string(params).expect("parameters serialise").as_bytes());
+        h.bytes(
+            serde_json::to_string(params)
+                .expect("parameters serialise")
+                .as_bytes(),
+        );
         for d in grid.dims {
             h.bytes(&(d as u64).to_le_bytes());
         }
@@ -112,12 +121,19 @@ impl<W: Write> Write for Hashing<'_, W> {
 /// Writes `path` atomically (creating its folder): `magic`, what `state`
 /// writes, then the checksum of both. A link at `path` is replaced, never
 /// followed.
-pub(crate) fn save(path: &Path, magic: &[u8], state: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result<()> {
+pub(crate) fn save(
+    path: &Path,
+    magic: &[u8],
+    state: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<()> {
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
     crate::files::write_replacing(path, |file| {
-        let mut hashed = Hashing { inner: file, hash: Fnv::new() };
+        let mut hashed = Hashing {
+            inner: file,
+            hash: Fnv::new(),
+        };
         hashed.write_all(magic)?;
         state(&mut hashed)?;
         let sum = hashed.hash.0;
@@ -130,15 +146,26 @@ pub(crate) fn save(path: &Path, magic: &[u8], state: impl FnOnce(&mut dyn Write)
 pub(crate) fn load(path: &Path, magic: &[u8], kind: &str) -> Result<Vec<u8>> {
     let mut bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if !bytes.starts_with(magic) {
-        return Err(Error::parse(path, None, format!("not a voltrack {kind} (or one of another format version)")));
+        return Err(Error::parse(
+            path,
+            None,
+            format!("not a voltrack {kind} (or one of another format version)"),
+        ));
     }
-    let Some((state, sum)) = bytes.split_last_chunk::<8>().filter(|(state, _)| state.len() > magic.len()) else {
+    let Some((state, sum)) = bytes
+        .split_last_chunk::<8>()
+        .filter(|(state, _)| state.len() > magic.len())
+    else {
         return Err(Error::parse(path, None, "checkpoint is truncated"));
     };
     let mut hash = Fnv::new();
     hash.bytes(state);
     if hash.0 != u64::from_le_bytes(*sum) {
-        return Err(Error::parse(path, None, "the checkpoint is damaged (its checksum does not match); drop --resume to start over"));
+        return Err(Error::parse(
+            path,
+            None,
+            "the checkpoint is damaged (its checksum does not match); drop --resume to start over",
+        ));
     }
     bytes.truncate(bytes.len() - 8);
     bytes.drain(..magic.len());
@@ -150,7 +177,8 @@ pub(crate) fn put_u64(w: &mut (impl Write + ?Sized), v: u64) -> std::io::Result<
 }
 
 pub(crate) fn put_reals(w: &mut (impl Write + ?Sized), v: &[Real]) -> std::io::Result<()> {
-    v.iter().try_for_each(|x| w.write_all(&x.to_bits().to_le_bytes()))
+    v.iter()
+        .try_for_each(|x| w.write_all(&x.to_bits().to_le_bytes()))
 }
 
 pub(crate) fn put_u32s(w: &mut (impl Write + ?Sized), v: &[u32]) -> std::io::Result<()> {
@@ -176,13 +204,18 @@ impl<'a> Reader<'a> {
         Ok(s)
     }
     pub(crate) fn u64(&mut self) -> Result<u64> {
-        Ok(u64::from_le_bytes(self.take(8)?.try_into().expect("8 bytes")))
+        Ok(u64::from_le_bytes(
+            self.take(8)?.try_into().expect("8 bytes"),
+        ))
     }
     pub(crate) fn usize(&mut self) -> Result<usize> {
-        usize::try_from(self.u64()?).map_err(|_| Error::parse(self.path, None, "count out of range"))
+        usize::try_from(self.u64()?)
+            .map_err(|_| Error::parse(self.path, None, "count out of range"))
     }
     pub(crate) fn u32(&mut self) -> Result<u32> {
-        Ok(u32::from_le_bytes(self.take(4)?.try_into().expect("4 bytes")))
+        Ok(u32::from_le_bytes(
+            self.take(4)?.try_into().expect("4 bytes"),
+        ))
     }
     pub(crate) fn u32s(&mut self, n: usize) -> Result<Vec<u32>> {
         (0..n).map(|_| self.u32()).collect()
@@ -193,7 +226,11 @@ impl<'a> Reader<'a> {
     /// Fails unless every byte was read.
     pub(crate) fn finish(&self, what: &str) -> Result<()> {
         if self.at != self.bytes.len() {
-            return Err(Error::parse(self.path, None, format!("trailing bytes after the {what}")));
+            return Err(Error::parse(
+                self.path,
+                None,
+                format!("trailing bytes after the {what}"),
+            ));
         }
         Ok(())
     }

@@ -54,9 +54,18 @@ pub struct Saved {
 impl std::fmt::Display for Saved {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self.refine {
-            None => write!(f, "the first {} tracked frames are saved in {}", self.frames, self.path.display()),
+            None => write!(
+                f,
+                "the first {} tracked frames are saved in {}",
+                self.frames,
+                self.path.display()
+            ),
             Some((done, all)) => {
-                write!(f, "the refinement ({done} of {all} batches done) is saved in {}", self.path.parent().unwrap_or(&self.path).display())
+                write!(
+                    f,
+                    "the refinement ({done} of {all} batches done) is saved in {}",
+                    self.path.parent().unwrap_or(&self.path).display()
+                )
             }
         }
     }
@@ -66,18 +75,34 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 impl Error {
     pub(crate) fn io(path: &Path, source: std::io::Error) -> Self {
-        Error::Io { path: path.to_path_buf(), source }
+        Error::Io {
+            path: path.to_path_buf(),
+            source,
+        }
     }
     pub(crate) fn parse(path: &Path, line: Option<usize>, message: impl Into<String>) -> Self {
-        Error::Parse { path: path.to_path_buf(), line, message: message.into() }
+        Error::Parse {
+            path: path.to_path_buf(),
+            line,
+            message: message.into(),
+        }
     }
     pub(crate) fn mesh(path: &Path, message: impl Into<String>) -> Self {
-        Error::InvalidMesh { path: path.to_path_buf(), message: message.into() }
+        Error::InvalidMesh {
+            path: path.to_path_buf(),
+            message: message.into(),
+        }
     }
     pub(crate) fn refuse(path: &Path, message: impl std::fmt::Display) -> Self {
-        Error::OutputRefused { path: path.to_path_buf(), message: message.to_string() }
+        Error::OutputRefused {
+            path: path.to_path_buf(),
+            message: message.to_string(),
+        }
     }
     pub(crate) fn write(path: &Path, message: impl std::fmt::Display) -> Self {
-        Error::Write { path: path.to_path_buf(), message: message.to_string() }
+        Error::Write {
+            path: path.to_path_buf(),
+            message: message.to_string(),
+        }
     }
 }

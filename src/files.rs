@@ -32,7 +32,9 @@ where
     F: FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
 {
     let target = match target {
-        Target::Through(device) => return write_through(&device, fill).map_err(|e| Error::write(path, e)),
+        Target::Through(device) => {
+            return write_through(&device, fill).map_err(|e| Error::write(path, e))
+        }
         Target::Replace(target) => target,
     };
     let tmp = temporary(&target)?;
@@ -64,11 +66,19 @@ impl Target {
         if is_link && !follow {
             return Ok(Target::Replace(path.to_path_buf()));
         }
-        let target = if is_link { std::fs::canonicalize(path).map_err(|e| Error::write(path, format!("a symbolic link to nothing ({e})")))? } else { path.to_path_buf() };
+        let target = if is_link {
+            std::fs::canonicalize(path)
+                .map_err(|e| Error::write(path, format!("a symbolic link to nothing ({e})")))?
+        } else {
+            path.to_path_buf()
+        };
         match std::fs::metadata(&target) {
             Ok(meta) if writes_through(&meta) => Ok(Target::Through(target)),
             Ok(meta) if meta.is_dir() => Err(Error::write(path, "a directory of this name exists")),
-            Ok(meta) if !meta.is_file() => Err(Error::write(path, "not a regular file; voltrack will not replace it")),
+            Ok(meta) if !meta.is_file() => Err(Error::write(
+                path,
+                "not a regular file; voltrack will not replace it",
+            )),
             _ => Ok(Target::Replace(target)),
         }
     }
@@ -108,7 +118,11 @@ pub type Fill<'a> = Box<dyn FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Re
 /// already renamed.
 pub fn write_atomic_all(files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
     let mut written: Vec<(PathBuf, &Path)> = Vec::with_capacity(files.len());
-    let discard = |temps: &[(PathBuf, &Path)]| temps.iter().for_each(|(tmp, _)| drop(std::fs::remove_file(tmp)));
+    let discard = |temps: &[(PathBuf, &Path)]| {
+        temps
+            .iter()
+            .for_each(|(tmp, _)| drop(std::fs::remove_file(tmp)))
+    };
     let mut targets: Vec<PathBuf> = Vec::with_capacity(files.len());
     let mut through: Vec<(&Path, Fill<'_>, PathBuf)> = Vec::new();
     for (path, fill) in files {
@@ -137,7 +151,9 @@ pub fn write_atomic_all(files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
     for (k, ((tmp, path), target)) in written.iter().zip(&targets).enumerate() {
         if let Err(e) = std::fs::rename(tmp, target) {
             discard(&written[k..]);
-            targets[..k].iter().for_each(|done| drop(std::fs::remove_file(done)));
+            targets[..k]
+                .iter()
+                .for_each(|done| drop(std::fs::remove_file(done)));
             return Err(Error::write(path, e));
         }
     }
@@ -158,13 +174,19 @@ pub(crate) fn check_writable(path: &Path) -> Result<(&Path, &std::ffi::OsStr)> {
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        let why = if dir.exists() { "is not a directory" } else { "does not exist" };
+        let why = if dir.exists() {
+            "is not a directory"
+        } else {
+            "does not exist"
+        };
         return Err(Error::write(path, format!("{} {why}", dir.display())));
     }
     if path.is_dir() {
         return Err(Error::write(path, "a directory of this name exists"));
     }
-    let name = path.file_name().ok_or_else(|| Error::write(path, "not a file name"))?;
+    let name = path
+        .file_name()
+        .ok_or_else(|| Error::write(path, "not a file name"))?;
     Ok((dir, name))
 }
 
@@ -173,7 +195,8 @@ pub(crate) fn check_writable(path: &Path) -> Result<(&Path, &std::ffi::OsStr)> {
 pub const FOLDER_MANIFEST: &str = ".voltrack-files";
 
 /// The manifest's first line.
-const MANIFEST_HEAD: &str = "voltrack output folder, replaced as a whole by the next run that writes it";
+const MANIFEST_HEAD: &str =
+    "voltrack output folder, replaced as a whole by the next run that writes it";
 
 /// Writes the folder `dir` as a whole: `files` (names inside it, each with
 /// what fills it) and a [`FOLDER_MANIFEST`], built in a hidden folder beside
@@ -186,19 +209,37 @@ const MANIFEST_HEAD: &str = "voltrack output folder, replaced as a whole by the 
 /// Missing parent folders are created, and removed again on failure.
 pub fn replace_dir(dir: &Path, files: Vec<(String, Fill<'_>)>) -> Result<Vec<PathBuf>> {
     let exists = std::fs::symlink_metadata(dir).is_ok();
-    let target = if exists { std::fs::canonicalize(dir).map_err(|e| Error::write(dir, e))? } else { dir.to_path_buf() };
+    let target = if exists {
+        std::fs::canonicalize(dir).map_err(|e| Error::write(dir, e))?
+    } else {
+        dir.to_path_buf()
+    };
     if exists && !target.is_dir() {
         return Err(Error::write(dir, "a file of this name exists"));
     }
     let (Some(parent), Some(name)) = (target.parent(), target.file_name()) else {
-        return Err(Error::write(dir, "cannot be replaced as a whole: name a folder of its own"));
+        return Err(Error::write(
+            dir,
+            "cannot be replaced as a whole: name a folder of its own",
+        ));
     };
-    let parent = if parent.as_os_str().is_empty() { Path::new(".") } else { parent };
+    let parent = if parent.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        parent
+    };
     // The folders this call creates, innermost first.
-    let created: Vec<&Path> = parent.ancestors().take_while(|a| !a.as_os_str().is_empty() && !a.exists()).collect();
+    let created: Vec<&Path> = parent
+        .ancestors()
+        .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
+        .collect();
     std::fs::create_dir_all(parent).map_err(|e| Error::write(dir, e))?;
     let remove_created = || created.iter().for_each(|d| drop(std::fs::remove_dir(d)));
-    let staging = parent.join(format!(".{}.{}.partial", name.to_string_lossy(), std::process::id()));
+    let staging = parent.join(format!(
+        ".{}.{}.partial",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
     let _ = std::fs::remove_dir_all(&staging);
     if let Err(e) = std::fs::create_dir(&staging) {
         remove_created();
@@ -206,13 +247,17 @@ pub fn replace_dir(dir: &Path, files: Vec<(String, Fill<'_>)>) -> Result<Vec<Pat
     }
     let mut names = Vec::with_capacity(files.len());
     let built = files.into_iter().try_for_each(|(file, fill)| {
-        fill_temporary(&staging.join(&file), fill).map_err(|e| Error::write(&dir.join(&file), e))?;
+        fill_temporary(&staging.join(&file), fill)
+            .map_err(|e| Error::write(&dir.join(&file), e))?;
         names.push(file);
         Ok(())
     });
     let built = built.and_then(|()| {
         let manifest = staging.join(FOLDER_MANIFEST);
-        fill_temporary(&manifest, |w| writeln!(w, "{MANIFEST_HEAD}\n{}", names.join("\n"))).map_err(|e| Error::write(&dir.join(FOLDER_MANIFEST), e))
+        fill_temporary(&manifest, |w| {
+            writeln!(w, "{MANIFEST_HEAD}\n{}", names.join("\n"))
+        })
+        .map_err(|e| Error::write(&dir.join(FOLDER_MANIFEST), e))
     });
     let swapped = built.and_then(|()| swap_in(dir, &staging, &target, exists));
     if let Err(e) = swapped {
@@ -228,14 +273,30 @@ pub fn replace_dir(dir: &Path, files: Vec<(String, Fill<'_>)>) -> Result<Vec<Pat
 /// `.NAME.PID.partial` files and folders and `.NAME.PID.old` folders whose
 /// process is gone (a process still running may be writing them).
 fn remove_stale(target: &Path) {
-    let (Some(dir), Some(name)) = (target.parent(), target.file_name()) else { return };
-    let dir = if dir.as_os_str().is_empty() { Path::new(".") } else { dir };
+    let (Some(dir), Some(name)) = (target.parent(), target.file_name()) else {
+        return;
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
     let prefix = format!(".{}.", name.to_string_lossy());
-    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
     for entry in entries.flatten() {
         let file = entry.file_name().to_string_lossy().into_owned();
-        let Some(rest) = file.strip_prefix(&prefix) else { continue };
-        let Some(Ok(pid)) = rest.strip_suffix(".partial").or_else(|| rest.strip_suffix(".old")).map(str::parse::<u32>) else { continue };
+        let Some(rest) = file.strip_prefix(&prefix) else {
+            continue;
+        };
+        let Some(Ok(pid)) = rest
+            .strip_suffix(".partial")
+            .or_else(|| rest.strip_suffix(".old"))
+            .map(str::parse::<u32>)
+        else {
+            continue;
+        };
         if pid == std::process::id() || process_alive(pid) {
             continue;
         }
@@ -273,7 +334,12 @@ fn swap_in(dir: &Path, staging: &Path, target: &Path, exists: bool) -> Result<()
     }
     if exchange(staging, target).map_err(|e| Error::write(dir, e))? {
         // `staging` now holds the old folder.
-        return std::fs::remove_dir_all(staging).map_err(|e| Error::write(dir, format!("the old folder, now {}: {e}", staging.display())));
+        return std::fs::remove_dir_all(staging).map_err(|e| {
+            Error::write(
+                dir,
+                format!("the old folder, now {}: {e}", staging.display()),
+            )
+        });
     }
     // No atomic exchange on this file system: two renames.
     let old = staging.with_extension("old");
@@ -283,7 +349,8 @@ fn swap_in(dir: &Path, staging: &Path, target: &Path, exists: bool) -> Result<()
         let _ = std::fs::rename(&old, target);
         return Err(Error::write(dir, e));
     }
-    std::fs::remove_dir_all(&old).map_err(|e| Error::write(dir, format!("the old folder, now {}: {e}", old.display())))
+    std::fs::remove_dir_all(&old)
+        .map_err(|e| Error::write(dir, format!("the old folder, now {}: {e}", old.display())))
 }
 
 /// Exchanges two paths atomically (Linux's `renameat2` with
@@ -291,11 +358,21 @@ fn swap_in(dir: &Path, staging: &Path, target: &Path, exists: bool) -> Result<()
 #[cfg(target_os = "linux")]
 fn exchange(a: &Path, b: &Path) -> std::io::Result<bool> {
     use std::os::unix::ffi::OsStrExt;
-    let c = |p: &Path| std::ffi::CString::new(p.as_os_str().as_bytes()).map_err(std::io::Error::other);
+    let c =
+        |p: &Path| std::ffi::CString::new(p.as_os_str().as_bytes()).map_err(std::io::Error::other);
     let (a, b) = (c(a)?, c(b)?);
     // SAFETY: both are valid NUL-terminated paths that outlive the call;
     // renameat2 reads them and touches no other memory.
-    let r = unsafe { libc::syscall(libc::SYS_renameat2, libc::AT_FDCWD, a.as_ptr(), libc::AT_FDCWD, b.as_ptr(), libc::RENAME_EXCHANGE) };
+    let r = unsafe {
+        libc::syscall(
+            libc::SYS_renameat2,
+            libc::AT_FDCWD,
+            a.as_ptr(),
+            libc::AT_FDCWD,
+            b.as_ptr(),
+            libc::RENAME_EXCHANGE,
+        )
+    };
     if r == 0 {
         return Ok(true);
     }
@@ -323,16 +400,24 @@ pub(crate) fn foreign_entry(dir: &Path) -> Option<PathBuf> {
         .map(|m| m.lines().skip(1).map(str::to_string).collect())
         .unwrap_or_default();
     let entries = std::fs::read_dir(dir).ok()?;
-    let mut names: Vec<(String, PathBuf)> = entries.filter_map(|e| e.ok()).map(|e| (e.file_name().to_string_lossy().into_owned(), e.path())).collect();
+    let mut names: Vec<(String, PathBuf)> = entries
+        .filter_map(|e| e.ok())
+        .map(|e| (e.file_name().to_string_lossy().into_owned(), e.path()))
+        .collect();
     names.sort();
-    names.into_iter().find(|(name, path)| {
-        let Ok(meta) = std::fs::symlink_metadata(path) else { return false };
-        let ours = meta.file_type().is_symlink()
-            || name == FOLDER_MANIFEST
-            || is_temporary(name)
-            || (meta.is_file() && (listed.contains(name) || starts_with(path, b"# voltrack ")));
-        !ours
-    }).map(|(_, path)| path)
+    names
+        .into_iter()
+        .find(|(name, path)| {
+            let Ok(meta) = std::fs::symlink_metadata(path) else {
+                return false;
+            };
+            let ours = meta.file_type().is_symlink()
+                || name == FOLDER_MANIFEST
+                || is_temporary(name)
+                || (meta.is_file() && (listed.contains(name) || starts_with(path, b"# voltrack ")));
+            !ours
+        })
+        .map(|(_, path)| path)
 }
 
 /// voltrack's temporaries: `.NAME.PID.partial` files and folders, probes.
@@ -343,7 +428,10 @@ fn is_temporary(name: &str) -> bool {
 /// Whether the file at `path` starts with `mark`.
 pub(crate) fn starts_with(path: &Path, mark: &[u8]) -> bool {
     let mut head = vec![0u8; mark.len()];
-    std::fs::File::open(path).and_then(|mut f| std::io::Read::read_exact(&mut f, &mut head)).is_ok() && head == mark
+    std::fs::File::open(path)
+        .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut head))
+        .is_ok()
+        && head == mark
 }
 
 /// Fails unless `dir` is a directory or can be made one: no file has its
@@ -353,8 +441,15 @@ pub(crate) fn check_dir_creatable(dir: &Path) -> Result<()> {
     if dir.exists() && !dir.is_dir() {
         return Err(Error::write(dir, "a file of this name exists"));
     }
-    match dir.ancestors().skip(1).find(|a| a.as_os_str().is_empty() || a.exists()) {
-        Some(a) if !a.as_os_str().is_empty() && !a.is_dir() => Err(Error::write(dir, format!("{} is not a directory", a.display()))),
+    match dir
+        .ancestors()
+        .skip(1)
+        .find(|a| a.as_os_str().is_empty() || a.exists())
+    {
+        Some(a) if !a.as_os_str().is_empty() && !a.is_dir() => Err(Error::write(
+            dir,
+            format!("{} is not a directory", a.display()),
+        )),
         _ => Ok(()),
     }
 }
@@ -363,7 +458,11 @@ pub(crate) fn check_dir_creatable(dir: &Path) -> Result<()> {
 /// rename stays on one file system.
 fn temporary(path: &Path) -> Result<PathBuf> {
     let (dir, name) = check_writable(path)?;
-    Ok(dir.join(format!(".{}.{}.partial", name.to_string_lossy(), std::process::id())))
+    Ok(dir.join(format!(
+        ".{}.{}.partial",
+        name.to_string_lossy(),
+        std::process::id()
+    )))
 }
 
 /// Creates `tmp`, fills it and syncs it to disk.
@@ -376,4 +475,3 @@ where
     w.flush()?;
     w.get_ref().sync_all()
 }
-

@@ -9,8 +9,10 @@ pub mod lost;
 pub use coverage::{coverage, fit_outliers, Coverage, FitOutliers, FrameCoverage};
 
 pub use crate::refine::irregular::irregularity;
+pub use fit::{
+    fit_to_input, surface_fit, DistanceSummary, FarRegion, FrameFit, SequenceFit, Surface,
+};
 pub use lost::{frame_runs, lost_parts, FrameLoss, LostPartWarning, LostParts};
-pub use fit::{fit_to_input, surface_fit, DistanceSummary, FarRegion, FrameFit, SequenceFit, Surface};
 
 use crate::math::Real;
 use crate::model::Trajectories;
@@ -47,7 +49,9 @@ pub fn pcac(traj: &Trajectories) -> Real {
     // decreasing order of eigenvalue.
     let (eigenvalues, coefficients) = if n < rows {
         let eig = SymmetricEigen::new(m.tr_mul(&m));
-        let c = DMatrix::from_fn(n, n, |j, k| eig.eigenvalues[k].max(0.0).sqrt() * eig.eigenvectors[(j, k)]);
+        let c = DMatrix::from_fn(n, n, |j, k| {
+            eig.eigenvalues[k].max(0.0).sqrt() * eig.eigenvectors[(j, k)]
+        });
         (eig.eigenvalues, c)
     } else {
         let eig = SymmetricEigen::new(&m * m.transpose());
@@ -61,13 +65,23 @@ pub fn pcac(traj: &Trajectories) -> Real {
     let largest = order.first().map_or(0.0, |&k| eigenvalues[k]);
     let s: Vec<Real> = order
         .iter()
-        .map(|&k| if eigenvalues[k] > NULL_EIGENVALUE * largest { coefficients.column(k).iter().map(|c| c.abs()).sum() } else { 0.0 })
+        .map(|&k| {
+            if eigenvalues[k] > NULL_EIGENVALUE * largest {
+                coefficients.column(k).iter().map(|c| c.abs()).sum()
+            } else {
+                0.0
+            }
+        })
         .collect();
     let total: Real = s.iter().sum();
     if total <= 0.0 {
         return 0.0;
     }
-    s.iter().enumerate().map(|(k, s)| k as Real * s).sum::<Real>() / total
+    s.iter()
+        .enumerate()
+        .map(|(k, s)| k as Real * s)
+        .sum::<Real>()
+        / total
 }
 
 /// Deviation from uniformity: per frame, the population standard deviation
@@ -89,8 +103,10 @@ pub fn dfu(counts: &[Vec<u32>]) -> (Real, Vec<Real>) {
             var.sqrt() / mean
         })
         .collect();
-    let mean = if per_frame.is_empty() { 0.0 } else { per_frame.iter().sum::<Real>() / per_frame.len() as Real };
+    let mean = if per_frame.is_empty() {
+        0.0
+    } else {
+        per_frame.iter().sum::<Real>() / per_frame.len() as Real
+    };
     (mean, per_frame)
 }
-
-

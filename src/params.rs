@@ -201,20 +201,52 @@ impl TrackParams {
         check("alpha", self.alpha, Span::open_closed(0.0, 1.0))?;
         check("beta", self.beta, WEIGHT)?;
         check("mu", self.mu, Span::open(0.0, 1.0))?;
-        check_count("the presmoothing steps", self.presmooth_steps, 0..=MAX_ROUNDS)?;
+        check_count(
+            "the presmoothing steps",
+            self.presmooth_steps,
+            0..=MAX_ROUNDS,
+        )?;
         check("the convergence threshold", self.threshold, LENGTH)?;
-        check_count("the iteration limit per frame", self.max_iterations, 1..=MAX_ITERATIONS)?;
-        check_count("the convergence window", self.convergence_window, 1..=MAX_ROUNDS)?;
+        check_count(
+            "the iteration limit per frame",
+            self.max_iterations,
+            1..=MAX_ITERATIONS,
+        )?;
+        check_count(
+            "the convergence window",
+            self.convergence_window,
+            1..=MAX_ROUNDS,
+        )?;
         check_count("the screening block", self.screening_block, 1..=8)?;
         if let Some(k) = self.damped_guess {
             check("the damped guess's factor", k, Span::closed_open(0.0, 1.0))?;
         }
-        check("the tracking over-relaxation", self.tracking_over_relaxation, Span::open(0.0, 2.0))?;
-        check("the guess screening factor", self.guess_screening, Span::closed(1.0, 1e6))?;
-        check("the screening's unsettled share", self.screening_unsettled, Span::closed_open(0.0, 1.0))?;
+        check(
+            "the tracking over-relaxation",
+            self.tracking_over_relaxation,
+            Span::open(0.0, 2.0),
+        )?;
+        check(
+            "the guess screening factor",
+            self.guess_screening,
+            Span::closed(1.0, 1e6),
+        )?;
+        check(
+            "the screening's unsettled share",
+            self.screening_unsettled,
+            Span::closed_open(0.0, 1.0),
+        )?;
         // 0 would leave the centers where the seeding put them, unplaced.
-        check_count("the Lloyd iterations", self.lloyd_iterations, 1..=MAX_ITERATIONS)?;
-        check("the over-relaxation", self.over_relaxation, Span::open(0.0, 2.0))?;
+        check_count(
+            "the Lloyd iterations",
+            self.lloyd_iterations,
+            1..=MAX_ITERATIONS,
+        )?;
+        check(
+            "the over-relaxation",
+            self.over_relaxation,
+            Span::open(0.0, 2.0),
+        )?;
         Ok(())
     }
 
@@ -346,7 +378,10 @@ impl RefineParams {
     /// when there is one: unless `cell_memory` is set, the kept cells take
     /// their share of it ([`KEPT_CELL_SHARE`]) instead of the memory available.
     pub fn within(self, max_memory: Option<f64>) -> Self {
-        RefineParams { cell_memory: self.cell_memory.or(max_memory.map(kept_cell_share)), ..self }
+        RefineParams {
+            cell_memory: self.cell_memory.or(max_memory.map(kept_cell_share)),
+            ..self
+        }
     }
 
     /// Centers removed in all for `n` centers.
@@ -363,7 +398,11 @@ impl RefineParams {
             ));
         }
         if self.total_removed(n).saturating_add(2) > n {
-            return bad(format!("cannot remove {} of {n} centers: at most {} (2 must stay)", self.total_removed(n), n - 2));
+            return bad(format!(
+                "cannot remove {} of {n} centers: at most {} (2 must stay)",
+                self.total_removed(n),
+                n - 2
+            ));
         }
         check_count("the number of batches", self.batches, 1..=MAX_BATCHES)?;
         if let Some(m) = self.cell_memory {
@@ -372,7 +411,11 @@ impl RefineParams {
         check("beta_hat", self.beta_hat, WEIGHT)?;
         check("rho_gp", self.rho_gp, LENGTH)?;
         check("rho_gm", self.rho_gm, LENGTH)?;
-        check_count("the global iterations per batch", self.max_iterations, 0..=MAX_ITERATIONS)?;
+        check_count(
+            "the global iterations per batch",
+            self.max_iterations,
+            0..=MAX_ITERATIONS,
+        )?;
         check("lambda", self.lambda, WEIGHT)?;
         check_count("the step halvings", self.max_halvings, 0..=60)?;
         check("mu", self.mu, Span::open(0.0, 1.0))?;
@@ -428,16 +471,34 @@ pub const DYNAMIC_MESH_MEMORY: usize = 16 << 20;
 impl DeformParams {
     /// Checks every field's range.
     pub fn validate(&self) -> crate::Result<()> {
-        check_count("the centers each vertex follows", self.neighbors, 1..=MAX_NEIGHBORS)?;
-        check("the least binding affinity", self.min_affinity, Span::open_closed(0.0, 1.0))?;
-        check_count("the binding smoothing rounds", self.smoothing, 0..=MAX_ROUNDS)?;
+        check_count(
+            "the centers each vertex follows",
+            self.neighbors,
+            1..=MAX_NEIGHBORS,
+        )?;
+        check(
+            "the least binding affinity",
+            self.min_affinity,
+            Span::open_closed(0.0, 1.0),
+        )?;
+        check_count(
+            "the binding smoothing rounds",
+            self.smoothing,
+            0..=MAX_ROUNDS,
+        )?;
         Ok(())
     }
 }
 
 impl Default for DeformParams {
     fn default() -> Self {
-        DeformParams { neighbors: 4, min_affinity: 0.5, smoothing: 10, blending: Blending::DualQuaternion, memory: DYNAMIC_MESH_MEMORY }
+        DeformParams {
+            neighbors: 4,
+            min_affinity: 0.5,
+            smoothing: 10,
+            blending: Blending::DualQuaternion,
+            memory: DYNAMIC_MESH_MEMORY,
+        }
     }
 }
 
@@ -563,13 +624,37 @@ impl ConformParams {
     pub fn validate(&self) -> crate::Result<()> {
         check_count("the conform iterations", self.iterations, 0..=MAX_ROUNDS)?;
         check("the conform stiffness", self.stiffness, WEIGHT)?;
-        check("the conform point weight", self.point_weight, Span::closed(0.0, WEIGHT.hi))?;
+        check(
+            "the conform point weight",
+            self.point_weight,
+            Span::closed(0.0, WEIGHT.hi),
+        )?;
         check("the conform distance", self.max_distance, LENGTH)?;
-        check("the conform normal cosine", self.min_normal_cosine, Span::closed(-1.0, 1.0))?;
-        check("the conform bend strain", self.bend_strain, Span::closed(0.0, WEIGHT.hi))?;
-        check("the conform least edge weight", self.least_edge_weight, Span::open_closed(0.0, 1.0))?;
-        check("the conform joint strain", self.joint_strain, Span::closed(0.0, WEIGHT.hi))?;
-        check("the conform least joint weight", self.least_joint_weight, Span::open_closed(0.0, 1.0))?;
+        check(
+            "the conform normal cosine",
+            self.min_normal_cosine,
+            Span::closed(-1.0, 1.0),
+        )?;
+        check(
+            "the conform bend strain",
+            self.bend_strain,
+            Span::closed(0.0, WEIGHT.hi),
+        )?;
+        check(
+            "the conform least edge weight",
+            self.least_edge_weight,
+            Span::open_closed(0.0, 1.0),
+        )?;
+        check(
+            "the conform joint strain",
+            self.joint_strain,
+            Span::closed(0.0, WEIGHT.hi),
+        )?;
+        check(
+            "the conform least joint weight",
+            self.least_joint_weight,
+            Span::open_closed(0.0, 1.0),
+        )?;
         Ok(())
     }
 
@@ -649,7 +734,17 @@ fn default_far_share() -> Real {
 
 impl Default for CoverageParams {
     fn default() -> Self {
-        CoverageParams { reach: 2.0, min_region: 2.0, min_share: 0.005, fit_ratio: 4.0, fit_floor: 2.0, far: 2.0, far_result: 5.0, far_voxels: 3.0, far_share: 0.1 }
+        CoverageParams {
+            reach: 2.0,
+            min_region: 2.0,
+            min_share: 0.005,
+            fit_ratio: 4.0,
+            fit_floor: 2.0,
+            far: 2.0,
+            far_result: 5.0,
+            far_voxels: 3.0,
+            far_share: 0.1,
+        }
     }
 }
 
@@ -666,7 +761,10 @@ pub struct FarDistances {
 impl FarDistances {
     /// The same distance both ways.
     pub fn both(far: Real) -> Self {
-        FarDistances { input: far, result: far }
+        FarDistances {
+            input: far,
+            result: far,
+        }
     }
 }
 
@@ -676,20 +774,43 @@ impl CoverageParams {
     /// that is more.
     pub fn far_distances(&self, diagonal: Real, voxel_size: Real) -> FarDistances {
         let floor = 100.0 * self.far_voxels * voxel_size / diagonal;
-        FarDistances { input: self.far.max(floor), result: self.far_result.max(floor) }
+        FarDistances {
+            input: self.far.max(floor),
+            result: self.far_result.max(floor),
+        }
     }
 
     /// Checks every field's range.
     pub fn validate(&self) -> crate::Result<()> {
         check("the coverage reach", self.reach, Span::closed(1.0, 1e6))?;
-        check("the smallest lost region", self.min_region, Span::closed(0.0, 1e6))?;
-        check("the least lost share", self.min_share, Span::open_closed(0.0, 1.0))?;
+        check(
+            "the smallest lost region",
+            self.min_region,
+            Span::closed(0.0, 1e6),
+        )?;
+        check(
+            "the least lost share",
+            self.min_share,
+            Span::open_closed(0.0, 1.0),
+        )?;
         check("the fit ratio", self.fit_ratio, Span::closed(1.0, 1e6))?;
         check("the fit floor", self.fit_floor, Span::closed(0.0, 1e6))?;
         check("the far distance", self.far, Span::open_closed(0.0, 1e6))?;
-        check("the result's far distance", self.far_result, Span::open_closed(0.0, 1e6))?;
-        check("the far distance in voxels", self.far_voxels, Span::closed(0.0, 1e6))?;
-        check("the far region share", self.far_share, Span::closed(0.0, 100.0))?;
+        check(
+            "the result's far distance",
+            self.far_result,
+            Span::open_closed(0.0, 1e6),
+        )?;
+        check(
+            "the far distance in voxels",
+            self.far_voxels,
+            Span::closed(0.0, 1e6),
+        )?;
+        check(
+            "the far region share",
+            self.far_share,
+            Span::closed(0.0, 100.0),
+        )?;
         Ok(())
     }
 }
@@ -751,28 +872,59 @@ pub struct Span {
 
 impl Span {
     pub const fn closed(lo: Real, hi: Real) -> Self {
-        Span { lo, hi, lo_open: false, hi_open: false }
+        Span {
+            lo,
+            hi,
+            lo_open: false,
+            hi_open: false,
+        }
     }
     pub const fn open(lo: Real, hi: Real) -> Self {
-        Span { lo, hi, lo_open: true, hi_open: true }
+        Span {
+            lo,
+            hi,
+            lo_open: true,
+            hi_open: true,
+        }
     }
     pub const fn open_closed(lo: Real, hi: Real) -> Self {
-        Span { lo, hi, lo_open: true, hi_open: false }
+        Span {
+            lo,
+            hi,
+            lo_open: true,
+            hi_open: false,
+        }
     }
     pub const fn closed_open(lo: Real, hi: Real) -> Self {
-        Span { lo, hi, lo_open: false, hi_open: true }
+        Span {
+            lo,
+            hi,
+            lo_open: false,
+            hi_open: true,
+        }
     }
     /// Whether `v` lies in the span (never for NaN).
     pub fn contains(&self, v: Real) -> bool {
-        let above = if self.lo_open { v > self.lo } else { v >= self.lo };
-        let below = if self.hi_open { v < self.hi } else { v <= self.hi };
+        let above = if self.lo_open {
+            v > self.lo
+        } else {
+            v >= self.lo
+        };
+        let below = if self.hi_open {
+            v < self.hi
+        } else {
+            v <= self.hi
+        };
         above && below
     }
 }
 
 impl std::fmt::Display for Span {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let (l, r) = (if self.lo_open { '(' } else { '[' }, if self.hi_open { ')' } else { ']' });
+        let (l, r) = (
+            if self.lo_open { '(' } else { '[' },
+            if self.hi_open { ')' } else { ']' },
+        );
         write!(f, "{l}{}, {}{r}", shown(self.lo), shown(self.hi))
     }
 }
@@ -792,16 +944,27 @@ pub(crate) fn check(name: &str, value: Real, span: Span) -> crate::Result<()> {
     if span.contains(value) {
         Ok(())
     } else {
-        Err(crate::Error::InvalidParameter(format!("{name}: {} is outside {span}", shown(value))))
+        Err(crate::Error::InvalidParameter(format!(
+            "{name}: {} is outside {span}",
+            shown(value)
+        )))
     }
 }
 
 /// Fails unless the count `value` is in `range`.
-pub(crate) fn check_count(name: &str, value: usize, range: std::ops::RangeInclusive<usize>) -> crate::Result<()> {
+pub(crate) fn check_count(
+    name: &str,
+    value: usize,
+    range: std::ops::RangeInclusive<usize>,
+) -> crate::Result<()> {
     if range.contains(&value) {
         Ok(())
     } else {
-        Err(crate::Error::InvalidParameter(format!("{name}: {value} is outside {}..={}", range.start(), range.end())))
+        Err(crate::Error::InvalidParameter(format!(
+            "{name}: {value} is outside {}..={}",
+            range.start(),
+            range.end()
+        )))
     }
 }
 
@@ -813,11 +976,35 @@ mod tests {
     /// them: plain, in exponent form only when very large or very small.
     #[test]
     fn range_errors_show_numbers_as_written() {
-        let err = TrackParams { damped_guess: Some(1.0), ..Default::default() }.validate().unwrap_err().to_string();
-        assert!(err.contains("the damped guess's factor: 1 is outside [0, 1)"), "{err}");
-        let err = TrackParams { threshold: 1e-13, ..Default::default() }.validate().unwrap_err().to_string();
+        let err = TrackParams {
+            damped_guess: Some(1.0),
+            ..Default::default()
+        }
+        .validate()
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("the damped guess's factor: 1 is outside [0, 1)"),
+            "{err}"
+        );
+        let err = TrackParams {
+            threshold: 1e-13,
+            ..Default::default()
+        }
+        .validate()
+        .unwrap_err()
+        .to_string();
         assert!(err.contains("1e-13 is outside [1e-12, 1e12]"), "{err}");
-        let err = TrackParams { screening_unsettled: 1.0, ..Default::default() }.validate().unwrap_err().to_string();
-        assert!(err.contains("unsettled share: 1 is outside [0, 1)"), "{err}");
+        let err = TrackParams {
+            screening_unsettled: 1.0,
+            ..Default::default()
+        }
+        .validate()
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.contains("unsettled share: 1 is outside [0, 1)"),
+            "{err}"
+        );
     }
 }

@@ -77,7 +77,12 @@ pub(crate) struct Counter<'a> {
 impl<'a> Counter<'a> {
     pub fn new(progress: Progress<'a>, stage: Stage, total: usize) -> Self {
         progress.report(stage, 0, total);
-        Counter { progress, stage, total, done: 0.into() }
+        Counter {
+            progress,
+            stage,
+            total,
+            done: 0.into(),
+        }
     }
     pub fn tick(&self) {
         let d = self.done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;

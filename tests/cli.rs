@@ -19,7 +19,12 @@ use common::Scratch;
 
 /// Runs the binary in `dir` with `args`.
 fn run(dir: &Scratch, args: &[&str]) -> Output {
-    Command::new(BIN).args(args).current_dir(&dir.0).env("RUST_LOG", "warn").output().expect("the voltrack binary runs")
+    Command::new(BIN)
+        .args(args)
+        .current_dir(&dir.0)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("the voltrack binary runs")
 }
 
 fn text(bytes: &[u8]) -> String {
@@ -29,7 +34,13 @@ fn text(bytes: &[u8]) -> String {
 /// Runs and expects success; returns stdout.
 fn ok(dir: &Scratch, args: &[&str]) -> String {
     let out = run(dir, args);
-    assert!(out.status.success(), "voltrack {args:?} failed ({:?}):\n{}\n{}", out.status, text(&out.stdout), text(&out.stderr));
+    assert!(
+        out.status.success(),
+        "voltrack {args:?} failed ({:?}):\n{}\n{}",
+        out.status,
+        text(&out.stdout),
+        text(&out.stderr)
+    );
     text(&out.stdout)
 }
 
@@ -37,7 +48,12 @@ fn ok(dir: &Scratch, args: &[&str]) -> String {
 fn fails(dir: &Scratch, args: &[&str], code: i32) -> String {
     let out = run(dir, args);
     let stderr = text(&out.stderr);
-    assert_eq!(out.status.code(), Some(code), "voltrack {args:?}: stdout\n{}\nstderr\n{stderr}", text(&out.stdout));
+    assert_eq!(
+        out.status.code(),
+        Some(code),
+        "voltrack {args:?}: stdout\n{}\nstderr\n{stderr}",
+        text(&out.stdout)
+    );
     assert!(!stderr.trim().is_empty(), "no message on stderr");
     stderr
 }
@@ -47,7 +63,8 @@ fn json(stdout: &str) -> serde_json::Value {
 }
 
 fn convert_args<'a>(out: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
-    let fixture: &'static str = Box::leak(fixture().to_string_lossy().into_owned().into_boxed_str());
+    let fixture: &'static str =
+        Box::leak(fixture().to_string_lossy().into_owned().into_boxed_str());
     let mut args = vec!["convert", fixture];
     args.extend(SMALL);
     args.extend(["-o", out]);
@@ -73,7 +90,22 @@ fn help_lists_the_commands() {
     }
     assert!(ok(&dir, &["--version"]).contains(env!("CARGO_PKG_VERSION")));
     let convert = ok(&dir, &["convert", "--help"]);
-    for flag in ["--resolution", "--centers", "--output", "--format", "--vat", "--basis", "--compress", "--fps", "--no-refine", "--report", "--checkpoint", "--resume", "--name", "--json"] {
+    for flag in [
+        "--resolution",
+        "--centers",
+        "--output",
+        "--format",
+        "--vat",
+        "--basis",
+        "--compress",
+        "--fps",
+        "--no-refine",
+        "--report",
+        "--checkpoint",
+        "--resume",
+        "--name",
+        "--json",
+    ] {
         assert!(convert.contains(flag), "convert --help lacks {flag}");
     }
 }
@@ -87,7 +119,10 @@ fn convert_to_glb() {
     assert!(stdout.contains(&format!("{FRAMES} frames")), "{stdout}");
     let (frames, targets, interpolation) = glb_summary(&dir.join("tmp/x.glb"));
     // One key per frame and the closing one that holds the last.
-    assert_eq!((frames, targets, interpolation), (FRAMES + 1, FRAMES - 1, gltf::animation::Interpolation::Step));
+    assert_eq!(
+        (frames, targets, interpolation),
+        (FRAMES + 1, FRAMES - 1, gltf::animation::Interpolation::Step)
+    );
     assert_eq!(dir.files(), ["tmp/x.glb"]);
 }
 
@@ -95,12 +130,22 @@ fn convert_to_glb() {
 fn convert_with_a_report() {
     let dir = Scratch::new("cli", "report");
     let stdout = ok(&dir, &convert_args("x.glb", &["--report", "x.html"]));
-    assert!(stdout.contains("fit to the input: mean") && stdout.contains("report: x.html"), "{stdout}");
+    assert!(
+        stdout.contains("fit to the input: mean") && stdout.contains("report: x.html"),
+        "{stdout}"
+    );
     let html = std::fs::read_to_string(dir.join("x.html")).unwrap();
-    assert!(html.starts_with("<!DOCTYPE html>") && html.matches("<svg").count() >= 5, "a report with its plots");
+    assert!(
+        html.starts_with("<!DOCTYPE html>") && html.matches("<svg").count() >= 5,
+        "a report with its plots"
+    );
     assert_eq!(dir.files(), ["x.glb", "x.html"]);
     // A report that cannot be written fails before any work.
-    let stderr = fails(&dir, &convert_args("y.glb", &["--report", "no/such/dir/y.html"]), 2);
+    let stderr = fails(
+        &dir,
+        &convert_args("y.glb", &["--report", "no/such/dir/y.html"]),
+        2,
+    );
     assert!(stderr.contains("no/such/dir/y.html"), "{stderr}");
     assert_eq!(dir.files(), ["x.glb", "x.html"]);
 }
@@ -108,10 +153,16 @@ fn convert_with_a_report() {
 #[test]
 fn absolute_units_reach_every_stage_with_lengths() {
     let dir = Scratch::new("cli", "absolute");
-    ok(&dir, &convert_args("a.glb", &["--absolute-units", "--report", "a.html"]));
+    ok(
+        &dir,
+        &convert_args("a.glb", &["--absolute-units", "--report", "a.html"]),
+    );
     let html = std::fs::read_to_string(dir.join("a.html")).unwrap();
     // Tracking, refinement and conforming all take lengths in the input's units.
-    let row = |v: &str| html.matches(&format!("<tr><th>absolute_units</th><td>{v}</td></tr>")).count();
+    let row = |v: &str| {
+        html.matches(&format!("<tr><th>absolute_units</th><td>{v}</td></tr>"))
+            .count()
+    };
     assert_eq!((row("true"), row("false")), (3, 0), "{html}");
     // The refine command takes them as the trajectories were tracked.
     let input = fixture().to_string_lossy().into_owned();
@@ -124,14 +175,21 @@ fn absolute_units_reach_every_stage_with_lengths() {
         ok(&dir, &["refine", "c.exr", "--input", &input, "-o", "r.exr"]);
         let (_, attrs) = voltrack::io::exr::read_trajectories_exr(&dir.join("r.exr")).unwrap();
         let refine = attrs.refine.expect("refine attribute");
-        assert_eq!(refine["absolute_units"], serde_json::json!(absolute), "{refine}");
+        assert_eq!(
+            refine["absolute_units"],
+            serde_json::json!(absolute),
+            "{refine}"
+        );
     }
 }
 
 #[test]
 fn convert_to_glb_with_a_compact_basis() {
     let dir = Scratch::new("cli", "glb-basis");
-    let stdout = ok(&dir, &convert_args("b.glb", &["--basis", "3", "--fps", "24"]));
+    let stdout = ok(
+        &dir,
+        &convert_args("b.glb", &["--basis", "3", "--fps", "24"]),
+    );
     assert!(stdout.contains("compact basis of 3 components"), "{stdout}");
     let (frames, targets, interpolation) = glb_summary(&dir.join("b.glb"));
     assert_eq!(frames, FRAMES + 1);
@@ -145,19 +203,32 @@ fn convert_to_glb_with_a_compact_basis() {
 #[test]
 fn convert_to_a_compressed_glb() {
     let dir = Scratch::new("cli", "glb-compress");
-    let plain = json(&ok(&dir, &convert_args("p.glb", &["--json", "--no-refine"])));
+    let plain = json(&ok(
+        &dir,
+        &convert_args("p.glb", &["--json", "--no-refine"]),
+    ));
     assert_eq!(plain["basis"]["compressed"], false);
     let stdout = ok(&dir, &convert_args("c.glb", &["--compress", "--no-refine"]));
     assert!(stdout.contains("compressed (KHR_mesh_quantization + EXT_meshopt_compression): reconstruction error max"), "{stdout}");
-    let summary = json(&ok(&dir, &convert_args("c.glb", &["--json", "--compress", "--no-refine"])));
+    let summary = json(&ok(
+        &dir,
+        &convert_args("c.glb", &["--json", "--compress", "--no-refine"]),
+    ));
     let basis = &summary["basis"];
     assert_eq!(basis["compressed"], true, "{basis}");
     let error = basis["reconstruction_error_max"].as_f64().unwrap();
     assert!(error > 0.0 && error < 0.0005, "{basis}");
-    assert!(summary["bytes"].as_u64().unwrap() * 2 < plain["bytes"].as_u64().unwrap(), "{summary}\n{plain}");
+    assert!(
+        summary["bytes"].as_u64().unwrap() * 2 < plain["bytes"].as_u64().unwrap(),
+        "{summary}\n{plain}"
+    );
     let glb = std::fs::read(dir.join("c.glb")).unwrap();
-    let doc: serde_json::Value = serde_json::from_slice(&gltf::binary::Glb::from_slice(&glb).unwrap().json).unwrap();
-    assert_eq!(doc["extensionsRequired"], serde_json::json!(["EXT_meshopt_compression", "KHR_mesh_quantization"]));
+    let doc: serde_json::Value =
+        serde_json::from_slice(&gltf::binary::Glb::from_slice(&glb).unwrap().json).unwrap();
+    assert_eq!(
+        doc["extensionsRequired"],
+        serde_json::json!(["EXT_meshopt_compression", "KHR_mesh_quantization"])
+    );
     let stderr = fails(&dir, &convert_args("c.pc2", &["--compress"]), 2);
     assert!(stderr.contains("--compress"), "{stderr}");
     assert_eq!(dir.files(), ["c.glb", "p.glb"]);
@@ -167,7 +238,11 @@ fn convert_to_a_compressed_glb() {
 fn glb_names(path: &Path) -> [Option<String>; 3] {
     let doc = gltf::Gltf::from_slice(&std::fs::read(path).unwrap()).expect("a valid GLB");
     let name = |n: Option<&str>| n.map(String::from);
-    [name(doc.nodes().next().unwrap().name()), name(doc.meshes().next().unwrap().name()), name(doc.animations().next().unwrap().name())]
+    [
+        name(doc.nodes().next().unwrap().name()),
+        name(doc.meshes().next().unwrap().name()),
+        name(doc.animations().next().unwrap().name()),
+    ]
 }
 
 /// Issue 23: `convert --json` says what it did, as `track --json` does, and
@@ -175,51 +250,132 @@ fn glb_names(path: &Path) -> [Option<String>; 3] {
 #[test]
 fn convert_prints_a_json_summary() {
     let dir = Scratch::new("cli", "convert-json");
-    let summary = json(&ok(&dir, &convert_args("x.glb", &["--json", "--report", "x.html", "--fps", "24"])));
+    let summary = json(&ok(
+        &dir,
+        &convert_args("x.glb", &["--json", "--report", "x.html", "--fps", "24"]),
+    ));
     assert_eq!(summary["output"], "x.glb");
     assert_eq!(summary["files"], serde_json::json!(["x.glb"]));
-    assert_eq!((summary["format"].as_str(), summary["name"].as_str()), (Some("glb"), Some("bending_bar")));
-    assert_eq!((summary["frames"].as_u64(), summary["fps"].as_f64(), summary["resolution"].as_u64()), (Some(FRAMES as u64), Some(24.0), Some(48)));
+    assert_eq!(
+        (summary["format"].as_str(), summary["name"].as_str()),
+        (Some("glb"), Some("bending_bar"))
+    );
+    assert_eq!(
+        (
+            summary["frames"].as_u64(),
+            summary["fps"].as_f64(),
+            summary["resolution"].as_u64()
+        ),
+        (Some(FRAMES as u64), Some(24.0), Some(48))
+    );
     // The counts are the file's.
     let doc = gltf::Gltf::from_slice(&std::fs::read(dir.join("x.glb")).unwrap()).unwrap();
     let primitive = doc.meshes().next().unwrap().primitives().next().unwrap();
-    assert_eq!(summary["vertices"].as_u64(), Some(primitive.get(&gltf::Semantic::Positions).unwrap().count() as u64));
-    assert_eq!(summary["triangles"].as_u64(), Some(primitive.indices().unwrap().count() as u64 / 3));
-    assert_eq!(summary["bytes"].as_u64(), Some(std::fs::metadata(dir.join("x.glb")).unwrap().len()));
+    assert_eq!(
+        summary["vertices"].as_u64(),
+        Some(primitive.get(&gltf::Semantic::Positions).unwrap().count() as u64)
+    );
+    assert_eq!(
+        summary["triangles"].as_u64(),
+        Some(primitive.indices().unwrap().count() as u64 / 3)
+    );
+    assert_eq!(
+        summary["bytes"].as_u64(),
+        Some(std::fs::metadata(dir.join("x.glb")).unwrap().len())
+    );
     // 120 centers less the irregular ones refinement removed.
     let removed = summary["removed"].as_array().expect("removed centers");
     assert!(!removed.is_empty());
-    assert_eq!(summary["centers"].as_u64(), Some(120 - removed.len() as u64));
+    assert_eq!(
+        summary["centers"].as_u64(),
+        Some(120 - removed.len() as u64)
+    );
     let basis = &summary["basis"];
-    assert_eq!((basis["targets"].as_u64(), basis["components"].is_null()), (Some(FRAMES as u64 - 1), true), "{basis}");
+    assert_eq!(
+        (basis["targets"].as_u64(), basis["components"].is_null()),
+        (Some(FRAMES as u64 - 1), true),
+        "{basis}"
+    );
     assert_eq!(basis["reconstruction_error_max"].as_f64(), Some(0.0));
     let seconds = summary["seconds"].as_object().unwrap();
-    for stage in ["read", "voxelize", "track", "refine", "deform", "conform", "fit", "export", "total"] {
-        assert!(seconds.get(stage).and_then(|s| s.as_f64()).is_some_and(|s| s >= 0.0), "{stage}: {seconds:?}");
+    for stage in [
+        "read", "voxelize", "track", "refine", "deform", "conform", "fit", "export", "total",
+    ] {
+        assert!(
+            seconds
+                .get(stage)
+                .and_then(|s| s.as_f64())
+                .is_some_and(|s| s >= 0.0),
+            "{stage}: {seconds:?}"
+        );
     }
-    let stages: f64 = seconds.iter().filter(|(k, _)| *k != "total").map(|(_, v)| v.as_f64().unwrap()).sum();
+    let stages: f64 = seconds
+        .iter()
+        .filter(|(k, _)| *k != "total")
+        .map(|(_, v)| v.as_f64().unwrap())
+        .sum();
     assert!((stages - seconds["total"].as_f64().unwrap()).abs() < 1e-9);
     // Measured for the report, so in the summary too (percent of the diagonal).
     let fit = &summary["fit_percent"];
-    assert!(fit["mean"].as_f64().is_some_and(|m| m > 0.0 && m <= fit["max"].as_f64().unwrap()), "{fit}");
+    assert!(
+        fit["mean"]
+            .as_f64()
+            .is_some_and(|m| m > 0.0 && m <= fit["max"].as_f64().unwrap()),
+        "{fit}"
+    );
     assert_eq!(summary["report"], "x.html");
 
     // A point cache: both files, the frame rate; a compact basis: its size.
-    let summary = json(&ok(&dir, &convert_args("anim.pc2", &["--json", "--no-refine", "--name", "Bar"])));
-    assert_eq!(summary["files"], serde_json::json!(["anim.pc2", "anim.obj"]));
-    assert_eq!((summary["format"].as_str(), summary["name"].as_str(), summary["fps"].as_f64()), (Some("pc2"), Some("Bar"), Some(30.0)));
-    assert!(summary["removed"].is_null() && summary["basis"].is_null(), "{summary}");
+    let summary = json(&ok(
+        &dir,
+        &convert_args("anim.pc2", &["--json", "--no-refine", "--name", "Bar"]),
+    ));
+    assert_eq!(
+        summary["files"],
+        serde_json::json!(["anim.pc2", "anim.obj"])
+    );
+    assert_eq!(
+        (
+            summary["format"].as_str(),
+            summary["name"].as_str(),
+            summary["fps"].as_f64()
+        ),
+        (Some("pc2"), Some("Bar"), Some(30.0))
+    );
+    assert!(
+        summary["removed"].is_null() && summary["basis"].is_null(),
+        "{summary}"
+    );
     // Measured on every mesh output, report or not, so that lost parts are warned of.
-    assert!(summary["fit_percent"]["p95"].as_f64().is_some() && summary["warnings"].as_array().is_some_and(|w| w.is_empty()), "{summary}");
+    assert!(
+        summary["fit_percent"]["p95"].as_f64().is_some()
+            && summary["warnings"].as_array().is_some_and(|w| w.is_empty()),
+        "{summary}"
+    );
     assert_eq!(summary["centers"].as_u64(), Some(120));
     assert!(summary["seconds"].get("refine").is_none());
-    let summary = json(&ok(&dir, &convert_args("b.glb", &["--json", "--basis", "2"])));
+    let summary = json(&ok(
+        &dir,
+        &convert_args("b.glb", &["--json", "--basis", "2"]),
+    ));
     assert_eq!(summary["basis"]["components"].as_u64(), Some(2));
     // Trajectories carry neither a name nor a frame rate.
-    let summary = json(&ok(&dir, &convert_args("c.exr", &["--json", "--no-refine"])));
-    assert!(summary["name"].is_null() && summary["fps"].is_null() && summary["basis"].is_null(), "{summary}");
-    assert!(summary["fit_percent"].is_null(), "trajectories alone have no fitted mesh: {summary}");
-    assert_eq!(dir.files(), ["anim.obj", "anim.pc2", "b.glb", "c.exr", "x.glb", "x.html"]);
+    let summary = json(&ok(
+        &dir,
+        &convert_args("c.exr", &["--json", "--no-refine"]),
+    ));
+    assert!(
+        summary["name"].is_null() && summary["fps"].is_null() && summary["basis"].is_null(),
+        "{summary}"
+    );
+    assert!(
+        summary["fit_percent"].is_null(),
+        "trajectories alone have no fitted mesh: {summary}"
+    );
+    assert_eq!(
+        dir.files(),
+        ["anim.obj", "anim.pc2", "b.glb", "c.exr", "x.glb", "x.html"]
+    );
 }
 
 /// Issue 23: the result is named after the input, or as `--name` says.
@@ -228,19 +384,55 @@ fn convert_names_the_object_after_the_input() {
     let dir = Scratch::new("cli", "names");
     let bar = Some("bending_bar".to_string());
     ok(&dir, &convert_args("a.glb", &["--no-refine"]));
-    assert_eq!(glb_names(&dir.join("a.glb")), [bar.clone(), bar.clone(), bar]);
+    assert_eq!(
+        glb_names(&dir.join("a.glb")),
+        [bar.clone(), bar.clone(), bar]
+    );
     let hero = Some("Hero 2".to_string());
-    let stdout = ok(&dir, &convert_args("b.glb", &["--no-refine", "--name", "Hero 2"]));
+    let stdout = ok(
+        &dir,
+        &convert_args("b.glb", &["--no-refine", "--name", "Hero 2"]),
+    );
     assert!(stdout.contains("\"Hero 2\""), "{stdout}");
-    assert_eq!(glb_names(&dir.join("b.glb")), [hero.clone(), hero.clone(), hero]);
+    assert_eq!(
+        glb_names(&dir.join("b.glb")),
+        [hero.clone(), hero.clone(), hero]
+    );
     // The point cache's OBJ and an OBJ sequence name their object.
-    ok(&dir, &convert_args("c.pc2", &["--no-refine", "--name", "Hero 2"]));
+    ok(
+        &dir,
+        &convert_args("c.pc2", &["--no-refine", "--name", "Hero 2"]),
+    );
     let obj = std::fs::read_to_string(dir.join("c.obj")).unwrap();
-    assert_eq!(obj.lines().filter(|l| l.starts_with("o ")).collect::<Vec<_>>(), ["o Hero 2"]);
+    assert_eq!(
+        obj.lines()
+            .filter(|l| l.starts_with("o "))
+            .collect::<Vec<_>>(),
+        ["o Hero 2"]
+    );
     let pattern = fixture().join("frame_*.obj").to_string_lossy().into_owned();
-    ok(&dir, &["convert", &pattern, "-r", "32", "-n", "40", "--no-refine", "-o", "seq"]);
+    ok(
+        &dir,
+        &[
+            "convert",
+            &pattern,
+            "-r",
+            "32",
+            "-n",
+            "40",
+            "--no-refine",
+            "-o",
+            "seq",
+        ],
+    );
     let first = std::fs::read_to_string(dir.join("seq/frame_0000.obj")).unwrap();
-    assert_eq!(first.lines().filter(|l| l.starts_with("o ")).collect::<Vec<_>>(), ["o frame"]);
+    assert_eq!(
+        first
+            .lines()
+            .filter(|l| l.starts_with("o "))
+            .collect::<Vec<_>>(),
+        ["o frame"]
+    );
     // A blank name or one with a line break is refused before any work.
     for bad in ["", " ", "a\nb"] {
         let stderr = fails(&dir, &convert_args("bad.glb", &["--name", bad]), 2);
@@ -254,7 +446,10 @@ fn convert_to_trajectories_exr() {
     let dir = Scratch::new("cli", "exr");
     // By extension, and by --format with another extension.
     ok(&dir, &convert_args("c.exr", &[]));
-    ok(&dir, &convert_args("c.data", &["--format", "exr", "--no-refine"]));
+    ok(
+        &dir,
+        &convert_args("c.data", &["--format", "exr", "--no-refine"]),
+    );
     assert_eq!(dir.files(), ["c.data", "c.exr"]);
     let (traj, attrs) = voltrack::io::exr::read_trajectories_exr(&dir.join("c.exr")).unwrap();
     assert_eq!(traj.frames, FRAMES);
@@ -272,11 +467,15 @@ fn convert_to_vertex_animation_texture() {
     let dir = Scratch::new("cli", "vat");
     ok(&dir, &convert_args("v.exr", &["--vat"]));
     assert_eq!(dir.files(), ["v.exr", "v.glb", "v.json"]);
-    let info: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("v.json")).unwrap()).unwrap();
+    let info: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("v.json")).unwrap()).unwrap();
     assert_eq!(info["frames"], FRAMES);
     let vertices = info["vertices"].as_u64().unwrap() as usize;
     // Few enough vertices for one row each: one frame per row, as before.
-    assert_eq!((info["width"].as_u64(), info["rows_per_frame"].as_u64()), (Some(vertices as u64), Some(1)));
+    assert_eq!(
+        (info["width"].as_u64(), info["rows_per_frame"].as_u64()),
+        (Some(vertices as u64), Some(1))
+    );
     let (texture, _) = voltrack::io::exr::read_trajectories_exr(&dir.join("v.exr")).unwrap();
     assert_eq!((texture.frames, texture.centers), (FRAMES, vertices));
     // Frame 0 of the texture is the first input mesh, as loaded.
@@ -286,7 +485,11 @@ fn convert_to_vertex_animation_texture() {
         assert!((a - b).norm() < 1e-6);
     }
     for k in 0..3 {
-        let lo = texture.positions.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min);
+        let lo = texture
+            .positions
+            .iter()
+            .map(|p| p[k])
+            .fold(f64::INFINITY, f64::min);
         assert!((info["bounds_min"][k].as_f64().unwrap() - lo).abs() < 1e-6);
     }
 }
@@ -311,19 +514,34 @@ fn convert_to_point_cache() {
 fn convert_to_obj_sequence() {
     let dir = Scratch::new("cli", "objseq");
     ok(&dir, &convert_args("seq", &[]));
-    let want: Vec<String> = (0..FRAMES).map(|f| format!("seq/frame_{f:04}.obj")).collect();
+    let want: Vec<String> = (0..FRAMES)
+        .map(|f| format!("seq/frame_{f:04}.obj"))
+        .collect();
     // And the hidden list of what voltrack wrote there, which lets the next
     // run replace the folder.
-    let listed: Vec<String> = std::iter::once("seq/.voltrack-files".to_string()).chain(want.iter().cloned()).collect();
+    let listed: Vec<String> = std::iter::once("seq/.voltrack-files".to_string())
+        .chain(want.iter().cloned())
+        .collect();
     assert_eq!(dir.files(), listed);
     let faces = |f: &str| -> Vec<String> {
-        std::fs::read_to_string(dir.join(f)).unwrap().lines().filter(|l| l.starts_with("f ")).map(String::from).collect()
+        std::fs::read_to_string(dir.join(f))
+            .unwrap()
+            .lines()
+            .filter(|l| l.starts_with("f "))
+            .map(String::from)
+            .collect()
     };
     let first = faces(&want[0]);
     assert!(!first.is_empty());
-    assert!(want.iter().all(|f| faces(f) == first), "face lines differ between frames");
+    assert!(
+        want.iter().all(|f| faces(f) == first),
+        "face lines differ between frames"
+    );
     // The written sequence is itself a valid input.
-    ok(&dir, &["track", "seq", "-r", "32", "-n", "30", "-o", "again.exr"]);
+    ok(
+        &dir,
+        &["track", "seq", "-r", "32", "-n", "30", "-o", "again.exr"],
+    );
 }
 
 #[test]
@@ -336,29 +554,60 @@ fn track_metrics_and_refine() {
     let tracked = json(&ok(&dir, &args));
     assert_eq!(tracked["frames"], FRAMES);
     assert_eq!(tracked["centers"], 120);
-    let (pcac, dfu) = (tracked["pcac"].as_f64().unwrap(), tracked["dfu"].as_f64().unwrap());
+    let (pcac, dfu) = (
+        tracked["pcac"].as_f64().unwrap(),
+        tracked["dfu"].as_f64().unwrap(),
+    );
     assert!(pcac > 0.0 && pcac.is_finite(), "{pcac}");
     assert!(dfu > 0.0 && dfu < 1.0, "{dfu}");
     assert_eq!(dir.files(), ["c.exr"]);
 
-    let metrics = json(&ok(&dir, &["metrics", "c.exr", "--input", &input, "--json", "--plot", "curve.svg"]));
+    let metrics = json(&ok(
+        &dir,
+        &[
+            "metrics",
+            "c.exr",
+            "--input",
+            &input,
+            "--json",
+            "--plot",
+            "curve.svg",
+        ],
+    ));
     assert_eq!(metrics["frames"], FRAMES);
     assert_eq!(metrics["centers"], 120);
     assert_eq!(metrics["dfu_per_frame"].as_array().unwrap().len(), FRAMES);
     let irregularity = metrics["irregularity"].as_array().unwrap();
     assert_eq!(irregularity.len(), 120);
-    assert!(irregularity.iter().all(|v| v.as_f64().is_some_and(|x| x >= 0.0)));
+    assert!(irregularity
+        .iter()
+        .all(|v| v.as_f64().is_some_and(|x| x >= 0.0)));
     // The stored (f32) trajectories measure as the tracked (f64) ones did.
-    assert!((metrics["pcac"].as_f64().unwrap() - pcac).abs() < 1e-4 * pcac, "{} vs {pcac}", metrics["pcac"]);
-    assert!((metrics["dfu"].as_f64().unwrap() - dfu).abs() < 1e-3, "{} vs {dfu}", metrics["dfu"]);
+    assert!(
+        (metrics["pcac"].as_f64().unwrap() - pcac).abs() < 1e-4 * pcac,
+        "{} vs {pcac}",
+        metrics["pcac"]
+    );
+    assert!(
+        (metrics["dfu"].as_f64().unwrap() - dfu).abs() < 1e-3,
+        "{} vs {dfu}",
+        metrics["dfu"]
+    );
     let svg = std::fs::read_to_string(dir.join("curve.svg")).unwrap();
-    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>") && svg.contains("<polyline"));
+    assert!(
+        svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>") && svg.contains("<polyline")
+    );
     assert!(!svg.contains("NaN"));
     // Without --json: a human summary.
     let human = ok(&dir, &["metrics", "c.exr", "--input", &input]);
     assert!(human.contains("PCAC") && human.contains("DFU"), "{human}");
 
-    let refined = json(&ok(&dir, &["refine", "c.exr", "--input", &input, "-o", "r.exr", "--json", "--remove", "3"]));
+    let refined = json(&ok(
+        &dir,
+        &[
+            "refine", "c.exr", "--input", &input, "-o", "r.exr", "--json", "--remove", "3",
+        ],
+    ));
     let removed: Vec<usize> = serde_json::from_value(refined["removed"].clone()).unwrap();
     assert_eq!(removed.len(), 3, "{removed:?}");
     let mut unique = removed.clone();
@@ -367,14 +616,20 @@ fn track_metrics_and_refine() {
     assert_eq!(unique.len(), 3);
     assert!(removed.iter().all(|&i| i < 120));
     for key in ["before", "after"] {
-        assert!(refined[key]["pcac"].as_f64().is_some() && refined[key]["dfu"].as_f64().is_some(), "{key}");
+        assert!(
+            refined[key]["pcac"].as_f64().is_some() && refined[key]["dfu"].as_f64().is_some(),
+            "{key}"
+        );
     }
     let (traj, attrs) = voltrack::io::exr::read_trajectories_exr(&dir.join("r.exr")).unwrap();
     assert_eq!((traj.frames, traj.centers), (FRAMES, 117));
     let stored: Vec<usize> = attrs.removed.unwrap();
     assert_eq!(stored, removed);
     // The refined file is measurable in turn.
-    let again = json(&ok(&dir, &["metrics", "r.exr", "--input", &input, "--json"]));
+    let again = json(&ok(
+        &dir,
+        &["metrics", "r.exr", "--input", &input, "--json"],
+    ));
     assert_eq!(again["centers"], 117);
     assert_eq!(dir.files(), ["c.exr", "curve.svg", "r.exr"]);
 }
@@ -389,7 +644,11 @@ fn missing_input_is_named_and_nothing_is_written() {
     let input = fixture().to_string_lossy().into_owned();
     let stderr = fails(&dir, &["metrics", "absent.exr", "--input", &input], 1);
     assert!(stderr.contains("absent.exr"), "{stderr}");
-    let stderr = fails(&dir, &["refine", "absent.exr", "--input", &input, "-o", "r.exr"], 1);
+    let stderr = fails(
+        &dir,
+        &["refine", "absent.exr", "--input", &input, "-o", "r.exr"],
+        1,
+    );
     assert!(stderr.contains("absent.exr"), "{stderr}");
     // A pattern that matches nothing, an empty directory.
     let stderr = fails(&dir, &["convert", "frames_*.obj", "-o", "out.glb"], 1);
@@ -409,13 +668,36 @@ fn unwritable_outputs_fail_and_leave_nothing() {
     // output that is an existing directory.
     for out in ["no/such/dir/x.glb", "plain/x.glb", "taken.glb"] {
         let stderr = fails(&dir, &convert_args(out, &["--no-refine"]), 2);
-        assert!(stderr.contains(out.split('/').next().unwrap()), "{out}: {stderr}");
+        assert!(
+            stderr.contains(out.split('/').next().unwrap()),
+            "{out}: {stderr}"
+        );
     }
     let input = fixture().to_string_lossy().into_owned();
-    let stderr = fails(&dir, &["track", &input, "-r", "32", "-n", "20", "-o", "missing/c.exr"], 2);
+    let stderr = fails(
+        &dir,
+        &[
+            "track",
+            &input,
+            "-r",
+            "32",
+            "-n",
+            "20",
+            "-o",
+            "missing/c.exr",
+        ],
+        2,
+    );
     assert!(stderr.contains("missing"), "{stderr}");
-    let stderr = fails(&dir, &convert_args("no/such/v.exr", &["--vat", "--no-refine"]), 2);
-    assert!(stderr.contains("v.exr") || stderr.contains("no/such"), "{stderr}");
+    let stderr = fails(
+        &dir,
+        &convert_args("no/such/v.exr", &["--vat", "--no-refine"]),
+        2,
+    );
+    assert!(
+        stderr.contains("v.exr") || stderr.contains("no/such"),
+        "{stderr}"
+    );
     assert_eq!(dir.files(), ["plain"], "something was left behind");
     assert!(dir.join("taken.glb").is_dir());
 }
@@ -425,32 +707,178 @@ fn invalid_parameters_exit_with_2() {
     let dir = Scratch::new("cli", "params");
     let input = fixture().to_string_lossy().into_owned();
     let cases: [(Vec<&str>, &str); 10] = [
-        (vec!["convert", &input, "-r", "32", "--centers", "0", "-o", "x.glb"], "centers"),
-        (vec!["track", &input, "-r", "32", "-n", "0", "-o", "c.exr"], "centers"),
-        (vec!["track", &input, "-r", "1", "-n", "10", "-o", "c.exr"], "resolution"),
-        (vec!["track", &input, "-r", "32", "-n", "10", "--mu", "1.5", "-o", "c.exr"], "mu"),
-        (vec!["convert", &input, "-r", "32", "-n", "20", "--no-refine", "--basis", "0", "-o", "x.glb"], "component"),
-        (vec!["convert", &input, "-r", "32", "-n", "20", "--no-refine", "--fps", "0", "-o", "x.pc2"], "frame rate"),
-        (vec!["convert", &input, "-r", "32", "-n", "20", "--conform-stiffness", "0", "-o", "x.glb"], "stiffness"),
-        (vec!["convert", &input, "-r", "32", "-n", "20", "--conform-bend-strain=-1", "-o", "x.glb"], "bend strain"),
-        (vec!["convert", &input, "-r", "32", "-n", "20", "--conform-joint-strain=-1", "-o", "x.glb"], "joint strain"),
-        (vec!["track", &input, "-r", "32", "-n", "10", "--damped-guess", "1", "-o", "c.exr"], "damped guess"),
+        (
+            vec![
+                "convert",
+                &input,
+                "-r",
+                "32",
+                "--centers",
+                "0",
+                "-o",
+                "x.glb",
+            ],
+            "centers",
+        ),
+        (
+            vec!["track", &input, "-r", "32", "-n", "0", "-o", "c.exr"],
+            "centers",
+        ),
+        (
+            vec!["track", &input, "-r", "1", "-n", "10", "-o", "c.exr"],
+            "resolution",
+        ),
+        (
+            vec![
+                "track", &input, "-r", "32", "-n", "10", "--mu", "1.5", "-o", "c.exr",
+            ],
+            "mu",
+        ),
+        (
+            vec![
+                "convert",
+                &input,
+                "-r",
+                "32",
+                "-n",
+                "20",
+                "--no-refine",
+                "--basis",
+                "0",
+                "-o",
+                "x.glb",
+            ],
+            "component",
+        ),
+        (
+            vec![
+                "convert",
+                &input,
+                "-r",
+                "32",
+                "-n",
+                "20",
+                "--no-refine",
+                "--fps",
+                "0",
+                "-o",
+                "x.pc2",
+            ],
+            "frame rate",
+        ),
+        (
+            vec![
+                "convert",
+                &input,
+                "-r",
+                "32",
+                "-n",
+                "20",
+                "--conform-stiffness",
+                "0",
+                "-o",
+                "x.glb",
+            ],
+            "stiffness",
+        ),
+        (
+            vec![
+                "convert",
+                &input,
+                "-r",
+                "32",
+                "-n",
+                "20",
+                "--conform-bend-strain=-1",
+                "-o",
+                "x.glb",
+            ],
+            "bend strain",
+        ),
+        (
+            vec![
+                "convert",
+                &input,
+                "-r",
+                "32",
+                "-n",
+                "20",
+                "--conform-joint-strain=-1",
+                "-o",
+                "x.glb",
+            ],
+            "joint strain",
+        ),
+        (
+            vec![
+                "track",
+                &input,
+                "-r",
+                "32",
+                "-n",
+                "10",
+                "--damped-guess",
+                "1",
+                "-o",
+                "c.exr",
+            ],
+            "damped guess",
+        ),
     ];
     for (args, what) in cases {
         let stderr = fails(&dir, &args, 2);
         assert!(stderr.contains(what), "{args:?}: {stderr}");
     }
     // Flags clap rejects: also 2.
-    fails(&dir, &["convert", &input, "--no-such-flag", "-o", "x.glb"], 2);
+    fails(
+        &dir,
+        &["convert", &input, "--no-such-flag", "-o", "x.glb"],
+        2,
+    );
     fails(&dir, &["convert", &input, "-n", "many", "-o", "x.glb"], 2);
-    fails(&dir, &["convert", &input, "--format", "fbx", "-o", "x.fbx"], 2);
-    fails(&dir, &["track", &input, "--single-guess", "--damped-guess", "0.5", "-o", "c.exr"], 2);
+    fails(
+        &dir,
+        &["convert", &input, "--format", "fbx", "-o", "x.fbx"],
+        2,
+    );
+    fails(
+        &dir,
+        &[
+            "track",
+            &input,
+            "--single-guess",
+            "--damped-guess",
+            "0.5",
+            "-o",
+            "c.exr",
+        ],
+        2,
+    );
     fails(&dir, &["convert", &input], 2);
     assert!(dir.files().is_empty(), "{:?}", dir.files());
     // A failed run leaves an existing output as it was.
     std::fs::write(dir.join("keep.glb"), b"previous result").unwrap();
-    fails(&dir, &["convert", &input, "-r", "32", "-n", "20", "--no-refine", "--basis", "0", "-o", "keep.glb"], 2);
-    assert_eq!(std::fs::read(dir.join("keep.glb")).unwrap(), b"previous result");
+    fails(
+        &dir,
+        &[
+            "convert",
+            &input,
+            "-r",
+            "32",
+            "-n",
+            "20",
+            "--no-refine",
+            "--basis",
+            "0",
+            "-o",
+            "keep.glb",
+        ],
+        2,
+    );
+    assert_eq!(
+        std::fs::read(dir.join("keep.glb")).unwrap(),
+        b"previous result"
+    );
     assert_eq!(dir.files(), ["keep.glb"]);
 }
 
@@ -458,7 +886,10 @@ fn invalid_parameters_exit_with_2() {
 fn unknown_output_extension_is_a_bad_parameter() {
     let dir = Scratch::new("cli", "extension");
     let stderr = fails(&dir, &convert_args("x.txt", &[]), 2);
-    assert!(stderr.contains("x.txt") && stderr.contains("--format"), "{stderr}");
+    assert!(
+        stderr.contains("x.txt") && stderr.contains("--format"),
+        "{stderr}"
+    );
     assert!(dir.files().is_empty());
 }
 
@@ -468,7 +899,10 @@ fn unknown_output_extension_fails_early_naming_the_file() {
     let out = run(&dir, &convert_args("x.txt", &[]));
     assert!(!out.status.success());
     let stderr = text(&out.stderr);
-    assert!(stderr.contains("x.txt") && stderr.contains("--format"), "{stderr}");
+    assert!(
+        stderr.contains("x.txt") && stderr.contains("--format"),
+        "{stderr}"
+    );
     assert!(dir.files().is_empty());
 }
 
@@ -478,19 +912,38 @@ fn malformed_obj_is_named_with_its_line() {
     std::fs::create_dir(dir.join("seq")).unwrap();
     std::fs::copy(fixture().join("frame_0.obj"), dir.join("seq/frame_0.obj")).unwrap();
     // Line 4 of frame_1.obj is the bad one.
-    std::fs::write(dir.join("seq/frame_1.obj"), "# broken\nv 0 0 0\nv 1 0 0\nv 1 oops 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n").unwrap();
-    let stderr = fails(&dir, &["convert", "seq", "-r", "32", "-n", "20", "-o", "x.glb"], 1);
+    std::fs::write(
+        dir.join("seq/frame_1.obj"),
+        "# broken\nv 0 0 0\nv 1 0 0\nv 1 oops 0\nv 0 0 1\nf 1 2 3\nf 1 3 4\n",
+    )
+    .unwrap();
+    let stderr = fails(
+        &dir,
+        &["convert", "seq", "-r", "32", "-n", "20", "-o", "x.glb"],
+        1,
+    );
     assert!(stderr.contains("frame_1.obj:4"), "{stderr}");
     // A face referring past the vertices, on line 5.
-    std::fs::write(dir.join("seq/frame_1.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 9\n").unwrap();
-    let stderr = fails(&dir, &["track", "seq", "-r", "32", "-n", "20", "-o", "c.exr"], 1);
+    std::fs::write(
+        dir.join("seq/frame_1.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 9\n",
+    )
+    .unwrap();
+    let stderr = fails(
+        &dir,
+        &["track", "seq", "-r", "32", "-n", "20", "-o", "c.exr"],
+        1,
+    );
     assert!(stderr.contains("frame_1.obj:5"), "{stderr}");
     // A non-EXR given as trajectories.
     let input = fixture().to_string_lossy().into_owned();
     std::fs::write(dir.join("fake.exr"), "not an image").unwrap();
     let stderr = fails(&dir, &["metrics", "fake.exr", "--input", &input], 1);
     assert!(stderr.contains("fake.exr"), "{stderr}");
-    assert_eq!(dir.files(), ["fake.exr", "seq/frame_0.obj", "seq/frame_1.obj"]);
+    assert_eq!(
+        dir.files(),
+        ["fake.exr", "seq/frame_0.obj", "seq/frame_1.obj"]
+    );
 }
 
 #[test]
@@ -500,8 +953,16 @@ fn non_finite_vertex_is_named_at_its_own_line() {
     std::fs::copy(fixture().join("frame_0.obj"), dir.join("seq/frame_0.obj")).unwrap();
     // The NaN is on line 1 (the file's vertex 1), but the first face does not
     // use it, so tobj puts it 4th in its own vertex order.
-    std::fs::write(dir.join("seq/frame_1.obj"), "v 0 0 nan\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 2 3 4\nf 1 2 3\n").unwrap();
-    let stderr = fails(&dir, &["track", "seq", "-r", "32", "-n", "20", "-o", "c.exr"], 1);
+    std::fs::write(
+        dir.join("seq/frame_1.obj"),
+        "v 0 0 nan\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 2 3 4\nf 1 2 3\n",
+    )
+    .unwrap();
+    let stderr = fails(
+        &dir,
+        &["track", "seq", "-r", "32", "-n", "20", "-o", "c.exr"],
+        1,
+    );
     assert!(stderr.contains("frame_1.obj:1:"), "{stderr}");
 }
 
@@ -517,8 +978,16 @@ fn exr_texels(path: &Path) -> (usize, usize, Vec<[f32; 3]>) {
         .required("G")
         .required("B")
         .collect_pixels(
-            |size: Vec2<usize>, _| (size.width(), size.height(), vec![[0f32; 3]; size.width() * size.height()]),
-            |(w, _, px): &mut (usize, usize, Vec<[f32; 3]>), p: Vec2<usize>, (r, g, b): (f32, f32, f32)| px[p.y() * *w + p.x()] = [r, g, b],
+            |size: Vec2<usize>, _| {
+                (
+                    size.width(),
+                    size.height(),
+                    vec![[0f32; 3]; size.width() * size.height()],
+                )
+            },
+            |(w, _, px): &mut (usize, usize, Vec<[f32; 3]>),
+             p: Vec2<usize>,
+             (r, g, b): (f32, f32, f32)| px[p.y() * *w + p.x()] = [r, g, b],
         )
         .first_valid_layer()
         .all_attributes()
@@ -535,7 +1004,10 @@ fn glb_frames(path: &Path) -> (Vec<Vec<[f64; 3]>>, Vec<u32>) {
     let primitive = doc.meshes().next().unwrap().primitives().next().unwrap();
     let reader = primitive.reader(|_| Some(blob));
     let base: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
-    let targets: Vec<Vec<[f32; 3]>> = reader.read_morph_targets().map(|(p, _, _)| p.unwrap().collect()).collect();
+    let targets: Vec<Vec<[f32; 3]>> = reader
+        .read_morph_targets()
+        .map(|(p, _, _)| p.unwrap().collect())
+        .collect();
     let channel = doc.animations().next().unwrap().channels().next().unwrap();
     let weights: Vec<f32> = match channel.reader(|_| Some(blob)).read_outputs().unwrap() {
         gltf::animation::util::ReadOutputs::MorphTargetWeights(w) => w.into_f32().collect(),
@@ -546,7 +1018,16 @@ fn glb_frames(path: &Path) -> (Vec<Vec<[f64; 3]>>, Vec<u32>) {
         .take(FRAMES)
         .map(|w| {
             (0..base.len())
-                .map(|v| std::array::from_fn(|a| base[v][a] as f64 + targets.iter().zip(w).map(|(t, &w)| w as f64 * t[v][a] as f64).sum::<f64>()))
+                .map(|v| {
+                    std::array::from_fn(|a| {
+                        base[v][a] as f64
+                            + targets
+                                .iter()
+                                .zip(w)
+                                .map(|(t, &w)| w as f64 * t[v][a] as f64)
+                                .sum::<f64>()
+                    })
+                })
                 .collect()
         })
         .collect();
@@ -560,12 +1041,23 @@ fn vat_decoded_through_sidecar_and_mesh_uvs_replays_the_glb() {
     let dir = Scratch::new("cli", "vat_round_trip");
     ok(&dir, &convert_args("anim.exr", &["--vat", "--fps", "24"]));
     ok(&dir, &convert_args("morph.glb", &["--fps", "24"]));
-    assert_eq!(dir.files(), ["anim.exr", "anim.glb", "anim.json", "morph.glb"]);
-    let info: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("anim.json")).unwrap()).unwrap();
+    assert_eq!(
+        dir.files(),
+        ["anim.exr", "anim.glb", "anim.json", "morph.glb"]
+    );
+    let info: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("anim.json")).unwrap()).unwrap();
     let int = |k: &str| info[k].as_u64().unwrap_or_else(|| panic!("{k} in {info}")) as usize;
     let (width, height, rows_per_frame) = (int("width"), int("height"), int("rows_per_frame"));
     assert_eq!((info["fps"].as_f64(), int("frames")), (Some(24.0), FRAMES));
-    assert_eq!((info["texture"].as_str(), info["mesh"].as_str(), info["uv_set"].as_str()), (Some("anim.exr"), Some("anim.glb"), Some("TEXCOORD_1")));
+    assert_eq!(
+        (
+            info["texture"].as_str(),
+            info["mesh"].as_str(),
+            info["uv_set"].as_str()
+        ),
+        (Some("anim.exr"), Some("anim.glb"), Some("TEXCOORD_1"))
+    );
 
     let (w, h, texels) = exr_texels(&dir.join("anim.exr"));
     assert_eq!((w, h), (width, height));
@@ -579,34 +1071,61 @@ fn vat_decoded_through_sidecar_and_mesh_uvs_replays_the_glb() {
     assert_eq!(doc.animations().count(), 0);
     let primitive = doc.meshes().next().unwrap().primitives().next().unwrap();
     let reader = primitive.reader(|_| Some(blob));
-    assert_eq!(reader.read_indices().unwrap().into_u32().collect::<Vec<_>>(), indices);
-    let uv1: Vec<[f32; 2]> = reader.read_tex_coords(1).expect("TEXCOORD_1").into_f32().collect();
+    assert_eq!(
+        reader
+            .read_indices()
+            .unwrap()
+            .into_u32()
+            .collect::<Vec<_>>(),
+        indices
+    );
+    let uv1: Vec<[f32; 2]> = reader
+        .read_tex_coords(1)
+        .expect("TEXCOORD_1")
+        .into_f32()
+        .collect();
     assert_eq!(uv1.len(), int("vertices"));
     assert_eq!(uv1.len(), frames[0].len());
     let rest: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
 
     let diagonal = {
         let all = frames.iter().flatten();
-        let lo: [f64; 3] = std::array::from_fn(|a| all.clone().map(|p| p[a]).fold(f64::INFINITY, f64::min));
-        let hi: [f64; 3] = std::array::from_fn(|a| all.clone().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max));
+        let lo: [f64; 3] =
+            std::array::from_fn(|a| all.clone().map(|p| p[a]).fold(f64::INFINITY, f64::min));
+        let hi: [f64; 3] =
+            std::array::from_fn(|a| all.clone().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max));
         (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
     };
     let mut worst: f64 = 0.0;
     let mut seen = std::collections::HashSet::new();
     for (v, uv) in uv1.iter().enumerate() {
         // As a shader samples: the texel under the UV, glTF's origin top-left.
-        let (column, row) = ((uv[0] as f64 * width as f64).floor() as usize, (uv[1] as f64 * height as f64).floor() as usize);
-        assert!(column < width && row < rows_per_frame, "vertex {v}: uv {uv:?}");
+        let (column, row) = (
+            (uv[0] as f64 * width as f64).floor() as usize,
+            (uv[1] as f64 * height as f64).floor() as usize,
+        );
+        assert!(
+            column < width && row < rows_per_frame,
+            "vertex {v}: uv {uv:?}"
+        );
         assert!(seen.insert((column, row)), "vertex {v} shares its texel");
         for (f, frame) in frames.iter().enumerate() {
             let texel = texels[(row + f * rows_per_frame) * width + column];
             if f == 0 {
                 assert_eq!(texel, rest[v], "vertex {v}: the mesh is not frame 0");
             }
-            worst = worst.max((0..3).map(|a| (texel[a] as f64 - frame[v][a]).powi(2)).sum::<f64>().sqrt());
+            worst = worst.max(
+                (0..3)
+                    .map(|a| (texel[a] as f64 - frame[v][a]).powi(2))
+                    .sum::<f64>()
+                    .sqrt(),
+            );
         }
     }
-    assert!(worst <= 1e-6 * diagonal, "largest difference {worst} (diagonal {diagonal})");
+    assert!(
+        worst <= 1e-6 * diagonal,
+        "largest difference {worst} (diagonal {diagonal})"
+    );
 }
 
 /// The texture's shape from the command line: powers of two, the widest row,
@@ -616,18 +1135,66 @@ fn vat_decoded_through_sidecar_and_mesh_uvs_replays_the_glb() {
 #[test]
 fn vat_options_on_the_command_line() {
     let dir = Scratch::new("cli", "vat_options");
-    let out = json(&ok(&dir, &convert_args("p.exr", &["--vat", "--vat-power-of-two", "--vat-max-width", "100", "--fps", "12", "--json"])));
-    let info: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("p.json")).unwrap()).unwrap();
-    let (width, height, rows) = (info["width"].as_u64().unwrap(), info["height"].as_u64().unwrap(), info["rows_per_frame"].as_u64().unwrap());
-    assert!(width == 64 && height.is_power_of_two() && height >= FRAMES as u64 * rows, "{info}");
-    assert_eq!((info["fps"].as_f64(), out["fps"].as_f64()), (Some(12.0), Some(12.0)));
-    assert_eq!(out["vat"], serde_json::json!({"width": width, "height": height, "rows_per_frame": rows}));
-    assert_eq!(out["files"], serde_json::json!(["p.exr", "p.glb", "p.json"]));
+    let out = json(&ok(
+        &dir,
+        &convert_args(
+            "p.exr",
+            &[
+                "--vat",
+                "--vat-power-of-two",
+                "--vat-max-width",
+                "100",
+                "--fps",
+                "12",
+                "--json",
+            ],
+        ),
+    ));
+    let info: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("p.json")).unwrap()).unwrap();
+    let (width, height, rows) = (
+        info["width"].as_u64().unwrap(),
+        info["height"].as_u64().unwrap(),
+        info["rows_per_frame"].as_u64().unwrap(),
+    );
+    assert!(
+        width == 64 && height.is_power_of_two() && height >= FRAMES as u64 * rows,
+        "{info}"
+    );
+    assert_eq!(
+        (info["fps"].as_f64(), out["fps"].as_f64()),
+        (Some(12.0), Some(12.0))
+    );
+    assert_eq!(
+        out["vat"],
+        serde_json::json!({"width": width, "height": height, "rows_per_frame": rows})
+    );
+    assert_eq!(
+        out["files"],
+        serde_json::json!(["p.exr", "p.glb", "p.json"])
+    );
 
-    let stderr = fails(&dir, &convert_args("short.exr", &["--vat", "--vat-max-height", "4"]), 2);
-    assert!(stderr.contains("8 frames") && stderr.contains("--vat-max-height"), "{stderr}");
-    let stderr = fails(&dir, &convert_args("narrow.exr", &["--vat", "--vat-max-width", "100", "--vat-max-height", "20"]), 2);
-    assert!(stderr.contains("rows per frame") && stderr.contains("--vat-max-width"), "{stderr}");
+    let stderr = fails(
+        &dir,
+        &convert_args("short.exr", &["--vat", "--vat-max-height", "4"]),
+        2,
+    );
+    assert!(
+        stderr.contains("8 frames") && stderr.contains("--vat-max-height"),
+        "{stderr}"
+    );
+    let stderr = fails(
+        &dir,
+        &convert_args(
+            "narrow.exr",
+            &["--vat", "--vat-max-width", "100", "--vat-max-height", "20"],
+        ),
+        2,
+    );
+    assert!(
+        stderr.contains("rows per frame") && stderr.contains("--vat-max-width"),
+        "{stderr}"
+    );
     let stderr = fails(&dir, &convert_args("x.glb", &["--vat-power-of-two"]), 2);
     assert!(stderr.contains("vertex-animation texture"), "{stderr}");
     assert_eq!(dir.files(), ["p.exr", "p.glb", "p.json"]);
@@ -642,9 +1209,19 @@ fn a_run_logged_to_a_file_prints_a_line_per_stage() {
     let out = run(&dir, &convert_args("a.glb", &[]));
     assert!(out.status.success(), "{}", text(&out.stderr));
     let stderr = text(&out.stderr);
-    let stages: Vec<&str> = stderr.lines().filter_map(|l| l.strip_prefix("voltrack: ")?.strip_suffix(" ...")).collect();
-    assert_eq!(stages, ["read", "voxelize", "track", "refine", "deform", "conform", "fit", "export"], "{stderr}");
-    assert!(!text(&out.stdout).contains("voltrack: "), "progress on stdout");
+    let stages: Vec<&str> = stderr
+        .lines()
+        .filter_map(|l| l.strip_prefix("voltrack: ")?.strip_suffix(" ..."))
+        .collect();
+    assert_eq!(
+        stages,
+        ["read", "voxelize", "track", "refine", "deform", "conform", "fit", "export"],
+        "{stderr}"
+    );
+    assert!(
+        !text(&out.stdout).contains("voltrack: "),
+        "progress on stdout"
+    );
 }
 
 /// Per-frame morph targets are named after the input files (issue 48):
@@ -654,13 +1231,24 @@ fn morph_targets_are_named_after_the_input_files() {
     let dir = Scratch::new("cli", "target-names");
     std::fs::create_dir_all(dir.join("seq")).unwrap();
     for f in 0..FRAMES {
-        std::fs::copy(fixture().join(format!("frame_{f}.obj")), dir.join(&format!("seq/walk_{:04}.obj", f + 1))).unwrap();
+        std::fs::copy(
+            fixture().join(format!("frame_{f}.obj")),
+            dir.join(&format!("seq/walk_{:04}.obj", f + 1)),
+        )
+        .unwrap();
     }
     let mut args = vec!["convert", "seq", "-o", "a.glb"];
     args.extend(SMALL);
     ok(&dir, &args);
     let doc = gltf::Gltf::from_slice(&std::fs::read(dir.join("a.glb")).unwrap()).unwrap();
-    let extras = doc.meshes().next().unwrap().extras().as_ref().map(|e| e.get().to_string()).unwrap();
+    let extras = doc
+        .meshes()
+        .next()
+        .unwrap()
+        .extras()
+        .as_ref()
+        .map(|e| e.get().to_string())
+        .unwrap();
     let names: Vec<String> = serde_json::from_value(json(&extras)["targetNames"].clone()).unwrap();
     let want: Vec<String> = (2..=FRAMES).map(|f| format!("walk_{f:04}")).collect();
     assert_eq!(names, want);

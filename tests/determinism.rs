@@ -9,25 +9,63 @@ use std::path::Path;
 use voltrack::params::{DeformParams, RefineParams, TrackParams};
 use voltrack::voxel::VoxelParams;
 
-fn convert_bytes(threads: usize, screening_block: usize, dir: &Scratch) -> (Vec<u8>, Vec<u8>, voltrack::metrics::Coverage) {
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+fn convert_bytes(
+    threads: usize,
+    screening_block: usize,
+    dir: &Scratch,
+) -> (Vec<u8>, Vec<u8>, voltrack::metrics::Coverage) {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
     pool.install(|| {
         let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/bending_bar");
-        let voxel = VoxelParams { resolution: 48, ..Default::default() };
-        let track = TrackParams { centers: 120, seed: 7, screening_block, ..Default::default() };
+        let voxel = VoxelParams {
+            resolution: 48,
+            ..Default::default()
+        };
+        let track = TrackParams {
+            centers: 120,
+            seed: 7,
+            screening_block,
+            ..Default::default()
+        };
         let conv = voltrack::pipeline::convert(
-        &voltrack::io::FrameFiles::discover(&[input]).unwrap(),
-        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(RefineParams::default()), deform: DeformParams::default(), conform: Default::default(), checkpoint: None, ..Default::default() },
-        Default::default(),
-    )
-            .unwrap();
+            &voltrack::io::FrameFiles::discover(&[input]).unwrap(),
+            &voltrack::pipeline::ConvertOptions {
+                voxel: voxel.clone(),
+                track: track.clone(),
+                refine: Some(RefineParams::default()),
+                deform: DeformParams::default(),
+                conform: Default::default(),
+                checkpoint: None,
+                ..Default::default()
+            },
+            Default::default(),
+        )
+        .unwrap();
         let glb = dir.join(&format!("bar{threads}.glb"));
         let exr = dir.join(&format!("bar{threads}.exr"));
-        voltrack::export::gltf::write_dynamic_glb(&glb, &conv.mesh, &Default::default(), Default::default()).unwrap();
+        voltrack::export::gltf::write_dynamic_glb(
+            &glb,
+            &conv.mesh,
+            &Default::default(),
+            Default::default(),
+        )
+        .unwrap();
         let refined = conv.refined.as_ref().unwrap();
-        let meta = voltrack::pipeline::trajectory_metadata(&conv.sequence, &voxel, &track, Some((&RefineParams::default(), &refined.removed)));
+        let meta = voltrack::pipeline::trajectory_metadata(
+            &conv.sequence,
+            &voxel,
+            &track,
+            Some((&RefineParams::default(), &refined.removed)),
+        );
         voltrack::export::exr::write_trajectories_exr(&exr, &conv.trajectories, &meta).unwrap();
-        (std::fs::read(glb).unwrap(), std::fs::read(exr).unwrap(), conv.coverage)
+        (
+            std::fs::read(glb).unwrap(),
+            std::fs::read(exr).unwrap(),
+            conv.coverage,
+        )
     })
 }
 
@@ -37,8 +75,17 @@ fn outputs_do_not_depend_on_the_thread_count() {
     for block in [1, 2] {
         let one = convert_bytes(1, block, &dir);
         let many = convert_bytes(3, block, &dir);
-        assert!(one.0 == many.0, "screening block {block}: GLB differs between 1 and 3 threads");
-        assert!(one.1 == many.1, "screening block {block}: EXR differs between 1 and 3 threads");
-        assert_eq!(one.2, many.2, "screening block {block}: the coverage check differs between 1 and 3 threads");
+        assert!(
+            one.0 == many.0,
+            "screening block {block}: GLB differs between 1 and 3 threads"
+        );
+        assert!(
+            one.1 == many.1,
+            "screening block {block}: EXR differs between 1 and 3 threads"
+        );
+        assert_eq!(
+            one.2, many.2,
+            "screening block {block}: the coverage check differs between 1 and 3 threads"
+        );
     }
 }

@@ -17,7 +17,11 @@ const BIN: &str = env!("CARGO_BIN_EXE_voltrack");
 const SMALL: [&str; 4] = ["-r", "32", "-n", "20"];
 
 fn run(dir: &Scratch, args: &[&str]) -> Output {
-    Command::new(BIN).args(args).current_dir(&dir.0).output().expect("run voltrack")
+    Command::new(BIN)
+        .args(args)
+        .current_dir(&dir.0)
+        .output()
+        .expect("run voltrack")
 }
 
 fn stderr(out: &Output) -> String {
@@ -29,7 +33,11 @@ fn bar_sequence(dir: &Scratch) {
     let seq = dir.0.join("seq");
     std::fs::create_dir_all(&seq).unwrap();
     for f in 0..8 {
-        std::fs::write(seq.join(format!("frame_{f}.obj")), common::obj_bytes(&voltrack::fixtures::bending_bar(f))).unwrap();
+        std::fs::write(
+            seq.join(format!("frame_{f}.obj")),
+            common::obj_bytes(&voltrack::fixtures::bending_bar(f)),
+        )
+        .unwrap();
     }
 }
 
@@ -46,9 +54,17 @@ fn refused_up_front(dir: &Scratch, args: &[&str], needles: &[&str]) {
     let out = run(dir, args);
     let took = clock.elapsed();
     let err = stderr(&out);
-    assert_eq!(out.status.code(), Some(2), "{args:?}: exit {:?}, stderr: {err}", out.status.code());
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "{args:?}: exit {:?}, stderr: {err}",
+        out.status.code()
+    );
     assert!(took < Duration::from_secs(1), "{args:?}: took {took:?}");
-    assert!(!err.contains("frame_5"), "{args:?} read the frames first: {err}");
+    assert!(
+        !err.contains("frame_5"),
+        "{args:?} read the frames first: {err}"
+    );
     assert!(!err.contains("panicked"), "{args:?}: {err}");
     for n in needles {
         assert!(err.contains(n), "{args:?}: stderr lacks {n:?}: {err}");
@@ -66,10 +82,16 @@ fn parameters_that_used_to_fail_late_or_panic_are_refused_before_reading() {
         (&["--bind-neighbors", "0"], &["centers each vertex follows"]),
         (&["--batches", "0"], &["batches"]),
         (&["--lloyd-iterations", "0"], &["Lloyd iterations"]),
-        (&["--tracking-over-relaxation", "2"], &["tracking over-relaxation"]),
+        (
+            &["--tracking-over-relaxation", "2"],
+            &["tracking over-relaxation"],
+        ),
         (&["--rho-gp", "inf"], &["rho_gp"]),
         (&["--remove", "18446744073709551615"], &["cannot remove"]),
-        (&["--conform-iterations", "18446744073709551615"], &["conform iterations"]),
+        (
+            &["--conform-iterations", "18446744073709551615"],
+            &["conform iterations"],
+        ),
         (&["-n", "1"], &["at least 3 centers"]),
         (&["--cell-memory", "0"], &["memory for kept cells"]),
         (&["--cell-memory", "nan"], &["memory for kept cells"]),
@@ -117,10 +139,44 @@ fn output_locations_that_take_no_file_are_refused_before_reading() {
     poisoned_sequence(&dir);
     std::fs::write(dir.0.join("a_file"), "not a folder").unwrap();
     // A trailing slash names a folder, not the file it would be renamed to.
-    refused_up_front(&dir, &["convert", "seq", "-r", "32", "-n", "20", "-o", "x.glb/"], &["x.glb/"]);
+    refused_up_front(
+        &dir,
+        &["convert", "seq", "-r", "32", "-n", "20", "-o", "x.glb/"],
+        &["x.glb/"],
+    );
     // A checkpoint "folder" that is a file: said plainly, not "File exists".
-    refused_up_front(&dir, &["convert", "seq", "-r", "32", "-n", "20", "-o", "x.glb", "--checkpoint", "a_file"], &["a_file", "folder"]);
-    refused_up_front(&dir, &["track", "seq", "-r", "32", "-n", "20", "-o", "t.exr", "--checkpoint", "a_file"], &["a_file", "folder"]);
+    refused_up_front(
+        &dir,
+        &[
+            "convert",
+            "seq",
+            "-r",
+            "32",
+            "-n",
+            "20",
+            "-o",
+            "x.glb",
+            "--checkpoint",
+            "a_file",
+        ],
+        &["a_file", "folder"],
+    );
+    refused_up_front(
+        &dir,
+        &[
+            "track",
+            "seq",
+            "-r",
+            "32",
+            "-n",
+            "20",
+            "-o",
+            "t.exr",
+            "--checkpoint",
+            "a_file",
+        ],
+        &["a_file", "folder"],
+    );
     // A folder that takes no new file: read-only for a normal user; root
     // writes anywhere on a normal file system, so /proc stands in.
     let ro = dir.0.join("read_only");
@@ -128,9 +184,32 @@ fn output_locations_that_take_no_file_are_refused_before_reading() {
     let mut perms = std::fs::metadata(&ro).unwrap().permissions();
     perms.set_readonly(true);
     std::fs::set_permissions(&ro, perms).unwrap();
-    let place = if std::fs::write(ro.join("probe"), "").is_ok() { "/proc/voltrack-test.glb".to_string() } else { "read_only/x.glb".to_string() };
-    refused_up_front(&dir, &["convert", "seq", "-r", "32", "-n", "20", "-o", &place], &["does not take new files"]);
-    refused_up_front(&dir, &["convert", "seq", "-r", "32", "-n", "20", "-o", "x.glb", "--report", &place.replace(".glb", ".html")], &["does not take new files"]);
+    let place = if std::fs::write(ro.join("probe"), "").is_ok() {
+        "/proc/voltrack-test.glb".to_string()
+    } else {
+        "read_only/x.glb".to_string()
+    };
+    refused_up_front(
+        &dir,
+        &["convert", "seq", "-r", "32", "-n", "20", "-o", &place],
+        &["does not take new files"],
+    );
+    refused_up_front(
+        &dir,
+        &[
+            "convert",
+            "seq",
+            "-r",
+            "32",
+            "-n",
+            "20",
+            "-o",
+            "x.glb",
+            "--report",
+            &place.replace(".glb", ".html"),
+        ],
+        &["does not take new files"],
+    );
 }
 
 #[test]
@@ -140,10 +219,18 @@ fn a_temporary_folder_that_takes_no_file_is_refused_before_reading() {
     let dir = Scratch::new("early", "tmpdir");
     poisoned_sequence(&dir);
     let missing = dir.0.join("no_such_folder");
-    let out = Command::new(BIN).args(["convert", "seq", "-r", "32", "-n", "20", "-o", "x.glb"]).env("TMPDIR", &missing).current_dir(&dir.0).output().unwrap();
+    let out = Command::new(BIN)
+        .args(["convert", "seq", "-r", "32", "-n", "20", "-o", "x.glb"])
+        .env("TMPDIR", &missing)
+        .current_dir(&dir.0)
+        .output()
+        .unwrap();
     let err = stderr(&out);
     assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(err.contains("no_such_folder") && err.contains("TMPDIR") && !err.contains("frame_5"), "{err}");
+    assert!(
+        err.contains("no_such_folder") && err.contains("TMPDIR") && !err.contains("frame_5"),
+        "{err}"
+    );
     assert!(!dir.0.join("x.glb").exists());
 }
 
@@ -152,25 +239,61 @@ fn a_resolution_that_cannot_fit_in_memory_is_refused_with_one_that_fits() {
     let dir = Scratch::new("early", "refuse-memory");
     bar_sequence(&dir);
     let clock = Instant::now();
-    let out = run(&dir, &["convert", "seq", "-r", "1596", "-n", "50", "-o", "x.glb", "--max-memory", "2"]);
+    let out = run(
+        &dir,
+        &[
+            "convert",
+            "seq",
+            "-r",
+            "1596",
+            "-n",
+            "50",
+            "-o",
+            "x.glb",
+            "--max-memory",
+            "2",
+        ],
+    );
     let err = stderr(&out);
     assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(clock.elapsed() < Duration::from_secs(5), "took {:?}", clock.elapsed());
-    assert!(err.contains("the largest resolution that fits is about"), "{err}");
+    assert!(
+        clock.elapsed() < Duration::from_secs(5),
+        "took {:?}",
+        clock.elapsed()
+    );
+    assert!(
+        err.contains("the largest resolution that fits is about"),
+        "{err}"
+    );
     // The resolution it names does fit under the same limit.
-    let fits: usize = err.split("fits is about ").nth(1).unwrap().split(|c: char| !c.is_ascii_digit()).next().unwrap().parse().unwrap();
+    let fits: usize = err
+        .split("fits is about ")
+        .nth(1)
+        .unwrap()
+        .split(|c: char| !c.is_ascii_digit())
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
     assert!((2..1596).contains(&fits), "{err}");
     let grid = voltrack::model::GridSpec::for_bounds(&bar_bounds(), fits).unwrap();
     let meshes: Vec<_> = (0..8).map(voltrack::fixtures::bending_bar).collect();
     let refs: Vec<_> = meshes.iter().collect();
-    let estimate = voltrack::voxel::MemoryEstimate::of(&refs, &grid, rayon::current_num_threads().max(2));
+    let estimate =
+        voltrack::voxel::MemoryEstimate::of(&refs, &grid, rayon::current_num_threads().max(2));
     let limit = 2.0 * (1u64 << 30) as f64;
-    assert!(estimate.total(limit) <= limit, "{} bytes at resolution {fits}", estimate.total(limit));
+    assert!(
+        estimate.total(limit) <= limit,
+        "{} bytes at resolution {fits}",
+        estimate.total(limit)
+    );
     assert!(!dir.0.join("x.glb").exists());
 }
 
 fn bar_bounds() -> voltrack::Aabb {
-    (0..8).map(|f| voltrack::fixtures::bending_bar(f).bounding_box()).fold(voltrack::Aabb::empty(), |a, b| a.union(&b))
+    (0..8)
+        .map(|f| voltrack::fixtures::bending_bar(f).bounding_box())
+        .fold(voltrack::Aabb::empty(), |a, b| a.union(&b))
 }
 
 #[test]
@@ -181,9 +304,18 @@ fn the_memory_estimate_is_not_below_what_a_run_holds() {
     let grid = voltrack::model::GridSpec::for_bounds(&bar_bounds(), 64).unwrap();
     let refs: Vec<_> = meshes.iter().collect();
     let estimate = voltrack::voxel::MemoryEstimate::of(&refs, &grid, 1).total(f64::INFINITY);
-    let occupied: usize = meshes.iter().map(|m| voltrack::voxel::voxelize(m, &grid).len()).sum();
-    assert!(estimate >= 16.0 * occupied as f64, "estimate {estimate} for {occupied} voxels");
-    assert!(estimate <= 64.0 * occupied as f64 + 1e6, "estimate {estimate} for {occupied} voxels");
+    let occupied: usize = meshes
+        .iter()
+        .map(|m| voltrack::voxel::voxelize(m, &grid).len())
+        .sum();
+    assert!(
+        estimate >= 16.0 * occupied as f64,
+        "estimate {estimate} for {occupied} voxels"
+    );
+    assert!(
+        estimate <= 64.0 * occupied as f64 + 1e6,
+        "estimate {estimate} for {occupied} voxels"
+    );
 }
 
 #[cfg(unix)]
@@ -193,32 +325,95 @@ fn devices_and_fifos_are_written_through_not_replaced() {
     let dir = Scratch::new("early", "special-outputs");
     bar_sequence(&dir);
     // /dev/null stays a device (as root the rename used to replace it).
-    if std::fs::OpenOptions::new().write(true).open("/dev/null").is_ok() {
-        let out = run(&dir, &["convert", "seq", "-r", "32", "-n", "20", "--conform-iterations", "0", "-o", "/dev/null", "--format", "glb"]);
+    if std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/null")
+        .is_ok()
+    {
+        let out = run(
+            &dir,
+            &[
+                "convert",
+                "seq",
+                "-r",
+                "32",
+                "-n",
+                "20",
+                "--conform-iterations",
+                "0",
+                "-o",
+                "/dev/null",
+                "--format",
+                "glb",
+            ],
+        );
         assert!(out.status.success(), "{}", stderr(&out));
-        assert!(std::fs::metadata("/dev/null").unwrap().file_type().is_char_device());
+        assert!(std::fs::metadata("/dev/null")
+            .unwrap()
+            .file_type()
+            .is_char_device());
     }
     // A FIFO gets the file's bytes and stays a FIFO.
     let fifo = dir.0.join("pipe.glb");
-    if !Command::new("mkfifo").arg(&fifo).status().is_ok_and(|s| s.success()) {
+    if !Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .is_ok_and(|s| s.success())
+    {
         return;
     }
     let reader = {
         let fifo = fifo.clone();
         std::thread::spawn(move || std::fs::read(&fifo).unwrap())
     };
-    let out = run(&dir, &["convert", "seq", "-r", "32", "-n", "20", "--conform-iterations", "0", "-o", "pipe.glb"]);
+    let out = run(
+        &dir,
+        &[
+            "convert",
+            "seq",
+            "-r",
+            "32",
+            "-n",
+            "20",
+            "--conform-iterations",
+            "0",
+            "-o",
+            "pipe.glb",
+        ],
+    );
     assert!(out.status.success(), "{}", stderr(&out));
     let bytes = reader.join().unwrap();
     assert!(bytes.starts_with(b"glTF"), "{} bytes", bytes.len());
-    assert!(std::fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
+    assert!(std::fs::symlink_metadata(&fifo)
+        .unwrap()
+        .file_type()
+        .is_fifo());
     // A symlinked output replaces the file it names and keeps the link.
     std::fs::write(dir.0.join("target.glb"), "old").unwrap();
     std::os::unix::fs::symlink("target.glb", dir.0.join("link.glb")).unwrap();
-    let out = run(&dir, &["convert", "seq", "-r", "32", "-n", "20", "--conform-iterations", "0", "-o", "link.glb"]);
+    let out = run(
+        &dir,
+        &[
+            "convert",
+            "seq",
+            "-r",
+            "32",
+            "-n",
+            "20",
+            "--conform-iterations",
+            "0",
+            "-o",
+            "link.glb",
+        ],
+    );
     assert!(out.status.success(), "{}", stderr(&out));
-    assert!(std::fs::symlink_metadata(dir.0.join("link.glb")).unwrap().file_type().is_symlink());
-    assert!(std::fs::read(dir.0.join("target.glb")).unwrap().starts_with(b"glTF"));
+    assert!(std::fs::symlink_metadata(dir.0.join("link.glb"))
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert!(std::fs::read(dir.0.join("target.glb"))
+        .unwrap()
+        .starts_with(b"glTF"));
 }
 
 #[test]
@@ -235,7 +430,10 @@ fn a_texture_glb_cannot_carry_is_left_out_at_once_not_failed_at_export() {
     }
     for line in obj.lines() {
         if let Some(rest) = line.strip_prefix("f ") {
-            let corners: Vec<String> = rest.split_whitespace().map(|c| format!("{c}/{c}")).collect();
+            let corners: Vec<String> = rest
+                .split_whitespace()
+                .map(|c| format!("{c}/{c}"))
+                .collect();
             text.push_str(&format!("f {}\n", corners.join(" ")));
         } else {
             text.push_str(line);
@@ -244,11 +442,34 @@ fn a_texture_glb_cannot_carry_is_left_out_at_once_not_failed_at_export() {
     }
     std::fs::write(seq.join("frame_0.obj"), text).unwrap();
     std::fs::write(seq.join("skin.mtl"), "newmtl skin\nmap_Kd skin.tga\n").unwrap();
-    std::fs::write(seq.join("skin.tga"), [0u8, 0, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 1, 0, 24, 0, 255, 255, 255]).unwrap();
-    let out = run(&dir, &["convert", "seq", "-r", "32", "-n", "20", "--conform-iterations", "0", "-o", "x.glb"]);
+    std::fs::write(
+        seq.join("skin.tga"),
+        [
+            0u8, 0, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 1, 0, 24, 0, 255, 255, 255,
+        ],
+    )
+    .unwrap();
+    let out = run(
+        &dir,
+        &[
+            "convert",
+            "seq",
+            "-r",
+            "32",
+            "-n",
+            "20",
+            "--conform-iterations",
+            "0",
+            "-o",
+            "x.glb",
+        ],
+    );
     let err = stderr(&out);
     assert!(out.status.success(), "{err}");
-    assert!(err.contains("skin.tga") && err.contains("neither PNG nor JPEG"), "{err}");
+    assert!(
+        err.contains("skin.tga") && err.contains("neither PNG nor JPEG"),
+        "{err}"
+    );
     assert!(Path::new(&dir.0.join("x.glb")).exists());
 }
 
@@ -262,14 +483,45 @@ fn an_output_a_rerun_would_read_as_a_frame_is_refused_for_patterns_too() {
         let t = dir.0.join(format!("takes/take_{take}"));
         std::fs::create_dir_all(&t).unwrap();
         for f in 4 * take..4 * take + 4 {
-            std::fs::copy(dir.0.join(format!("seq/frame_{f}.obj")), t.join(format!("frame_{f}.obj"))).unwrap();
+            std::fs::copy(
+                dir.0.join(format!("seq/frame_{f}.obj")),
+                t.join(format!("frame_{f}.obj")),
+            )
+            .unwrap();
         }
     }
     let pattern = "takes/take_*/*.obj";
     // The point cache's OBJ would land among the frames the pattern takes.
-    refused_up_front(&dir, &["convert", pattern, "-r", "32", "-n", "20", "-o", "takes/take_1/anim.pc2"], &["takes/take_1/anim.obj", "next run"]);
+    refused_up_front(
+        &dir,
+        &[
+            "convert",
+            pattern,
+            "-r",
+            "32",
+            "-n",
+            "20",
+            "-o",
+            "takes/take_1/anim.pc2",
+        ],
+        &["takes/take_1/anim.obj", "next run"],
+    );
     // Not matched by the pattern: written.
-    let out = run(&dir, &["convert", pattern, "-r", "32", "-n", "20", "--conform-iterations", "0", "-o", "takes/take_1/anim.glb"]);
+    let out = run(
+        &dir,
+        &[
+            "convert",
+            pattern,
+            "-r",
+            "32",
+            "-n",
+            "20",
+            "--conform-iterations",
+            "0",
+            "-o",
+            "takes/take_1/anim.glb",
+        ],
+    );
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(!dir.0.join("takes/take_1/anim.obj").exists());
 }

@@ -8,9 +8,9 @@ use voltrack::deform::DynamicMesh;
 use voltrack::export::exr::write_trajectories_exr;
 use voltrack::export::vat::{write_vat, VatOptions};
 use voltrack::io::exr::read_trajectories_exr;
-use voltrack::model::TrajectoryMetadata;
 use voltrack::math::{Point3, Real};
 use voltrack::model::Trajectories;
+use voltrack::model::TrajectoryMetadata;
 
 mod common;
 use common::Scratch;
@@ -21,7 +21,11 @@ fn files_under(dir: &Path) -> Vec<String> {
     for e in std::fs::read_dir(dir).unwrap().flatten() {
         let p = e.path();
         if p.is_dir() {
-            out.extend(files_under(&p).into_iter().map(|n| format!("{}/{n}", e.file_name().to_string_lossy())));
+            out.extend(
+                files_under(&p)
+                    .into_iter()
+                    .map(|n| format!("{}/{n}", e.file_name().to_string_lossy())),
+            );
         } else {
             out.push(e.file_name().to_string_lossy().into_owned());
         }
@@ -43,11 +47,23 @@ fn trajectories(frames: usize, centers: usize) -> Trajectories {
     let mut t = Trajectories::new(frames, centers);
     for f in 0..frames {
         for i in 0..centers {
-            t.set(f, i, Point3::new(next() * 10.0 - 5.0, 0.1 * f as Real + 1e-3 * i as Real, -1.0 / (1.0 + next())));
+            t.set(
+                f,
+                i,
+                Point3::new(
+                    next() * 10.0 - 5.0,
+                    0.1 * f as Real + 1e-3 * i as Real,
+                    -1.0 / (1.0 + next()),
+                ),
+            );
         }
     }
     t.set(0, 0, Point3::new(-0.0, 1e-40, 3.0e30));
-    t.set(frames - 1, centers - 1, Point3::new(1.0 / 3.0, -123456.789, Real::MIN_POSITIVE));
+    t.set(
+        frames - 1,
+        centers - 1,
+        Point3::new(1.0 / 3.0, -123456.789, Real::MIN_POSITIVE),
+    );
     t
 }
 
@@ -55,8 +71,17 @@ fn trajectories(frames: usize, centers: usize) -> Trajectories {
 /// the vertex-animation texture.
 fn animated(t: &Trajectories) -> DynamicMesh {
     let frames: Vec<Vec<Point3>> = (0..t.frames).map(|f| t.frame(f).to_vec()).collect();
-    let triangles = (0..t.centers as u32 / 3).map(|k| [3 * k, 3 * k + 1, 3 * k + 2]).collect();
-    DynamicMesh { base: voltrack::TriangleMesh { positions: frames[0].clone(), triangles, ..Default::default() }, frames: frames.into() }
+    let triangles = (0..t.centers as u32 / 3)
+        .map(|k| [3 * k, 3 * k + 1, 3 * k + 2])
+        .collect();
+    DynamicMesh {
+        base: voltrack::TriangleMesh {
+            positions: frames[0].clone(),
+            triangles,
+            ..Default::default()
+        },
+        frames: frames.into(),
+    }
 }
 
 fn write_vat_exr(path: &Path, mesh: &DynamicMesh) -> voltrack::Result<()> {
@@ -68,9 +93,15 @@ fn metadata() -> TrajectoryMetadata {
         resolution: Some(256),
         voxel_size: Some(0.0071234567890123),
         first_input: Some("/données/Tänzer ü/φrame_0 😀.obj".into()),
-        track: Some(serde_json::json!({"centers":13,"rho_p":0.07,"affinity":"max","nested":{"list":[1,2,3],"name":"ß"}})),
+        track: Some(
+            serde_json::json!({"centers":13,"rho_p":0.07,"affinity":"max","nested":{"list":[1,2,3],"name":"ß"}}),
+        ),
         removed: Some(vec![4, 9, 17]),
-        other: [("voltrack.note".to_string(), serde_json::json!("quotes \" and back\\slash\nand a second line"))].into(),
+        other: [(
+            "voltrack.note".to_string(),
+            serde_json::json!("quotes \" and back\\slash\nand a second line"),
+        )]
+        .into(),
         ..Default::default()
     }
 }
@@ -83,12 +114,21 @@ fn trajectories_round_trip_exactly_after_f32_rounding() {
         let t = trajectories(frames, centers);
         write_trajectories_exr(&path, &t, &metadata()).unwrap();
         let (back, meta) = read_trajectories_exr(&path).unwrap();
-        assert_eq!((back.frames, back.centers, back.positions.len()), (frames, centers, frames * centers));
+        assert_eq!(
+            (back.frames, back.centers, back.positions.len()),
+            (frames, centers, frames * centers)
+        );
         for f in 0..frames {
             for i in 0..centers {
                 let (a, b) = (t.get(f, i), back.get(f, i));
                 for k in 0..3 {
-                    assert_eq!(b[k].to_bits(), (a[k] as f32 as Real).to_bits(), "frame {f}, center {i}, axis {k}: {} vs {}", b[k], a[k]);
+                    assert_eq!(
+                        b[k].to_bits(),
+                        (a[k] as f32 as Real).to_bits(),
+                        "frame {f}, center {i}, axis {k}: {} vs {}",
+                        b[k],
+                        a[k]
+                    );
                 }
             }
         }
@@ -106,12 +146,24 @@ fn metadata_round_trips() {
     // Every field comes back as written, non-ASCII text (Latin-1 and beyond,
     // including outside the BMP) through EXR's Latin-1 text attributes, the
     // voxel size to the last digit, unknown keys kept; plus the version.
-    assert_eq!(meta, TrajectoryMetadata { version: Some(env!("CARGO_PKG_VERSION").into()), ..metadata() });
+    assert_eq!(
+        meta,
+        TrajectoryMetadata {
+            version: Some(env!("CARGO_PKG_VERSION").into()),
+            ..metadata()
+        }
+    );
     // No metadata at all is fine too.
     let bare = dir.join("bare.exr");
     write_trajectories_exr(&bare, &trajectories(2, 2), &Default::default()).unwrap();
     let (_, meta) = read_trajectories_exr(&bare).unwrap();
-    assert_eq!(meta, TrajectoryMetadata { version: Some(env!("CARGO_PKG_VERSION").into()), ..Default::default() });
+    assert_eq!(
+        meta,
+        TrajectoryMetadata {
+            version: Some(env!("CARGO_PKG_VERSION").into()),
+            ..Default::default()
+        }
+    );
 }
 
 /// The attribute's text is what the first versions wrote (numbers as text,
@@ -120,14 +172,22 @@ fn metadata_round_trips() {
 fn metadata_keeps_its_format_on_disk() {
     let text = serde_json::to_string(&metadata()).unwrap();
     assert!(text.contains(r#""voltrack.resolution":"256""#), "{text}");
-    assert!(text.contains(r#""voltrack.voxel_size":"7.1234567890123e-3""#), "{text}");
+    assert!(
+        text.contains(r#""voltrack.voxel_size":"7.1234567890123e-3""#),
+        "{text}"
+    );
     assert!(text.contains(r#""voltrack.removed":[4,9,17]"#), "{text}");
     let old = r#"{"version":"0.1.0","voltrack.frames":"8","voltrack.grid":{"dims":[5,6,7],"origin":[0.5,1.0,-2.0],"voxel_size":0.25},"voltrack.resolution":"64","voltrack.track":{"absolute_units":true},"voltrack.voxel_size":"2.5e-1"}"#;
     let meta: TrajectoryMetadata = serde_json::from_str(old).unwrap();
-    assert_eq!((meta.frames, meta.resolution, meta.voxel_size), (Some(8), Some(64), Some(0.25)));
+    assert_eq!(
+        (meta.frames, meta.resolution, meta.voxel_size),
+        (Some(8), Some(64), Some(0.25))
+    );
     assert_eq!(meta.grid.unwrap().dims, [5, 6, 7]);
     assert!(meta.absolute_units());
-    assert!(serde_json::from_str::<TrajectoryMetadata>(r#"{"voltrack.resolution":"many"}"#).is_err());
+    assert!(
+        serde_json::from_str::<TrajectoryMetadata>(r#"{"voltrack.resolution":"many"}"#).is_err()
+    );
 }
 
 #[test]
@@ -136,7 +196,10 @@ fn output_is_byte_identical_across_runs_and_thread_counts() {
     let t = trajectories(33, 257);
     let frames = animated(&t);
     let write = |name: &str, threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
         // One folder per run: the VAT's sidecar and mesh name its files.
         std::fs::create_dir(dir.join(name)).unwrap();
         let exr = dir.join(&format!("{name}/c.exr"));
@@ -147,7 +210,12 @@ fn output_is_byte_identical_across_runs_and_thread_counts() {
         });
         let json = std::fs::read(vat.with_extension("json")).unwrap();
         let mesh = std::fs::read(vat.with_extension("glb")).unwrap();
-        (std::fs::read(exr).unwrap(), std::fs::read(vat).unwrap(), json, mesh)
+        (
+            std::fs::read(exr).unwrap(),
+            std::fs::read(vat).unwrap(),
+            json,
+            mesh,
+        )
     };
     let first = write("a", 1);
     // assert!, not assert_eq!: the bytes are too many to print.
@@ -187,10 +255,15 @@ fn unreadable_files_give_errors_that_name_them() {
 
 /// The numbers of the array `key` in a JSON text, parsed exactly.
 fn json_numbers(json: &str, key: &str) -> Vec<Real> {
-    let at = json.find(&format!("\"{key}\"")).unwrap_or_else(|| panic!("no {key} in {json}"));
+    let at = json
+        .find(&format!("\"{key}\""))
+        .unwrap_or_else(|| panic!("no {key} in {json}"));
     let open = at + json[at..].find('[').unwrap();
     let close = open + json[open..].find(']').unwrap();
-    json[open + 1..close].split(',').map(|x| x.trim().parse().unwrap()).collect()
+    json[open + 1..close]
+        .split(',')
+        .map(|x| x.trim().parse().unwrap())
+        .collect()
 }
 
 #[test]
@@ -200,7 +273,10 @@ fn vertex_animation_texture_with_json_sidecar() {
     let t = trajectories(6, 50);
     let mesh = animated(&t);
     write_vat_exr(&path, &mesh).unwrap();
-    assert_eq!(files_under(&dir.0), vec!["anim.exr", "anim.glb", "anim.json"]);
+    assert_eq!(
+        files_under(&dir.0),
+        vec!["anim.exr", "anim.glb", "anim.json"]
+    );
 
     let (back, meta) = read_trajectories_exr(&path).unwrap();
     assert_eq!((back.frames, back.centers), (6, 50));
@@ -213,10 +289,21 @@ fn vertex_animation_texture_with_json_sidecar() {
     assert_eq!(info["vertices"], 50);
     // The bounds, exactly: parsed from the text with Rust's correctly rounded
     // parser (serde_json's default one may be off by an ulp, e.g. on 3e30).
-    let (min, max) = (json_numbers(&sidecar, "bounds_min"), json_numbers(&sidecar, "bounds_max"));
+    let (min, max) = (
+        json_numbers(&sidecar, "bounds_min"),
+        json_numbers(&sidecar, "bounds_max"),
+    );
     for k in 0..3 {
-        let lo = t.positions.iter().map(|p| p[k]).fold(Real::INFINITY, Real::min);
-        let hi = t.positions.iter().map(|p| p[k]).fold(Real::NEG_INFINITY, Real::max);
+        let lo = t
+            .positions
+            .iter()
+            .map(|p| p[k])
+            .fold(Real::INFINITY, Real::min);
+        let hi = t
+            .positions
+            .iter()
+            .map(|p| p[k])
+            .fold(Real::NEG_INFINITY, Real::max);
         assert_eq!(min[k], lo, "axis {k}");
         assert_eq!(max[k], hi, "axis {k}");
     }
@@ -228,14 +315,30 @@ fn vertex_animation_texture_with_json_sidecar() {
     // with the sidecar or the mesh: errors, nothing written.
     let mut frames = mesh.frames.to_vec().unwrap();
     frames[1].pop();
-    let ragged = DynamicMesh { base: mesh.base.clone(), frames: frames.into() };
+    let ragged = DynamicMesh {
+        base: mesh.base.clone(),
+        frames: frames.into(),
+    };
     assert!(write_vat_exr(&dir.join("ragged.exr"), &ragged).is_err());
-    let empty = DynamicMesh { base: Default::default(), frames: vec![vec![], vec![]].into() };
+    let empty = DynamicMesh {
+        base: Default::default(),
+        frames: vec![vec![], vec![]].into(),
+    };
     assert!(write_vat_exr(&dir.join("none.exr"), &empty).is_err());
-    assert!(write_vat_exr(&dir.join("none.exr"), &DynamicMesh { frames: Vec::new().into(), base: mesh.base.clone() }).is_err());
+    assert!(write_vat_exr(
+        &dir.join("none.exr"),
+        &DynamicMesh {
+            frames: Vec::new().into(),
+            base: mesh.base.clone()
+        }
+    )
+    .is_err());
     assert!(write_vat_exr(&dir.join("clash.json"), &mesh).is_err());
     assert!(write_vat_exr(&dir.join("clash.glb"), &mesh).is_err());
-    assert_eq!(files_under(&dir.0), vec!["anim.exr", "anim.glb", "anim.json"]);
+    assert_eq!(
+        files_under(&dir.0),
+        vec!["anim.exr", "anim.glb", "anim.json"]
+    );
 }
 
 #[test]
@@ -245,7 +348,9 @@ fn failed_writes_leave_nothing_behind() {
     let frames = animated(&t);
     // Into a directory that does not exist.
     let nowhere = dir.join("no/such/dir/c.exr");
-    let err = write_trajectories_exr(&nowhere, &t, &Default::default()).unwrap_err().to_string();
+    let err = write_trajectories_exr(&nowhere, &t, &Default::default())
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("c.exr"), "{err}");
     assert!(write_vat_exr(&dir.join("missing/anim.exr"), &frames).is_err());
     // Onto an existing directory: the temporary file is written, the rename fails.
@@ -253,8 +358,18 @@ fn failed_writes_leave_nothing_behind() {
     std::fs::create_dir_all(occupied.join("inside")).unwrap();
     assert!(write_trajectories_exr(&occupied, &t, &Default::default()).is_err());
     // Nothing to write: 0 centers or 0 frames.
-    assert!(write_trajectories_exr(&dir.join("empty.exr"), &Trajectories::new(3, 0), &Default::default()).is_err());
-    assert!(write_trajectories_exr(&dir.join("empty.exr"), &Trajectories::new(0, 3), &Default::default()).is_err());
+    assert!(write_trajectories_exr(
+        &dir.join("empty.exr"),
+        &Trajectories::new(3, 0),
+        &Default::default()
+    )
+    .is_err());
+    assert!(write_trajectories_exr(
+        &dir.join("empty.exr"),
+        &Trajectories::new(0, 3),
+        &Default::default()
+    )
+    .is_err());
     // Below the parent of `nowhere`: a file where a directory should be.
     std::fs::write(dir.join("plain"), b"x").unwrap();
     assert!(write_trajectories_exr(&dir.join("plain/c.exr"), &t, &Default::default()).is_err());
@@ -274,10 +389,18 @@ fn numbers_round_trip_to_the_last_digit() {
     let dir = Scratch::new("exr", "numeric");
     let path = dir.join("c.exr");
     for voxel_size in [3e30, 1e3, 5.6e-5, 0.1 + 0.2, f64::MIN_POSITIVE] {
-        let meta = TrajectoryMetadata { voxel_size: Some(voxel_size), resolution: Some(1596), frames: Some(9000), ..Default::default() };
+        let meta = TrajectoryMetadata {
+            voxel_size: Some(voxel_size),
+            resolution: Some(1596),
+            frames: Some(9000),
+            ..Default::default()
+        };
         write_trajectories_exr(&path, &trajectories(2, 3), &meta).unwrap();
         let (_, back) = read_trajectories_exr(&path).unwrap();
-        assert_eq!(back.voxel_size.map(f64::to_bits), Some(voxel_size.to_bits()));
+        assert_eq!(
+            back.voxel_size.map(f64::to_bits),
+            Some(voxel_size.to_bits())
+        );
         assert_eq!((back.resolution, back.frames), (Some(1596), Some(9000)));
     }
 }

@@ -9,7 +9,10 @@ use voltrack::spatial::surface::SurfaceIndex;
 
 /// `spec` cut to its first `frames` frames.
 fn short(spec: &TakeSpec, frames: usize) -> TakeSpec {
-    TakeSpec { frames, ..spec.clone() }
+    TakeSpec {
+        frames,
+        ..spec.clone()
+    }
 }
 
 #[test]
@@ -35,7 +38,12 @@ fn the_family_spans_what_it_is_meant_to() {
 fn every_frame_is_a_closed_surface_and_the_truth_lies_on_it() {
     for spec in family() {
         let take = build(&short(&spec, 4));
-        assert!((take.limb_voxels / spec.limb_voxels - 1.0).abs() < 0.05, "{}: limbs {} voxels", spec.name, take.limb_voxels);
+        assert!(
+            (take.limb_voxels / spec.limb_voxels - 1.0).abs() < 0.05,
+            "{}: limbs {} voxels",
+            spec.name,
+            take.limb_voxels
+        );
         for (f, m) in take.meshes.iter().enumerate() {
             // Every directed edge is matched by its reverse: closed and consistently oriented.
             let mut edges = std::collections::HashMap::new();
@@ -45,21 +53,55 @@ fn every_frame_is_a_closed_surface_and_the_truth_lies_on_it() {
                     *edges.entry((t[(k + 1) % 3], t[k])).or_insert(0i32) -= 1;
                 }
             }
-            assert!(edges.values().all(|&c| c == 0), "{} frame {f}: not closed", spec.name);
-            let volume: Real = m.triangles.iter().map(|t| m.positions[t[0] as usize].coords.dot(&m.positions[t[1] as usize].coords.cross(&m.positions[t[2] as usize].coords)) / 6.0).sum();
+            assert!(
+                edges.values().all(|&c| c == 0),
+                "{} frame {f}: not closed",
+                spec.name
+            );
+            let volume: Real = m
+                .triangles
+                .iter()
+                .map(|t| {
+                    m.positions[t[0] as usize].coords.dot(
+                        &m.positions[t[1] as usize]
+                            .coords
+                            .cross(&m.positions[t[2] as usize].coords),
+                    ) / 6.0
+                })
+                .sum();
             assert!(volume > 0.0, "{} frame {f}: faces inward", spec.name);
             if f > 0 {
-                assert_ne!(m.positions, take.meshes[0].positions, "{} frame {f} is frame 0's mesh", spec.name);
+                assert_ne!(
+                    m.positions, take.meshes[0].positions,
+                    "{} frame {f} is frame 0's mesh",
+                    spec.name
+                );
             }
             let index = SurfaceIndex::new(&m.positions, &m.triangles);
             let truth = take.truth.frame(f, &take.meshes[0].positions);
-            let off = truth.iter().zip(&take.truth.ambiguous).filter(|(_, &a)| !a).map(|(p, _)| index.distance(p)).fold(0.0, Real::max);
+            let off = truth
+                .iter()
+                .zip(&take.truth.ambiguous)
+                .filter(|(_, &a)| !a)
+                .map(|(p, _)| index.distance(p))
+                .fold(0.0, Real::max);
             // A vertex is within about half a step of the surface it was meshed
             // from, the frame's mesh within about half a step of its own.
-            assert!(off < 1.5 * take.step, "{} frame {f}: truth {off} from the surface (step {})", spec.name, take.step);
+            assert!(
+                off < 1.5 * take.step,
+                "{} frame {f}: truth {off} from the surface (step {})",
+                spec.name,
+                take.step
+            );
         }
-        let ambiguous = take.truth.ambiguous.iter().filter(|&&a| a).count() as Real / take.truth.ambiguous.len() as Real;
-        assert!(ambiguous < 0.6, "{}: {:.0} % ambiguous", spec.name, 100.0 * ambiguous);
+        let ambiguous = take.truth.ambiguous.iter().filter(|&&a| a).count() as Real
+            / take.truth.ambiguous.len() as Real;
+        assert!(
+            ambiguous < 0.6,
+            "{}: {:.0} % ambiguous",
+            spec.name,
+            100.0 * ambiguous
+        );
     }
 }
 
@@ -70,14 +112,26 @@ fn the_score_measures_against_the_truth() {
     let spec = family().into_iter().find(|s| s.name == "kick").unwrap();
     let take = build(&short(&spec, 24));
     let first = &take.meshes[0].positions;
-    let truth: Vec<_> = (0..take.meshes.len()).map(|f| take.truth.frame(f, first)).collect();
+    let truth: Vec<_> = (0..take.meshes.len())
+        .map(|f| take.truth.frame(f, first))
+        .collect();
     let s = score(&take, &truth);
     assert!(s.max < 1e-9 && s.lost.is_empty(), "{s:?}");
     let still: Vec<_> = (0..take.meshes.len()).map(|_| first.clone()).collect();
     let s = score(&take, &still);
-    assert!(!s.lost.is_empty() && s.lost.iter().all(|&f| f > 0), "{:?}", s.lost);
+    assert!(
+        !s.lost.is_empty() && s.lost.iter().all(|&f| f > 0),
+        "{:?}",
+        s.lost
+    );
     // The kick lifts a foot far from where it stood: lost while up.
-    assert!(s.worst_part.iter().any(|(p, e)| p.starts_with("foot") && *e > 5.0), "{:?}", s.worst_part);
+    assert!(
+        s.worst_part
+            .iter()
+            .any(|(p, e)| p.starts_with("foot") && *e > 5.0),
+        "{:?}",
+        s.worst_part
+    );
 }
 
 /// CI's regression run of the family: three takes (a biped with a hand on
@@ -95,17 +149,37 @@ fn a_subset_converts_within_bounds_and_every_lost_frame_is_warned() {
     // The kicking foot, under 4 voxels across at this resolution, is lost
     // for a frame or two at the top of the kick: no bound on its maximum,
     // but those frames must be warned of.
-    for (name, max_bound) in [("walk_hand_on_hip", 8.0), ("kick", Real::INFINITY), ("dog_trot", 8.0)] {
+    for (name, max_bound) in [
+        ("walk_hand_on_hip", 8.0),
+        ("kick", Real::INFINITY),
+        ("dog_trot", 8.0),
+    ] {
         let spec = family().into_iter().find(|s| s.name == name).unwrap();
         let take = build(&short(&spec, 24));
         let conv = convert(&take.meshes, &options, Default::default()).unwrap();
-        let (fit, outliers) = Measurements::fit_of(&conv, &take.meshes, Default::default()).unwrap();
+        let (fit, outliers) =
+            Measurements::fit_of(&conv, &take.meshes, Default::default()).unwrap();
         let warned = voltrack::pipeline::lost_parts(&conv, Some((&fit, &outliers))).flagged;
         let s = score(&take, &conv.mesh.frames.to_vec().unwrap());
-        eprintln!("{name}: mean {:.3} %, p95 {:.3} %, max {:.2} %, lost {:?}, warned {warned:?}", s.mean, s.p95, s.max, s.lost);
+        eprintln!(
+            "{name}: mean {:.3} %, p95 {:.3} %, max {:.2} %, lost {:?}, warned {warned:?}",
+            s.mean, s.p95, s.max, s.lost
+        );
         assert!(s.mean <= 0.5, "{name}: correspondence mean {:.3} %", s.mean);
-        assert!(s.max <= max_bound, "{name}: correspondence max {:.2} %", s.max);
-        let missed: Vec<usize> = s.lost.iter().copied().filter(|f| !warned.contains(f)).collect();
-        assert!(missed.is_empty(), "{name}: frames {missed:?} lost and not warned of (warned {warned:?})");
+        assert!(
+            s.max <= max_bound,
+            "{name}: correspondence max {:.2} %",
+            s.max
+        );
+        let missed: Vec<usize> = s
+            .lost
+            .iter()
+            .copied()
+            .filter(|f| !warned.contains(f))
+            .collect();
+        assert!(
+            missed.is_empty(),
+            "{name}: frames {missed:?} lost and not warned of (warned {warned:?})"
+        );
     }
 }

@@ -44,7 +44,6 @@ const FRAMES: usize = 8;
 const THREADS: usize = 2;
 const KILL_AFTER: Duration = Duration::from_secs(30);
 
-
 #[derive(Clone, PartialEq, Debug)]
 enum Entry {
     File(Vec<u8>),
@@ -64,7 +63,10 @@ fn snapshot(root: &Path) -> BTreeMap<String, Entry> {
                 out.insert(name.clone(), Entry::Dir);
                 walk(&e.path(), &format!("{name}/"), out);
             } else {
-                out.insert(name, Entry::File(std::fs::read(e.path()).unwrap_or_default()));
+                out.insert(
+                    name,
+                    Entry::File(std::fs::read(e.path()).unwrap_or_default()),
+                );
             }
         }
     }
@@ -96,9 +98,23 @@ fn make_fixture(root: &Path) -> BTreeMap<String, Entry> {
         let name = format!("frame_{f}.obj");
         std::fs::copy(committed.join(&name), seq.join(&name)).unwrap();
     }
-    std::fs::write(seq.join("frame_2.json"), b"{\"note\": \"the user's file, not a voltrack sidecar\"}\n").unwrap();
-    let out = Command::new(BIN).args(["track", "seq"]).args(SMALL).args(["-o", "traj.exr"]).current_dir(root).output().unwrap();
-    assert!(out.status.success(), "tracking the fixture failed: {}", String::from_utf8_lossy(&out.stderr));
+    std::fs::write(
+        seq.join("frame_2.json"),
+        b"{\"note\": \"the user's file, not a voltrack sidecar\"}\n",
+    )
+    .unwrap();
+    let out = Command::new(BIN)
+        .args(["track", "seq"])
+        .args(SMALL)
+        .args(["-o", "traj.exr"])
+        .current_dir(root)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "tracking the fixture failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     std::os::unix::fs::symlink("seq/frame_3.obj", root.join("link3.obj")).unwrap();
     std::os::unix::fs::symlink("seq", root.join("link_seq")).unwrap();
     std::os::unix::fs::symlink("traj.exr", root.join("link_traj.exr")).unwrap();
@@ -119,11 +135,21 @@ fn make_fixture(root: &Path) -> BTreeMap<String, Entry> {
 }
 
 /// Links to `seq/frame_3.obj` planted in output folders: (folder, name).
-const PLANTED: [(&str, &str); 5] =
-    [("ck_links", "track.ckpt"), ("ck_links", "refine.ckpt"), ("objs_links", "frame_0003.obj"), ("objs_links", "frame_0001.obj"), ("vox_links", "frame_3.binvox")];
+const PLANTED: [(&str, &str); 5] = [
+    ("ck_links", "track.ckpt"),
+    ("ck_links", "refine.ckpt"),
+    ("objs_links", "frame_0003.obj"),
+    ("objs_links", "frame_0001.obj"),
+    ("vox_links", "frame_3.binvox"),
+];
 
 /// The user's own files in output folders: (folder, name).
-const FOREIGN: [(&str, &str); 4] = [("ck_foreign", "refine.ckpt"), ("ck_foreign2", "track.ckpt"), ("objs_foreign", "frame_0001.obj"), ("vox_foreign", "notes.txt")];
+const FOREIGN: [(&str, &str); 4] = [
+    ("ck_foreign", "refine.ckpt"),
+    ("ck_foreign2", "track.ckpt"),
+    ("objs_foreign", "frame_0001.obj"),
+    ("vox_foreign", "notes.txt"),
+];
 
 /// What a case must do.
 #[derive(Clone, Copy, PartialEq)]
@@ -146,20 +172,45 @@ struct Case {
     replaces_in: Option<&'static str>,
 }
 
-fn case(name: impl Into<String>, argv: Vec<String>, expect: Expect, needles: &[&'static str]) -> Case {
-    Case { name: name.into(), argv, expect, needles: needles.to_vec(), runs: 1, replaces_in: None }
+fn case(
+    name: impl Into<String>,
+    argv: Vec<String>,
+    expect: Expect,
+    needles: &[&'static str],
+) -> Case {
+    Case {
+        name: name.into(),
+        argv,
+        expect,
+        needles: needles.to_vec(),
+        runs: 1,
+        replaces_in: None,
+    }
 }
 
 /// `convert seq -r 32 -n 20` followed by `extra`.
 fn convert(extra: &[&str]) -> Vec<String> {
-    ["convert", "seq"].iter().chain(SMALL.iter()).chain(extra).map(|s| s.to_string()).collect()
+    ["convert", "seq"]
+        .iter()
+        .chain(SMALL.iter())
+        .chain(extra)
+        .map(|s| s.to_string())
+        .collect()
 }
 
 /// An input frame file, three ways.
 const FILE_TARGETS: [(&str, &str, &[&str]); 3] = [
     ("frame file", "seq/frame_3.obj", &["frame_3.obj"]),
-    ("frame file via ..", "./seq/../seq/frame_3.obj", &["frame_3.obj"]),
-    ("frame file via symlink", "link3.obj", &["link3.obj", "frame_3.obj"]),
+    (
+        "frame file via ..",
+        "./seq/../seq/frame_3.obj",
+        &["frame_3.obj"],
+    ),
+    (
+        "frame file via symlink",
+        "link3.obj",
+        &["link3.obj", "frame_3.obj"],
+    ),
 ];
 
 /// The input directory, three ways.
@@ -173,7 +224,11 @@ const DIR_TARGETS: [(&str, &str, &[&str]); 3] = [
 const TRAJ_TARGETS: [(&str, &str, &[&str]); 3] = [
     ("centers exr", "traj.exr", &["traj.exr"]),
     ("centers exr via ..", "./seq/../traj.exr", &["traj.exr"]),
-    ("centers exr via symlink", "link_traj.exr", &["link_traj.exr", "traj.exr"]),
+    (
+        "centers exr via symlink",
+        "link_traj.exr",
+        &["link_traj.exr", "traj.exr"],
+    ),
 ];
 
 fn cases() -> Vec<Case> {
@@ -194,92 +249,290 @@ fn cases() -> Vec<Case> {
     for (kind, flags) in kinds {
         for (what, target, needles) in FILE_TARGETS.iter().chain(&DIR_TARGETS) {
             // A checkpoint directory may be the input directory: its file is not a frame.
-            let expect = if kind == "checkpoint" && is_dir(target) { NotPickedUp } else { Refuse };
+            let expect = if kind == "checkpoint" && is_dir(target) {
+                NotPickedUp
+            } else {
+                Refuse
+            };
             let extra: Vec<&str> = flags.iter().copied().chain([*target]).collect();
-            out.push(case(format!("convert {kind} -> {what}"), convert(&extra), expect, needles));
+            out.push(case(
+                format!("convert {kind} -> {what}"),
+                convert(&extra),
+                expect,
+                needles,
+            ));
         }
     }
     // The input given as a pattern and as a list of files.
     let mut pattern = strings(&["convert", "seq/frame_*.obj"]);
-    pattern.extend(strings(&SMALL).into_iter().chain(strings(&["--format", "glb", "-o", "seq/frame_3.obj"])));
-    out.push(case("convert glb -> frame file (pattern input)", pattern, Refuse, &["frame_3.obj"]));
+    pattern.extend(strings(&SMALL).into_iter().chain(strings(&[
+        "--format",
+        "glb",
+        "-o",
+        "seq/frame_3.obj",
+    ])));
+    out.push(case(
+        "convert glb -> frame file (pattern input)",
+        pattern,
+        Refuse,
+        &["frame_3.obj"],
+    ));
     let mut list = strings(&["convert"]);
     list.extend((0..FRAMES).map(|f| format!("seq/frame_{f}.obj")));
-    list.extend(strings(&SMALL).into_iter().chain(strings(&["--format", "glb", "-o", "seq/frame_3.obj"])));
-    out.push(case("convert glb -> frame file (file list input)", list, Refuse, &["frame_3.obj"]));
+    list.extend(strings(&SMALL).into_iter().chain(strings(&[
+        "--format",
+        "glb",
+        "-o",
+        "seq/frame_3.obj",
+    ])));
+    out.push(case(
+        "convert glb -> frame file (file list input)",
+        list,
+        Refuse,
+        &["frame_3.obj"],
+    ));
 
     // convert: a sidecar that is an input.
-    out.push(case("convert pc2 sidecar -> frame file", convert(&["-o", "seq/frame_3.pc2"]), Refuse, &["frame_3.obj"]));
-    out.push(case("convert vat sidecar -> user json", convert(&["--vat", "-o", "seq/frame_2.exr"]), Refuse, &["frame_2.json"]));
+    out.push(case(
+        "convert pc2 sidecar -> frame file",
+        convert(&["-o", "seq/frame_3.pc2"]),
+        Refuse,
+        &["frame_3.obj"],
+    ));
+    out.push(case(
+        "convert vat sidecar -> user json",
+        convert(&["--vat", "-o", "seq/frame_2.exr"]),
+        Refuse,
+        &["frame_2.json"],
+    ));
 
     // convert: two outputs of one run are one file.
     for (name, extra, needle) in [
-        ("report = output", &["-o", "x.glb", "--report", "x.glb"][..], "x.glb"),
-        ("report = ./output", &["-o", "./x.glb", "--report", "x.glb"][..], "x.glb"),
-        ("report = pc2 sidecar", &["-o", "x.pc2", "--report", "x.obj"][..], "x.obj"),
-        ("report = vat sidecar", &["--vat", "-o", "v.exr", "--report", "v.json"][..], "v.json"),
-        ("report inside obj-sequence output", &["-o", "out", "--report", "out/frame_0000.obj"][..], "frame_0000.obj"),
-        ("checkpoint dir = output", &["-o", "x.glb", "--checkpoint", "x.glb"][..], "x.glb"),
+        (
+            "report = output",
+            &["-o", "x.glb", "--report", "x.glb"][..],
+            "x.glb",
+        ),
+        (
+            "report = ./output",
+            &["-o", "./x.glb", "--report", "x.glb"][..],
+            "x.glb",
+        ),
+        (
+            "report = pc2 sidecar",
+            &["-o", "x.pc2", "--report", "x.obj"][..],
+            "x.obj",
+        ),
+        (
+            "report = vat sidecar",
+            &["--vat", "-o", "v.exr", "--report", "v.json"][..],
+            "v.json",
+        ),
+        (
+            "report inside obj-sequence output",
+            &["-o", "out", "--report", "out/frame_0000.obj"][..],
+            "frame_0000.obj",
+        ),
+        (
+            "checkpoint dir = output",
+            &["-o", "x.glb", "--checkpoint", "x.glb"][..],
+            "x.glb",
+        ),
     ] {
-        out.push(case(format!("convert {name}"), convert(extra), Refuse, &[needle]));
+        out.push(case(
+            format!("convert {name}"),
+            convert(extra),
+            Refuse,
+            &[needle],
+        ));
     }
 
     // convert: new files inside the input directory.
-    let mut rerun = case("convert -o seq/anim.pc2, twice", convert(&["-o", "seq/anim.pc2"]), NotPickedUp, &[]);
+    let mut rerun = case(
+        "convert -o seq/anim.pc2, twice",
+        convert(&["-o", "seq/anim.pc2"]),
+        NotPickedUp,
+        &[],
+    );
     rerun.runs = 2;
     out.push(rerun);
-    out.push(case("convert -o seq/anim.glb", convert(&["-o", "seq/anim.glb"]), NotPickedUp, &[]));
+    out.push(case(
+        "convert -o seq/anim.glb",
+        convert(&["-o", "seq/anim.glb"]),
+        NotPickedUp,
+        &[],
+    ));
     // The texture's mesh, seq/anim.glb, would be read as a frame.
-    out.push(case("convert --vat -o seq/anim.exr", convert(&["--vat", "-o", "seq/anim.exr"]), Refuse, &["anim.glb"]));
-    out.push(case("convert --report seq/report.html", convert(&["-o", "out.glb", "--report", "seq/report.html"]), NotPickedUp, &[]));
-    out.push(case("convert obj-sequence -o seq/objs", convert(&["-o", "seq/objs"]), NotPickedUp, &[]));
+    out.push(case(
+        "convert --vat -o seq/anim.exr",
+        convert(&["--vat", "-o", "seq/anim.exr"]),
+        Refuse,
+        &["anim.glb"],
+    ));
+    out.push(case(
+        "convert --report seq/report.html",
+        convert(&["-o", "out.glb", "--report", "seq/report.html"]),
+        NotPickedUp,
+        &[],
+    ));
+    out.push(case(
+        "convert obj-sequence -o seq/objs",
+        convert(&["-o", "seq/objs"]),
+        NotPickedUp,
+        &[],
+    ));
 
     // track: -o and --checkpoint.
-    let track = |extra: &[&str]| strings(&["track", "seq"]).into_iter().chain(strings(&SMALL)).chain(strings(extra)).collect::<Vec<_>>();
+    let track = |extra: &[&str]| {
+        strings(&["track", "seq"])
+            .into_iter()
+            .chain(strings(&SMALL))
+            .chain(strings(extra))
+            .collect::<Vec<_>>()
+    };
     for (what, target, needles) in FILE_TARGETS.iter().chain(&DIR_TARGETS) {
-        out.push(case(format!("track -o -> {what}"), track(&["-o", target]), Refuse, needles));
+        out.push(case(
+            format!("track -o -> {what}"),
+            track(&["-o", target]),
+            Refuse,
+            needles,
+        ));
         let expect = if is_dir(target) { NotPickedUp } else { Refuse };
-        out.push(case(format!("track --checkpoint -> {what}"), track(&["-o", "t.exr", "--checkpoint", target]), expect, needles));
+        out.push(case(
+            format!("track --checkpoint -> {what}"),
+            track(&["-o", "t.exr", "--checkpoint", target]),
+            expect,
+            needles,
+        ));
     }
-    out.push(case("track checkpoint dir = output", track(&["-o", "t.exr", "--checkpoint", "t.exr"]), Refuse, &["t.exr"]));
-    out.push(case("track -o seq/t.exr", track(&["-o", "seq/t.exr"]), NotPickedUp, &[]));
+    out.push(case(
+        "track checkpoint dir = output",
+        track(&["-o", "t.exr", "--checkpoint", "t.exr"]),
+        Refuse,
+        &["t.exr"],
+    ));
+    out.push(case(
+        "track -o seq/t.exr",
+        track(&["-o", "seq/t.exr"]),
+        NotPickedUp,
+        &[],
+    ));
 
     // refine -o and metrics --plot, also at the trajectories they read.
     for (what, target, needles) in FILE_TARGETS.iter().chain(&DIR_TARGETS).chain(&TRAJ_TARGETS) {
-        out.push(case(format!("refine -o -> {what}"), strings(&["refine", "traj.exr", "--input", "seq", "-o", target]), Refuse, needles));
-        out.push(case(format!("metrics --plot -> {what}"), strings(&["metrics", "traj.exr", "--input", "seq", "--plot", target]), Refuse, needles));
+        out.push(case(
+            format!("refine -o -> {what}"),
+            strings(&["refine", "traj.exr", "--input", "seq", "-o", target]),
+            Refuse,
+            needles,
+        ));
+        out.push(case(
+            format!("metrics --plot -> {what}"),
+            strings(&["metrics", "traj.exr", "--input", "seq", "--plot", target]),
+            Refuse,
+            needles,
+        ));
     }
-    out.push(case("metrics --plot seq/plot.svg", strings(&["metrics", "traj.exr", "--input", "seq", "--plot", "seq/plot.svg"]), NotPickedUp, &[]));
+    out.push(case(
+        "metrics --plot seq/plot.svg",
+        strings(&[
+            "metrics",
+            "traj.exr",
+            "--input",
+            "seq",
+            "--plot",
+            "seq/plot.svg",
+        ]),
+        NotPickedUp,
+        &[],
+    ));
 
     // voxelize -o.
     let voxelize = |target: &str| strings(&["voxelize", "seq", "-r", "32", "-o", target]);
     for (what, target, needles) in FILE_TARGETS.iter().chain(&DIR_TARGETS) {
-        out.push(case(format!("voxelize -o -> {what}"), voxelize(target), Refuse, needles));
+        out.push(case(
+            format!("voxelize -o -> {what}"),
+            voxelize(target),
+            Refuse,
+            needles,
+        ));
     }
-    out.push(case("voxelize -o seq/vox", voxelize("seq/vox"), NotPickedUp, &[]));
+    out.push(case(
+        "voxelize -o seq/vox",
+        voxelize("seq/vox"),
+        NotPickedUp,
+        &[],
+    ));
 
     // Links planted in output and checkpoint folders are replaced, not
     // followed; files of the user's there are refused.
-    let refine = |extra: &[&str]| strings(&["refine", "traj.exr", "--input", "seq", "-o", "r.exr"]).into_iter().chain(strings(extra)).collect::<Vec<_>>();
+    let refine = |extra: &[&str]| {
+        strings(&["refine", "traj.exr", "--input", "seq", "-o", "r.exr"])
+            .into_iter()
+            .chain(strings(extra))
+            .collect::<Vec<_>>()
+    };
     for (name, argv, folder) in [
-        ("convert --checkpoint", convert(&["-o", "out.glb", "--checkpoint", "ck_links"]), "ck_links"),
-        ("track --refine --checkpoint", track(&["-o", "t.exr", "--refine", "--checkpoint", "ck_links"]), "ck_links"),
-        ("refine --checkpoint", refine(&["--checkpoint", "ck_links"]), "ck_links"),
-        ("convert obj-sequence", convert(&["-o", "objs_links"]), "objs_links"),
+        (
+            "convert --checkpoint",
+            convert(&["-o", "out.glb", "--checkpoint", "ck_links"]),
+            "ck_links",
+        ),
+        (
+            "track --refine --checkpoint",
+            track(&["-o", "t.exr", "--refine", "--checkpoint", "ck_links"]),
+            "ck_links",
+        ),
+        (
+            "refine --checkpoint",
+            refine(&["--checkpoint", "ck_links"]),
+            "ck_links",
+        ),
+        (
+            "convert obj-sequence",
+            convert(&["-o", "objs_links"]),
+            "objs_links",
+        ),
         ("voxelize", voxelize("vox_links"), "vox_links"),
     ] {
-        let mut c = case(format!("{name} -> a folder with planted links"), argv, NotPickedUp, &[]);
+        let mut c = case(
+            format!("{name} -> a folder with planted links"),
+            argv,
+            NotPickedUp,
+            &[],
+        );
         c.replaces_in = Some(folder);
         out.push(c);
     }
     for (name, argv, needles) in [
-        ("convert --checkpoint", convert(&["-o", "out.glb", "--checkpoint", "ck_foreign"]), &["refine.ckpt"]),
-        ("track --checkpoint", track(&["-o", "t.exr", "--checkpoint", "ck_foreign2"]), &["track.ckpt"]),
-        ("refine --checkpoint", refine(&["--checkpoint", "ck_foreign"]), &["refine.ckpt"]),
-        ("convert obj-sequence", convert(&["-o", "objs_foreign"]), &["frame_0001.obj"]),
+        (
+            "convert --checkpoint",
+            convert(&["-o", "out.glb", "--checkpoint", "ck_foreign"]),
+            &["refine.ckpt"],
+        ),
+        (
+            "track --checkpoint",
+            track(&["-o", "t.exr", "--checkpoint", "ck_foreign2"]),
+            &["track.ckpt"],
+        ),
+        (
+            "refine --checkpoint",
+            refine(&["--checkpoint", "ck_foreign"]),
+            &["refine.ckpt"],
+        ),
+        (
+            "convert obj-sequence",
+            convert(&["-o", "objs_foreign"]),
+            &["frame_0001.obj"],
+        ),
         ("voxelize", voxelize("vox_foreign"), &["notes.txt"]),
     ] {
-        out.push(case(format!("{name} -> a folder with the user's files"), argv, Refuse, needles));
+        out.push(case(
+            format!("{name} -> a folder with the user's files"),
+            argv,
+            Refuse,
+            needles,
+        ));
     }
     out
 }
@@ -291,7 +544,11 @@ fn strings(s: &[&str]) -> Vec<String> {
 /// Whether directory discovery would take `name` (a file directly in the
 /// input directory) as a frame.
 fn frame_like(name: &str) -> bool {
-    let ext = Path::new(name).extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let ext = Path::new(name)
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
     !name.starts_with('.') && ["obj", "ply", "gltf", "glb", "binvox"].contains(&ext.as_str())
 }
 
@@ -305,7 +562,11 @@ fn kind(e: &Entry) -> String {
 
 /// stderr without the log lines (`[... INFO ...] ...`).
 fn message(stderr: &str) -> String {
-    stderr.lines().filter(|l| !l.starts_with('[')).collect::<Vec<_>>().join("\n")
+    stderr
+        .lines()
+        .filter(|l| !l.starts_with('['))
+        .collect::<Vec<_>>()
+        .join("\n")
 }
 
 /// Runs `argv` in `dir`, killed after [`KILL_AFTER`]: (status, stdout, stderr).
@@ -328,24 +589,44 @@ fn run(dir: &Path, argv: &[String]) -> (Result<i32, String>, String, String) {
 }
 
 /// What went wrong in one run of `case` (empty: nothing).
-fn check(case: &Case, before: &BTreeMap<String, Entry>, dir: &Path, status: &Result<i32, String>, stdout: &str, stderr: &str) -> Vec<String> {
+fn check(
+    case: &Case,
+    before: &BTreeMap<String, Entry>,
+    dir: &Path,
+    status: &Result<i32, String>,
+    stdout: &str,
+    stderr: &str,
+) -> Vec<String> {
     let mut problems = Vec::new();
     let after = snapshot(dir);
     for (name, old) in before {
-        if case.replaces_in.is_some_and(|dir| name.strip_prefix(dir).is_some_and(|rest| rest.starts_with('/'))) && matches!(old, Entry::Link(_)) {
+        if case.replaces_in.is_some_and(|dir| {
+            name.strip_prefix(dir)
+                .is_some_and(|rest| rest.starts_with('/'))
+        }) && matches!(old, Entry::Link(_))
+        {
             // Replaced by the run's own file, gone with the old folder, or
             // left alone where the run writes no file of its name; never
             // followed (the inputs it names are checked as every input is).
-            if matches!(after.get(name), Some(Entry::Link(t)) if Some(&Entry::Link(t.clone())) != Some(old)) {
+            if matches!(after.get(name), Some(Entry::Link(t)) if Some(&Entry::Link(t.clone())) != Some(old))
+            {
                 problems.push(format!("{name}: the planted link was relinked"));
             }
             continue;
         }
         match (old, after.get(name)) {
             (_, None) => problems.push(format!("{name} deleted")),
-            (Entry::File(a), Some(Entry::File(b))) if a != b => problems.push(format!("{name} modified ({} -> {} bytes)", a.len(), b.len())),
-            (a, Some(b)) if std::mem::discriminant(a) != std::mem::discriminant(b) => problems.push(format!("{name} replaced: {} -> {}", kind(a), kind(b))),
-            (Entry::Link(a), Some(Entry::Link(b))) if a != b => problems.push(format!("{name} relinked to {}", b.display())),
+            (Entry::File(a), Some(Entry::File(b))) if a != b => problems.push(format!(
+                "{name} modified ({} -> {} bytes)",
+                a.len(),
+                b.len()
+            )),
+            (a, Some(b)) if std::mem::discriminant(a) != std::mem::discriminant(b) => {
+                problems.push(format!("{name} replaced: {} -> {}", kind(a), kind(b)))
+            }
+            (Entry::Link(a), Some(Entry::Link(b))) if a != b => {
+                problems.push(format!("{name} relinked to {}", b.display()))
+            }
             _ => {}
         }
     }
@@ -353,9 +634,14 @@ fn check(case: &Case, before: &BTreeMap<String, Entry>, dir: &Path, status: &Res
     let mut frames = Vec::new();
     for name in after.keys().filter(|n| !before.contains_key(*n)) {
         // Only the outermost new entry: a new directory's files are its own.
-        let outermost = name.rsplit_once('/').is_none_or(|(parent, _)| before.contains_key(parent));
+        let outermost = name
+            .rsplit_once('/')
+            .is_none_or(|(parent, _)| before.contains_key(parent));
         if refused && outermost {
-            problems.push(format!("left behind after refusing: {name}{}", if dir.join(name).is_dir() { "/" } else { "" }));
+            problems.push(format!(
+                "left behind after refusing: {name}{}",
+                if dir.join(name).is_dir() { "/" } else { "" }
+            ));
         }
         if let Some(file) = name.strip_prefix("seq/") {
             if !file.contains('/') && frame_like(file) {
@@ -367,7 +653,16 @@ fn check(case: &Case, before: &BTreeMap<String, Entry>, dir: &Path, status: &Res
         }
     }
     if !frames.is_empty() {
-        let shown = if frames.len() > 3 { format!("{} … {} ({} files)", frames[0], frames[frames.len() - 1], frames.len()) } else { frames.join(", ") };
+        let shown = if frames.len() > 3 {
+            format!(
+                "{} … {} ({} files)",
+                frames[0],
+                frames[frames.len() - 1],
+                frames.len()
+            )
+        } else {
+            frames.join(", ")
+        };
         problems.push(format!("new frame-like file in seq/: {shown}"));
     }
     match status {
@@ -382,10 +677,15 @@ fn check(case: &Case, before: &BTreeMap<String, Entry>, dir: &Path, status: &Res
         }
         Ok(_) if case.expect == Expect::Refuse => {
             if !case.needles.iter().any(|n| message(stderr).contains(n)) {
-                problems.push(format!("refused, but the message names none of {:?}", case.needles));
+                problems.push(format!(
+                    "refused, but the message names none of {:?}",
+                    case.needles
+                ));
             }
             if stderr.contains("centers placed") {
-                problems.push("refused only after the work began (tracking had placed its centers)".into());
+                problems.push(
+                    "refused only after the work began (tracking had placed its centers)".into(),
+                );
             }
         }
         Ok(_) => {}
@@ -419,9 +719,27 @@ fn no_command_modifies_its_inputs() {
                             Ok(c) => c.to_string(),
                             Err(e) => e.clone(),
                         };
-                        let first = message(&stderr).lines().map(str::trim).find(|l| !l.is_empty()).unwrap_or("").chars().take(120).collect::<String>();
-                        let name = if case.runs > 1 { format!("{} (run {run_no})", case.name) } else { case.name.clone() };
-                        failures.lock().unwrap().push((k, name, case.argv.join(" "), code, first, problems));
+                        let first = message(&stderr)
+                            .lines()
+                            .map(str::trim)
+                            .find(|l| !l.is_empty())
+                            .unwrap_or("")
+                            .chars()
+                            .take(120)
+                            .collect::<String>();
+                        let name = if case.runs > 1 {
+                            format!("{} (run {run_no})", case.name)
+                        } else {
+                            case.name.clone()
+                        };
+                        failures.lock().unwrap().push((
+                            k,
+                            name,
+                            case.argv.join(" "),
+                            code,
+                            first,
+                            problems,
+                        ));
                     }
                 }
                 let _ = std::fs::remove_dir_all(&dir);
@@ -430,17 +748,27 @@ fn no_command_modifies_its_inputs() {
     });
     let seconds = clock.elapsed().as_secs_f64();
     let runs: usize = cases.iter().map(|c| c.runs).sum();
-    eprintln!("inputs untouched: {} cases ({runs} runs) in {seconds:.1} s", cases.len());
+    eprintln!(
+        "inputs untouched: {} cases ({runs} runs) in {seconds:.1} s",
+        cases.len()
+    );
     let mut failures = failures.into_inner().unwrap();
     failures.sort_by_key(|f| f.0);
     if !failures.is_empty() {
         let table = failures
             .iter()
             .map(|(_, name, argv, code, first, problems)| {
-                format!("{name}\n    voltrack {argv}\n    exit {code}: {first}\n    - {}", problems.join("\n    - "))
+                format!(
+                    "{name}\n    voltrack {argv}\n    exit {code}: {first}\n    - {}",
+                    problems.join("\n    - ")
+                )
             })
             .collect::<Vec<_>>()
             .join("\n");
-        panic!("{} of {} cases failed:\n{table}", failures.len(), cases.len());
+        panic!(
+            "{} of {} cases failed:\n{table}",
+            failures.len(),
+            cases.len()
+        );
     }
 }

@@ -40,7 +40,10 @@ fn explicit_files_keep_their_order() {
     let d = tmpdir("explicit");
     let a = write(&d, "b.obj", TRI);
     let b = write(&d, "a.obj", TRI);
-    assert_eq!(discover_frames(&[a.clone(), b.clone()]).unwrap(), vec![a, b]);
+    assert_eq!(
+        discover_frames(&[a.clone(), b.clone()]).unwrap(),
+        vec![a, b]
+    );
 }
 
 #[test]
@@ -69,7 +72,11 @@ fn bad_obj_names_file_and_line() {
     let p = write(&d, "nan.obj", "# c\nv 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n");
     let e = err_text(read_mesh(&p));
     assert!(e.contains("nan.obj:3"), "{e}");
-    let p = write(&d, "range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n");
+    let p = write(
+        &d,
+        "range.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n",
+    );
     let e = err_text(read_mesh(&p));
     assert!(e.contains("range.obj:5"), "{e}");
     let p = write(&d, "zero.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n");
@@ -80,7 +87,10 @@ fn bad_obj_names_file_and_line() {
     assert!(e.contains("garbage.obj:2"), "{e}");
     let p = write(&d, "empty_mesh.obj", "v 0 0 0\n");
     let e = err_text(read_mesh(&p));
-    assert!(e.contains("empty_mesh.obj") && e.contains("no triangles"), "{e}");
+    assert!(
+        e.contains("empty_mesh.obj") && e.contains("no triangles"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -89,7 +99,10 @@ fn bad_files_are_named() {
     let e = err_text(read_frame(&d.join("missing.obj")));
     assert!(e.contains("missing.obj"), "{e}");
     let p = write(&d, "mesh.stl", "solid");
-    assert!(matches!(read_frame(&p), Err(Error::UnsupportedFormat { .. })));
+    assert!(matches!(
+        read_frame(&p),
+        Err(Error::UnsupportedFormat { .. })
+    ));
     let p = write(&d, "zero.ply", "");
     let e = err_text(read_frame(&p));
     assert!(e.contains("zero.ply") && e.contains("empty"), "{e}");
@@ -109,13 +122,25 @@ fn bad_ply_names_file_and_line() {
     let p = write(&d, "short.ply", &format!("{head}0 0 0\n1 0 0\n"));
     let e = err_text(read_mesh(&p));
     assert!(e.contains("short.ply") && e.contains("ends"), "{e}");
-    let p = write(&d, "word.ply", &format!("{head}0 0 0\n1 zero 0\n0 1 0\n3 0 1 2\n"));
+    let p = write(
+        &d,
+        "word.ply",
+        &format!("{head}0 0 0\n1 zero 0\n0 1 0\n3 0 1 2\n"),
+    );
     let e = err_text(read_mesh(&p));
     assert!(e.contains("word.ply:11"), "{e}");
-    let p = write(&d, "index.ply", &format!("{head}0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n"));
+    let p = write(
+        &d,
+        "index.ply",
+        &format!("{head}0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n"),
+    );
     let e = err_text(read_mesh(&p));
     assert!(e.contains("index.ply") && e.contains("beyond"), "{e}");
-    let p = write(&d, "header.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty quux x\nend_header\n");
+    let p = write(
+        &d,
+        "header.ply",
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty quux x\nend_header\n",
+    );
     let e = err_text(read_mesh(&p));
     assert!(e.contains("header.ply:4"), "{e}");
     // Extra properties and elements are skipped.
@@ -131,16 +156,42 @@ fn bad_ply_names_file_and_line() {
 fn sequences_reject_one_frame_and_mixed_units() {
     use voltrack::voxel::{voxelize_sequence, VoxelParams};
     let d = tmpdir("seq");
-    let a = write(&d, "a.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
-    let b = write(&d, "b.obj", "v 0 0 0\nv 1000 0 0\nv 0 1000 0\nv 0 0 1000\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
+    let a = write(
+        &d,
+        "a.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    );
+    let b = write(
+        &d,
+        "b.obj",
+        "v 0 0 0\nv 1000 0 0\nv 0 1000 0\nv 0 0 1000\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    );
     let p = VoxelParams::default();
-    let e = err_text(voxelize_sequence(&voltrack::io::FrameFiles::new([a.clone()].to_vec()), &p, Default::default()));
+    let e = err_text(voxelize_sequence(
+        &voltrack::io::FrameFiles::new([a.clone()].to_vec()),
+        &p,
+        Default::default(),
+    ));
     assert!(e.contains("a.obj") && e.contains("at least 2"), "{e}");
-    let e = err_text(voxelize_sequence(&voltrack::io::FrameFiles::new([a.clone(), b.clone()].to_vec()), &p, Default::default()));
-    assert!(e.contains("b.obj") && e.contains("a.obj") && e.contains("units"), "{e}");
+    let e = err_text(voxelize_sequence(
+        &voltrack::io::FrameFiles::new([a.clone(), b.clone()].to_vec()),
+        &p,
+        Default::default(),
+    ));
+    assert!(
+        e.contains("b.obj") && e.contains("a.obj") && e.contains("units"),
+        "{e}"
+    );
     let sheet = write(&d, "sheet.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-    let e = err_text(voxelize_sequence(&voltrack::io::FrameFiles::new([a, sheet].to_vec()), &p, Default::default()));
-    assert!(e.contains("sheet.obj") && e.contains("encloses no voxel"), "{e}");
+    let e = err_text(voxelize_sequence(
+        &voltrack::io::FrameFiles::new([a, sheet].to_vec()),
+        &p,
+        Default::default(),
+    ));
+    assert!(
+        e.contains("sheet.obj") && e.contains("encloses no voxel"),
+        "{e}"
+    );
 }
 
 /// Issue 23: the result is named after its input, so two imported results
@@ -157,13 +208,30 @@ fn a_sequence_is_named_after_its_folder_or_its_frames() {
         write(&seq, &format!("scan_2024_{f:04}.obj"), TRI);
     }
     assert_eq!(named(&[seq.clone()]), "Dancer take 2");
-    assert_eq!(named(&[PathBuf::from(format!("{}/", seq.display()))]), "Dancer take 2");
+    assert_eq!(
+        named(&[PathBuf::from(format!("{}/", seq.display()))]),
+        "Dancer take 2"
+    );
     assert_eq!(named(&[seq.join(".")]), "Dancer take 2");
     // A pattern or files: their common prefix, less the frame number's
     // leading digits and the separators before it.
     assert_eq!(named(&[seq.join("scan_*.obj")]), "scan_2024");
-    assert_eq!(named(&[seq.join("scan_2024_0001.obj"), seq.join("scan_2024_0002.obj")]), "scan_2024");
-    let names = |stems: &[&str]| sequence_name(&[], &stems.iter().map(|s| PathBuf::from(format!("x/{s}.obj"))).collect::<Vec<_>>());
+    assert_eq!(
+        named(&[
+            seq.join("scan_2024_0001.obj"),
+            seq.join("scan_2024_0002.obj")
+        ]),
+        "scan_2024"
+    );
+    let names = |stems: &[&str]| {
+        sequence_name(
+            &[],
+            &stems
+                .iter()
+                .map(|s| PathBuf::from(format!("x/{s}.obj")))
+                .collect::<Vec<_>>(),
+        )
+    };
     assert_eq!(names(&["walk_0001", "walk_0002", "walk_0010"]), "walk");
     assert_eq!(names(&["take2_01", "take2_02"]), "take2");
     assert_eq!(names(&["frame-0", "frame-1"]), "frame");
@@ -175,7 +243,11 @@ fn a_sequence_is_named_after_its_folder_or_its_frames() {
     assert_eq!(names(&["a_1", "b_1"]), "a_1");
     // Never a name the writers refuse.
     assert_eq!(names(&["tab\there_1", "tab\there_2"]), "tab_here");
-    for n in [names(&["tab\there_1"]), names(&["_1", "_2"]), names(&[" ", "  "])] {
+    for n in [
+        names(&["tab\there_1"]),
+        names(&["_1", "_2"]),
+        names(&[" ", "  "]),
+    ] {
         assert!(voltrack::model::check_name(&n).is_ok(), "{n:?}");
     }
     let _ = std::fs::remove_dir_all(&d);

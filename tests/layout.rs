@@ -16,7 +16,10 @@ fn referenced_modules(text: &str) -> BTreeSet<String> {
             continue;
         }
         let rest = &text[i + "crate::".len()..];
-        let name: String = rest.chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
+        let name: String = rest
+            .chars()
+            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+            .collect();
         if !name.is_empty() {
             found.insert(name);
         }
@@ -24,7 +27,11 @@ fn referenced_modules(text: &str) -> BTreeSet<String> {
         if let Some(group) = rest.strip_prefix('{') {
             let inner = &group[..group.find('}').unwrap_or(0)];
             for item in inner.split(',') {
-                let name: String = item.trim().chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
+                let name: String = item
+                    .trim()
+                    .chars()
+                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                    .collect();
                 if !name.is_empty() {
                     found.insert(name);
                 }
@@ -53,7 +60,14 @@ fn module_graph() -> BTreeMap<String, BTreeSet<String>> {
     let mut graph: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
     for file in files {
         let rel = file.strip_prefix(&src).unwrap();
-        let top = rel.components().next().unwrap().as_os_str().to_string_lossy().trim_end_matches(".rs").to_string();
+        let top = rel
+            .components()
+            .next()
+            .unwrap()
+            .as_os_str()
+            .to_string_lossy()
+            .trim_end_matches(".rs")
+            .to_string();
         if ["cli", "main", "lib"].contains(&top.as_str()) {
             continue;
         }
@@ -63,7 +77,9 @@ fn module_graph() -> BTreeMap<String, BTreeSet<String>> {
     }
     // Names re-exported at the root (`crate::Error`) are not modules.
     let modules: BTreeSet<String> = graph.keys().cloned().collect();
-    graph.values_mut().for_each(|uses| uses.retain(|m| modules.contains(m)));
+    graph
+        .values_mut()
+        .for_each(|uses| uses.retain(|m| modules.contains(m)));
     graph
 }
 
@@ -71,10 +87,18 @@ fn module_graph() -> BTreeMap<String, BTreeSet<String>> {
 fn the_modules_form_no_cycle() {
     let graph = module_graph();
     for (m, uses) in &graph {
-        eprintln!("{m} -> {}", uses.iter().cloned().collect::<Vec<_>>().join(", "));
+        eprintln!(
+            "{m} -> {}",
+            uses.iter().cloned().collect::<Vec<_>>().join(", ")
+        );
     }
     // Depth-first search; a module met again while still on the path closes a cycle.
-    fn visit(m: &str, graph: &BTreeMap<String, BTreeSet<String>>, path: &mut Vec<String>, done: &mut BTreeSet<String>) {
+    fn visit(
+        m: &str,
+        graph: &BTreeMap<String, BTreeSet<String>>,
+        path: &mut Vec<String>,
+        done: &mut BTreeSet<String>,
+    ) {
         if done.contains(m) {
             return;
         }
@@ -92,21 +116,35 @@ fn the_modules_form_no_cycle() {
     for m in graph.keys() {
         visit(m, &graph, &mut Vec::new(), &mut done);
     }
-    assert!(graph.contains_key("track") && graph.contains_key("io"), "the graph was read: {graph:?}");
+    assert!(
+        graph.contains_key("track") && graph.contains_key("io"),
+        "the graph was read: {graph:?}"
+    );
 }
 
 /// Inside `track`, the frame loop saves and restores through `checkpoint`,
 /// which needs nothing of the loop.
 #[test]
 fn the_checkpoint_does_not_import_the_frame_loop() {
-    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("src/track/checkpoint.rs")).unwrap();
-    assert!(!text.contains("forward"), "track/checkpoint.rs names track/forward.rs");
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("src/track/checkpoint.rs"),
+    )
+    .unwrap();
+    assert!(
+        !text.contains("forward"),
+        "track/checkpoint.rs names track/forward.rs"
+    );
 }
 
 #[test]
 fn no_stage_reads_files_itself() {
     let graph = module_graph();
-    for stage in ["voxel", "track", "refine", "deform", "export", "metrics", "spatial", "model"] {
-        assert!(!graph[stage].contains("io"), "{stage} imports io; stages take a FrameSource");
+    for stage in [
+        "voxel", "track", "refine", "deform", "export", "metrics", "spatial", "model",
+    ] {
+        assert!(
+            !graph[stage].contains("io"),
+            "{stage} imports io; stages take a FrameSource"
+        );
     }
 }

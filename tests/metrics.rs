@@ -62,17 +62,27 @@ fn pcac_direct(t: &Trajectories) -> Real {
     let c = m.transpose() * &eig.eigenvectors;
     let mut order: Vec<usize> = (0..eig.eigenvalues.len()).collect();
     order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
-    let s: Vec<Real> = order.iter().map(|&k| c.column(k).iter().map(|x| x.abs()).sum()).collect();
+    let s: Vec<Real> = order
+        .iter()
+        .map(|&k| c.column(k).iter().map(|x| x.abs()).sum())
+        .collect();
     let total: Real = s.iter().sum();
     if total == 0.0 {
         return 0.0;
     }
-    s.iter().enumerate().map(|(k, s)| k as Real * s).sum::<Real>() / total
+    s.iter()
+        .enumerate()
+        .map(|(k, s)| k as Real * s)
+        .sum::<Real>()
+        / total
 }
 
 /// Trajectories whose centered matrix is exactly Σ_k σ_k u_k v_kᵀ (the v_k
 /// must sum to zero so the row means vanish).
-fn from_components(frames: usize, components: &[(Real, DVector<Real>, DVector<Real>)]) -> Trajectories {
+fn from_components(
+    frames: usize,
+    components: &[(Real, DVector<Real>, DVector<Real>)],
+) -> Trajectories {
     let centers = components[0].2.len();
     let mut t = Trajectories::new(frames, centers);
     for f in 0..frames {
@@ -150,7 +160,11 @@ fn pcac_of_one_principal_component_is_zero() {
         let mut rng = Rng(100 + frames as u64);
         let s: Vec<Real> = (0..centers).map(|_| rng.uniform()).collect();
         let g: Vec<Vector3<Real>> = (0..frames).map(|_| rng.point().coords).collect();
-        let t = Trajectories::from_frames((0..frames).map(|f| s.iter().map(|&si| Point3::from(g[f] * si)).collect()).collect());
+        let t = Trajectories::from_frames(
+            (0..frames)
+                .map(|f| s.iter().map(|&si| Point3::from(g[f] * si)).collect())
+                .collect(),
+        );
         let got = pcac(&t);
         assert!(got.abs() < 1e-9, "F = {frames}, N = {centers}: {got}");
         assert!(pcac_direct(&t).abs() < 1e-9);
@@ -170,9 +184,15 @@ fn pcac_of_two_components_with_known_coefficients() {
         // F = 1, 2: 3F ≤ 6 (M Mᵀ route); F = 3, 7: 3F > 6 (Gram route).
         for frames in [1, 2, 3, 7] {
             let (u1, u2) = orthonormal_pair(3 * frames, 7 * frames as u64);
-            let t = from_components(frames, &[(sigma1, u1, v1.clone()), (sigma2, u2, v2.clone())]);
+            let t = from_components(
+                frames,
+                &[(sigma1, u1, v1.clone()), (sigma2, u2, v2.clone())],
+            );
             let got = pcac(&t);
-            assert!(close(got, want, 1e-9), "σ = {sigma1}, {sigma2}, F = {frames}: {got} vs {want}");
+            assert!(
+                close(got, want, 1e-9),
+                "σ = {sigma1}, {sigma2}, F = {frames}: {got} vs {want}"
+            );
         }
     }
 }
@@ -181,10 +201,22 @@ fn pcac_of_two_components_with_known_coefficients() {
 fn pcac_routes_agree_with_the_definition() {
     // N < 3F takes the N × N Gram route, N ≥ 3F the 3F × 3F one; the
     // reference here always takes the 3F × 3F one.
-    for (frames, centers, seed) in [(10, 7, 1), (40, 25, 2), (8, 23, 3), (4, 12, 4), (3, 40, 5), (5, 14, 6), (5, 15, 7), (5, 16, 8)] {
+    for (frames, centers, seed) in [
+        (10, 7, 1),
+        (40, 25, 2),
+        (8, 23, 3),
+        (4, 12, 4),
+        (3, 40, 5),
+        (5, 14, 6),
+        (5, 15, 7),
+        (5, 16, 8),
+    ] {
         let t = random_trajectories(frames, centers, seed);
         let (got, want) = (pcac(&t), pcac_direct(&t));
-        assert!(close(got, want, 1e-9), "F = {frames}, N = {centers}: {got} vs {want}");
+        assert!(
+            close(got, want, 1e-9),
+            "F = {frames}, N = {centers}: {got} vs {want}"
+        );
         assert!(got > 0.0 && got < (3 * frames).min(centers) as Real);
     }
 }
@@ -202,11 +234,16 @@ fn pcac_routes_agree_with_each_other_on_the_same_motion() {
         // Enough copies that 3 r F > N.
         let r0 = centers / (3 * frames) + 1;
         for r in [r0, r0 + 1, r0 + 3] {
-            let repeated: Vec<Vec<Point3>> = (0..frames).flat_map(|f| std::iter::repeat(t.frame(f).to_vec()).take(r)).collect();
+            let repeated: Vec<Vec<Point3>> = (0..frames)
+                .flat_map(|f| std::iter::repeat(t.frame(f).to_vec()).take(r))
+                .collect();
             let tr = Trajectories::from_frames(repeated);
             assert!(tr.centers < 3 * tr.frames);
             let twice = pcac(&tr);
-            assert!(close(twice, once, 1e-9), "F = {frames}, N = {centers}, r = {r}: {twice} vs {once}");
+            assert!(
+                close(twice, once, 1e-9),
+                "F = {frames}, N = {centers}, r = {r}: {twice} vs {once}"
+            );
         }
     }
 }
@@ -227,17 +264,31 @@ fn pcac_invariances() {
             })
             .collect(),
     );
-    assert!(close(pcac(&moved), base, 1e-9), "{} vs {base}", pcac(&moved));
-    let scaled = Trajectories { positions: t.positions.iter().map(|p| p * 1e3).collect(), ..t.clone() };
+    assert!(
+        close(pcac(&moved), base, 1e-9),
+        "{} vs {base}",
+        pcac(&moved)
+    );
+    let scaled = Trajectories {
+        positions: t.positions.iter().map(|p| p * 1e3).collect(),
+        ..t.clone()
+    };
     assert!(close(pcac(&scaled), base, 1e-9));
-    let reversed = Trajectories::from_frames((0..t.frames).map(|f| t.frame(f).iter().rev().copied().collect()).collect());
+    let reversed = Trajectories::from_frames(
+        (0..t.frames)
+            .map(|f| t.frame(f).iter().rev().copied().collect())
+            .collect(),
+    );
     assert!(close(pcac(&reversed), base, 1e-9));
     // Nothing moving apart (every center in one place), and empty input: 0.
     let still = Trajectories::from_frames(vec![vec![Point3::new(1.0, 2.0, 3.0); 5]; 4]);
     assert_eq!(pcac(&still), 0.0);
     assert_eq!(pcac(&Trajectories::new(0, 0)), 0.0);
     assert_eq!(pcac(&Trajectories::new(3, 0)), 0.0);
-    let single = Trajectories::from_frames(vec![vec![Point3::new(1.0, 0.0, 0.0)], vec![Point3::new(2.0, 0.0, 0.0)]]);
+    let single = Trajectories::from_frames(vec![
+        vec![Point3::new(1.0, 0.0, 0.0)],
+        vec![Point3::new(2.0, 0.0, 0.0)],
+    ]);
     assert_eq!(pcac(&single), 0.0);
 }
 
@@ -251,7 +302,13 @@ fn dfu_hand_cases() {
     let (mean, per_frame) = dfu(&[vec![0, 0, 0, 4]]);
     assert!((per_frame[0] - (3.0 as Real).sqrt()).abs() < 1e-15 && mean == per_frame[0]);
     // Mean over frames; empty and all-zero frames count 0.
-    let (mean, per_frame) = dfu(&[vec![2, 2, 2, 2], vec![1, 3], vec![], vec![0, 0, 0], vec![3, 1]]);
+    let (mean, per_frame) = dfu(&[
+        vec![2, 2, 2, 2],
+        vec![1, 3],
+        vec![],
+        vec![0, 0, 0],
+        vec![3, 1],
+    ]);
     assert_eq!(per_frame, vec![0.0, 0.5, 0.0, 0.0, 0.5]);
     assert!((mean - 1.0 / 5.0).abs() < 1e-15, "{mean}");
     // Scale invariance: counts ×10 give the same value.
@@ -281,7 +338,14 @@ fn irregularity_brute_force(t: &Trajectories) -> Vec<Real> {
 
 #[test]
 fn irregularity_matches_brute_force() {
-    for (seed, frames, centers) in [(1, 9, 40), (2, 1, 25), (3, 30, 60), (4, 5, 2), (5, 17, 33), (6, 2, 90)] {
+    for (seed, frames, centers) in [
+        (1, 9, 40),
+        (2, 1, 25),
+        (3, 30, 60),
+        (4, 5, 2),
+        (5, 17, 33),
+        (6, 2, 90),
+    ] {
         let mut t = random_trajectories(frames, centers, seed);
         let mut rng = Rng(seed + 1000);
         if centers > 12 {
@@ -293,7 +357,15 @@ fn irregularity_matches_brute_force() {
                 t.set(f, 7, p + Vector3::new(1e-9, -1e-9, 0.0));
                 t.set(f, 8, p + rng.point().coords * 1e-7);
                 let q = t.get(f, 1);
-                t.set(f, 9, if f % 2 == 0 { q } else { q + Vector3::new(0.5, 0.0, 0.0) });
+                t.set(
+                    f,
+                    9,
+                    if f % 2 == 0 {
+                        q
+                    } else {
+                        q + Vector3::new(0.5, 0.0, 0.0)
+                    },
+                );
                 t.set(f, 11, Point3::new(50.0 + f as Real, 0.0, 0.0));
             }
         }
@@ -305,9 +377,17 @@ fn irregularity_matches_brute_force() {
             // And against an independent evaluation (nalgebra's norm), relatively.
             let other = (0..centers)
                 .filter(|&j| j != i)
-                .map(|j| (0..frames).map(|f| (t.get(f, i) - t.get(f, j)).norm_squared()).sum::<Real>())
+                .map(|j| {
+                    (0..frames)
+                        .map(|f| (t.get(f, i) - t.get(f, j)).norm_squared())
+                        .sum::<Real>()
+                })
                 .fold(Real::INFINITY, Real::min);
-            assert!((got[i] - other).abs() <= 1e-12 * other, "seed {seed}, center {i}: {} vs {other}", got[i]);
+            assert!(
+                (got[i] - other).abs() <= 1e-12 * other,
+                "seed {seed}, center {i}: {} vs {other}",
+                got[i]
+            );
         }
         if centers > 12 {
             assert_eq!(got[3], 0.0);
@@ -332,20 +412,24 @@ fn irregularity_edge_cases_and_threads() {
     assert_eq!(irregularity(&two), vec![14.0, 14.0]);
     // The result does not depend on the thread count.
     let t = random_trajectories(11, 150, 31);
-    let run = |threads| rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| irregularity(&t));
+    let run = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| irregularity(&t))
+    };
     let one = run(1);
     assert_eq!(one, run(4));
     assert_eq!(one, irregularity_brute_force(&t));
 }
 
-
-
 // ---------------------------------------------------------------------------
 // Surface fit: exact point-to-triangle distances through the hierarchy.
 
 use voltrack::fixtures;
-use voltrack::spatial::surface::{point_triangle_distance_squared, SurfaceIndex};
 use voltrack::metrics::{surface_fit, DistanceSummary, Surface};
+use voltrack::spatial::surface::{point_triangle_distance_squared, SurfaceIndex};
 use voltrack::TriangleMesh;
 
 /// Distance to every triangle, smallest taken: what the index must equal.
@@ -362,7 +446,11 @@ fn brute_force_distance(p: &Point3, mesh: &TriangleMesh) -> Real {
 
 #[test]
 fn point_triangle_distance_in_each_region() {
-    let (a, b, c) = (Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.0, 0.0), Point3::new(0.0, 1.0, 0.0));
+    let (a, b, c) = (
+        Point3::new(0.0, 0.0, 0.0),
+        Point3::new(1.0, 0.0, 0.0),
+        Point3::new(0.0, 1.0, 0.0),
+    );
     // (query, closest point on the triangle): vertex, edge and face regions.
     let cases = [
         (Point3::new(-1.0, -1.0, 0.5), a),
@@ -375,22 +463,49 @@ fn point_triangle_distance_in_each_region() {
         (Point3::new(0.25, 0.25, 0.0), Point3::new(0.25, 0.25, 0.0)),
     ];
     // The same cases after a rigid motion, and with the corners relabelled.
-    let motion = nalgebra::Isometry3::new(Vector3::new(0.3, -2.0, 5.0), Vector3::new(0.4, -1.1, 0.7));
+    let motion =
+        nalgebra::Isometry3::new(Vector3::new(0.3, -2.0, 5.0), Vector3::new(0.4, -1.1, 0.7));
     for (p, closest) in cases {
         let want = (p - closest).norm_squared();
         for (q, x, y, z) in [(p, a, b, c), (p, c, a, b), (p, b, a, c)] {
-            assert!(close(point_triangle_distance_squared(&q, &x, &y, &z), want, 1e-14), "{p:?}");
+            assert!(
+                close(point_triangle_distance_squared(&q, &x, &y, &z), want, 1e-14),
+                "{p:?}"
+            );
             let m = |v: &Point3| motion * v;
-            assert!(close(point_triangle_distance_squared(&m(&q), &m(&x), &m(&y), &m(&z)), want, 1e-12), "{p:?} moved");
+            assert!(
+                close(
+                    point_triangle_distance_squared(&m(&q), &m(&x), &m(&y), &m(&z)),
+                    want,
+                    1e-12
+                ),
+                "{p:?} moved"
+            );
         }
         let got = voltrack::spatial::surface::closest_point_on_triangle(&p, &a, &b, &c);
-        assert!((got - closest).norm() < 1e-14, "{p:?}: closest {got:?}, want {closest:?}");
+        assert!(
+            (got - closest).norm() < 1e-14,
+            "{p:?}: closest {got:?}, want {closest:?}"
+        );
     }
     // Degenerate triangles are their edges: collinear corners, and one point.
-    let (x0, x1, x2) = (Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.0, 0.0), Point3::new(3.0, 0.0, 0.0));
-    assert_eq!(point_triangle_distance_squared(&Point3::new(2.0, 1.0, 0.0), &x0, &x1, &x2), 1.0);
-    assert_eq!(point_triangle_distance_squared(&Point3::new(5.0, 0.0, 0.0), &x0, &x2, &x1), 4.0);
-    assert_eq!(point_triangle_distance_squared(&Point3::new(0.0, 3.0, 4.0), &x1, &x1, &x1), 26.0);
+    let (x0, x1, x2) = (
+        Point3::new(0.0, 0.0, 0.0),
+        Point3::new(1.0, 0.0, 0.0),
+        Point3::new(3.0, 0.0, 0.0),
+    );
+    assert_eq!(
+        point_triangle_distance_squared(&Point3::new(2.0, 1.0, 0.0), &x0, &x1, &x2),
+        1.0
+    );
+    assert_eq!(
+        point_triangle_distance_squared(&Point3::new(5.0, 0.0, 0.0), &x0, &x2, &x1),
+        4.0
+    );
+    assert_eq!(
+        point_triangle_distance_squared(&Point3::new(0.0, 3.0, 4.0), &x1, &x1, &x1),
+        26.0
+    );
 }
 
 /// A triangle soup: many small random triangles and a few huge ones, which a
@@ -412,79 +527,166 @@ fn random_soup(rng: &mut Rng, small: usize) -> TriangleMesh {
 #[test]
 fn surface_index_matches_brute_force() {
     let mut rng = Rng(2024);
-    let mut meshes: Vec<(String, TriangleMesh)> = fixtures::shapes().into_iter().map(|(n, m)| (n.to_string(), m)).collect();
+    let mut meshes: Vec<(String, TriangleMesh)> = fixtures::shapes()
+        .into_iter()
+        .map(|(n, m)| (n.to_string(), m))
+        .collect();
     meshes.push(("soup".into(), random_soup(&mut rng, 400)));
     meshes.push(("bending bar".into(), fixtures::bending_bar(5)));
-    meshes.push(("one triangle".into(), TriangleMesh { positions: vec![Point3::origin(), Point3::new(1.0, 0.0, 0.0), Point3::new(0.0, 0.0, 1.0)], triangles: vec![[0, 1, 2]], ..Default::default() }));
+    meshes.push((
+        "one triangle".into(),
+        TriangleMesh {
+            positions: vec![
+                Point3::origin(),
+                Point3::new(1.0, 0.0, 0.0),
+                Point3::new(0.0, 0.0, 1.0),
+            ],
+            triangles: vec![[0, 1, 2]],
+            ..Default::default()
+        },
+    ));
     for (name, mesh) in &meshes {
         let index = SurfaceIndex::new(&mesh.positions, &mesh.triangles);
         let scale = mesh.bounding_box().diagonal();
         // Points near the surface (vertices jittered), inside, and far away.
-        let mut queries: Vec<Point3> = mesh.positions.iter().step_by(7).map(|v| v + rng.point().coords * 0.02 * scale).collect();
+        let mut queries: Vec<Point3> = mesh
+            .positions
+            .iter()
+            .step_by(7)
+            .map(|v| v + rng.point().coords * 0.02 * scale)
+            .collect();
         queries.extend((0..200).map(|_| Point3::from(rng.point().coords * scale)));
         queries.extend((0..50).map(|_| Point3::from(rng.point().coords * 20.0 * scale)));
         for p in &queries {
             let (got, want) = (index.distance(p), brute_force_distance(p, mesh));
-            assert!((got - want).abs() <= 1e-12 * want.max(scale), "{name}: {p:?}: {got} vs brute force {want}");
+            assert!(
+                (got - want).abs() <= 1e-12 * want.max(scale),
+                "{name}: {p:?}: {got} vs brute force {want}"
+            );
             // The closest point is that far and on the surface, with a unit
             // normal.
             let (c, n) = index.closest_point(p).expect("triangles");
-            assert!(((c - p).norm() - want).abs() <= 1e-12 * want.max(scale), "{name}: {p:?}");
-            assert!(brute_force_distance(&c, mesh) <= 1e-12 * scale && (n.norm() - 1.0).abs() < 1e-9, "{name}: {p:?}");
+            assert!(
+                ((c - p).norm() - want).abs() <= 1e-12 * want.max(scale),
+                "{name}: {p:?}"
+            );
+            assert!(
+                brute_force_distance(&c, mesh) <= 1e-12 * scale && (n.norm() - 1.0).abs() < 1e-9,
+                "{name}: {p:?}"
+            );
             // Told the surface is within twice the distance, the search finds
             // the same point; told it is within half, it finds none.
-            assert_eq!(index.closest_point_within(p, 2.0 * want + 1e-9 * scale), Some((c, n)), "{name}: {p:?}");
+            assert_eq!(
+                index.closest_point_within(p, 2.0 * want + 1e-9 * scale),
+                Some((c, n)),
+                "{name}: {p:?}"
+            );
             if want > 1e-6 * scale {
-                assert_eq!(index.closest_point_within(p, 0.5 * want), None, "{name}: {p:?}");
+                assert_eq!(
+                    index.closest_point_within(p, 0.5 * want),
+                    None,
+                    "{name}: {p:?}"
+                );
             }
         }
         // A vertex is on the surface.
-        assert_eq!(index.distance(&mesh.positions[mesh.triangles[0][1] as usize]), 0.0, "{name}");
+        assert_eq!(
+            index.distance(&mesh.positions[mesh.triangles[0][1] as usize]),
+            0.0,
+            "{name}"
+        );
         // Refitted to moved vertices (twisted, jittered), the index answers
         // as a brute-force scan of the moved mesh, and names the triangle.
         let moved: Vec<Point3> = mesh
             .positions
             .iter()
-            .map(|p| Rotation3::new(Vector3::z() * (p.z / scale)) * p + rng.point().coords * 0.01 * scale)
+            .map(|p| {
+                Rotation3::new(Vector3::z() * (p.z / scale)) * p + rng.point().coords * 0.01 * scale
+            })
             .collect();
-        let moved_mesh = TriangleMesh { positions: moved, ..mesh.clone() };
+        let moved_mesh = TriangleMesh {
+            positions: moved,
+            ..mesh.clone()
+        };
         let mut refitted = index;
         refitted.refit(&moved_mesh.positions, &moved_mesh.triangles);
         for p in &queries {
             let want = brute_force_distance(p, &moved_mesh);
             let (got, _) = refitted.closest_point(p).expect("triangles");
-            assert!(((got - p).norm() - want).abs() <= 1e-12 * want.max(scale), "{name} refitted: {p:?}");
-            let (t, c) = refitted.closest_triangle_within(p, Real::INFINITY).expect("triangles");
-            let [a, b, d] = moved_mesh.triangles[t as usize].map(|i| moved_mesh.positions[i as usize]);
-            assert!((point_triangle_distance_squared(p, &a, &b, &d).sqrt() - want).abs() <= 1e-12 * want.max(scale), "{name} refitted: triangle {t}");
+            assert!(
+                ((got - p).norm() - want).abs() <= 1e-12 * want.max(scale),
+                "{name} refitted: {p:?}"
+            );
+            let (t, c) = refitted
+                .closest_triangle_within(p, Real::INFINITY)
+                .expect("triangles");
+            let [a, b, d] =
+                moved_mesh.triangles[t as usize].map(|i| moved_mesh.positions[i as usize]);
+            assert!(
+                (point_triangle_distance_squared(p, &a, &b, &d).sqrt() - want).abs()
+                    <= 1e-12 * want.max(scale),
+                "{name} refitted: triangle {t}"
+            );
             assert_eq!(c, got, "{name} refitted: {p:?}");
             // Searched upwards from any triangle's leaf (the conform stage's
             // last match), with or without the bound that triangle gives:
             // the same triangle, ties included.
             for near in [t, (rng.u64() % moved_mesh.triangles.len() as u64) as u32] {
-                let [a, b, d] = moved_mesh.triangles[near as usize].map(|i| moved_mesh.positions[i as usize]);
+                let [a, b, d] =
+                    moved_mesh.triangles[near as usize].map(|i| moved_mesh.positions[i as usize]);
                 let bound = point_triangle_distance_squared(p, &a, &b, &d).sqrt();
-                assert_eq!(refitted.closest_triangle_near(p, bound, near), Some((t, c)), "{name} from triangle {near}: {p:?}");
-                assert_eq!(refitted.closest_triangle_near(p, Real::INFINITY, near), Some((t, c)), "{name} from triangle {near}: {p:?}");
+                assert_eq!(
+                    refitted.closest_triangle_near(p, bound, near),
+                    Some((t, c)),
+                    "{name} from triangle {near}: {p:?}"
+                );
+                assert_eq!(
+                    refitted.closest_triangle_near(p, Real::INFINITY, near),
+                    Some((t, c)),
+                    "{name} from triangle {near}: {p:?}"
+                );
             }
         }
     }
-    assert_eq!(SurfaceIndex::new(&[], &[]).distance(&Point3::origin()), Real::INFINITY);
+    assert_eq!(
+        SurfaceIndex::new(&[], &[]).distance(&Point3::origin()),
+        Real::INFINITY
+    );
 }
 
 #[test]
 fn weighted_summary_by_hand() {
     let s = DistanceSummary::of_weighted(&[(1.0, 1.0), (3.0, 2.0), (2.0, 1.0)]);
-    assert_eq!(s, DistanceSummary { mean: 2.25, p95: 3.0, max: 3.0 });
+    assert_eq!(
+        s,
+        DistanceSummary {
+            mean: 2.25,
+            p95: 3.0,
+            max: 3.0
+        }
+    );
     // 95 % of the weight on the smallest value: it is the 95th percentile.
     let s = DistanceSummary::of_weighted(&[(10.0, 1.0), (0.0, 99.0)]);
     assert_eq!((s.p95, s.max), (0.0, 10.0));
     assert!(close(s.mean, 0.1, 1e-15));
     let values: Vec<(Real, Real)> = (1..=100).rev().map(|v| (v as Real, 1.0)).collect();
-    assert_eq!(DistanceSummary::of_weighted(&values), DistanceSummary { mean: 50.5, p95: 95.0, max: 100.0 });
+    assert_eq!(
+        DistanceSummary::of_weighted(&values),
+        DistanceSummary {
+            mean: 50.5,
+            p95: 95.0,
+            max: 100.0
+        }
+    );
     // Weights that sum to zero count equally; no samples give zeros.
-    assert_eq!(DistanceSummary::of_weighted(&[(1.0, 0.0), (3.0, 0.0)]).mean, 2.0);
-    assert_eq!(DistanceSummary::of_weighted(&[]), DistanceSummary::default());
+    assert_eq!(
+        DistanceSummary::of_weighted(&[(1.0, 0.0), (3.0, 0.0)]).mean,
+        2.0
+    );
+    assert_eq!(
+        DistanceSummary::of_weighted(&[]),
+        DistanceSummary::default()
+    );
 }
 
 /// A square sheet of `n` × `n` cells in the plane z = `z`, side 1.
@@ -492,7 +694,8 @@ fn sheet(n: u32, z: Real) -> TriangleMesh {
     let mut m = TriangleMesh::default();
     for j in 0..=n {
         for i in 0..=n {
-            m.positions.push(Point3::new(i as Real / n as Real, j as Real / n as Real, z));
+            m.positions
+                .push(Point3::new(i as Real / n as Real, j as Real / n as Real, z));
         }
     }
     let v = |i: u32, j: u32| j * (n + 1) + i;
@@ -507,7 +710,15 @@ fn sheet(n: u32, z: Real) -> TriangleMesh {
 
 #[test]
 fn surface_fit_known_cases() {
-    let fit = |result: &TriangleMesh, input: &TriangleMesh, diagonal: Real| surface_fit(Surface::from(result), Surface::from(input), diagonal, voltrack::metrics::fit::FarDistances::both(2.0), None);
+    let fit = |result: &TriangleMesh, input: &TriangleMesh, diagonal: Real| {
+        surface_fit(
+            Surface::from(result),
+            Surface::from(input),
+            diagonal,
+            voltrack::metrics::fit::FarDistances::both(2.0),
+            None,
+        )
+    };
     // Identical surfaces: nothing anywhere.
     let sphere = fixtures::sphere(Point3::origin(), 1.0, 24, 12);
     let same = fit(&sphere, &sphere, 2.0);
@@ -517,7 +728,11 @@ fn surface_fit_known_cases() {
     // A sheet lifted by 0.01 against a differently meshed sheet: 0.01
     // everywhere, which is 0.5 % of a diagonal of 2.
     let lifted = fit(&sheet(7, 0.01), &sheet(5, 0.0), 2.0);
-    for s in [lifted.result_to_input, lifted.input_to_result, lifted.two_sided] {
+    for s in [
+        lifted.result_to_input,
+        lifted.input_to_result,
+        lifted.two_sided,
+    ] {
         for v in [s.mean, s.p95, s.max] {
             assert!(close(v, 0.5, 1e-12), "{lifted:?}");
         }
@@ -530,10 +745,17 @@ fn surface_fit_known_cases() {
     let mut larger = sphere.clone();
     larger.positions.iter_mut().for_each(|p| *p *= 1.1);
     let shell = fit(&larger, &sphere, 1.0);
-    for v in [shell.result_to_input.mean, shell.result_to_input.p95, shell.result_to_input.max] {
+    for v in [
+        shell.result_to_input.mean,
+        shell.result_to_input.p95,
+        shell.result_to_input.max,
+    ] {
         assert!(close(v, 10.0, 1e-6), "{shell:?}");
     }
-    assert!(shell.input_to_result.max < 10.0 && shell.input_to_result.mean > 5.0, "{shell:?}");
+    assert!(
+        shell.input_to_result.max < 10.0 && shell.input_to_result.mean > 5.0,
+        "{shell:?}"
+    );
     // Part of the input missing from the result shows only input -> result,
     // and the two-sided mean weighs both directions alike.
     let cube = fixtures::cube(Point3::new(4.0, 0.0, 0.0), 1.0);
@@ -541,7 +763,10 @@ fn surface_fit_known_cases() {
     let part = fit(&sphere, &both, 1.0);
     assert_eq!(part.result_to_input, DistanceSummary::default());
     assert!(part.input_to_result.max > 250.0, "{part:?}");
-    assert!(close(part.two_sided.mean, part.input_to_result.mean / 2.0, 1e-12), "{part:?}");
+    assert!(
+        close(part.two_sided.mean, part.input_to_result.mean / 2.0, 1e-12),
+        "{part:?}"
+    );
     assert_eq!(part.two_sided.max, part.input_to_result.max);
 }
 
@@ -550,15 +775,32 @@ fn surface_fit_does_not_depend_on_the_thread_count() {
     let input = fixtures::torus(Point3::origin(), 1.0, 0.35, 40, 20);
     let mut rng = Rng(77);
     let mut result = fixtures::torus(Point3::origin(), 1.0, 0.3, 31, 17);
-    result.positions.iter_mut().for_each(|p| *p += rng.point().coords * 0.05);
+    result
+        .positions
+        .iter_mut()
+        .for_each(|p| *p += rng.point().coords * 0.05);
     let run = |threads| {
-        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| surface_fit(Surface::from(&result), Surface::from(&input), 2.7, voltrack::metrics::fit::FarDistances::both(2.0), None))
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                surface_fit(
+                    Surface::from(&result),
+                    Surface::from(&input),
+                    2.7,
+                    voltrack::metrics::fit::FarDistances::both(2.0),
+                    None,
+                )
+            })
     };
     let one = run(1);
     assert_eq!(one, run(3));
-    assert!(one.two_sided.mean > 0.0 && one.two_sided.max < 10.0, "{one:?}");
+    assert!(
+        one.two_sided.mean > 0.0 && one.two_sided.max < 10.0,
+        "{one:?}"
+    );
 }
-
 
 /// The largest far regions: a part of the input the result lacks is one
 /// region of the input's surface (its share of the area, its farthest
@@ -572,27 +814,86 @@ fn far_regions_find_a_missing_part_and_skip_hidden_surfaces() {
     let limb = fixtures::cube(Point3::new(4.0, 0.0, 0.0), 1.0);
     let whole = fixtures::merge(&[body.clone(), limb.clone()]);
     let diagonal = 10.0;
-    let fit = |result: &TriangleMesh, input: &TriangleMesh, far: FarDistances, inside: Option<voltrack::metrics::fit::InsideInput>| {
-        surface_fit(Surface::from(result), Surface::from(input), diagonal, far, inside)
+    let fit = |result: &TriangleMesh,
+               input: &TriangleMesh,
+               far: FarDistances,
+               inside: Option<voltrack::metrics::fit::InsideInput>| {
+        surface_fit(
+            Surface::from(result),
+            Surface::from(input),
+            diagonal,
+            far,
+            inside,
+        )
     };
     // The result lacks the limb: the input's cube is one far region of its
     // share of the area; its far corners are about 3.6 from the sphere (36 %
     // of a diagonal of 10), its near ones 2.6.
     let lost = fit(&body, &whole, FarDistances::both(2.0), None);
-    let area = |m: &TriangleMesh| m.triangles.iter().map(|t| (m.positions[t[1] as usize] - m.positions[t[0] as usize]).cross(&(m.positions[t[2] as usize] - m.positions[t[0] as usize])).norm() / 2.0).sum::<Real>();
+    let area = |m: &TriangleMesh| {
+        m.triangles
+            .iter()
+            .map(|t| {
+                (m.positions[t[1] as usize] - m.positions[t[0] as usize])
+                    .cross(&(m.positions[t[2] as usize] - m.positions[t[0] as usize]))
+                    .norm()
+                    / 2.0
+            })
+            .sum::<Real>()
+    };
     let cube_share = 100.0 * area(&limb) / area(&whole);
     assert_eq!(lost.far_input.vertices, 8, "{lost:?}");
-    assert!((lost.far_input.share - cube_share).abs() < 0.2 * cube_share, "{lost:?} against {cube_share}");
-    assert!(lost.far_input.farthest > 30.0 && lost.far_input.farthest < 50.0, "{lost:?}");
+    assert!(
+        (lost.far_input.share - cube_share).abs() < 0.2 * cube_share,
+        "{lost:?} against {cube_share}"
+    );
+    assert!(
+        lost.far_input.farthest > 30.0 && lost.far_input.farthest < 50.0,
+        "{lost:?}"
+    );
     assert_eq!(lost.far_result.vertices, 0);
     // Past the farthest distance, nothing is far.
-    assert_eq!(fit(&body, &whole, FarDistances { input: 50.0, result: 2.0 }, None).far_input.vertices, 0);
+    assert_eq!(
+        fit(
+            &body,
+            &whole,
+            FarDistances {
+                input: 50.0,
+                result: 2.0
+            },
+            None
+        )
+        .far_input
+        .vertices,
+        0
+    );
     // The result carries the limb where the input has none: far one way
     // only, at the result's own distance...
-    let carried = fit(&whole, &body, FarDistances { input: 2.0, result: 20.0 }, None);
+    let carried = fit(
+        &whole,
+        &body,
+        FarDistances {
+            input: 2.0,
+            result: 20.0,
+        },
+        None,
+    );
     assert_eq!(carried.far_input.vertices, 0);
     assert_eq!(carried.far_result.vertices, 8, "{carried:?}");
-    assert_eq!(fit(&whole, &body, FarDistances { input: 2.0, result: 50.0 }, None).far_result.vertices, 0);
+    assert_eq!(
+        fit(
+            &whole,
+            &body,
+            FarDistances {
+                input: 2.0,
+                result: 50.0
+            },
+            None
+        )
+        .far_result
+        .vertices,
+        0
+    );
     // ... and not at all when the input's volume holds it.
     let inside = |p: &Point3| p.x > 2.0;
     let hidden = fit(&whole, &body, FarDistances::both(2.0), Some(&inside));
@@ -608,5 +909,8 @@ fn far_distances_keep_to_a_few_voxels() {
     assert_eq!((fine.input, fine.result), (params.far, params.far_result));
     // Voxels of 2 % of the diagonal: 3 of them are 6 %.
     let coarse = params.far_distances(100.0, 2.0);
-    assert!((coarse.input - 6.0).abs() < 1e-12 && (coarse.result - 6.0).abs() < 1e-12, "{coarse:?}");
+    assert!(
+        (coarse.input - 6.0).abs() < 1e-12 && (coarse.result - 6.0).abs() < 1e-12,
+        "{coarse:?}"
+    );
 }

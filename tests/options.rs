@@ -39,8 +39,15 @@ const KILL_AFTER: Duration = Duration::from_secs(5);
 const MEMORY_LIMIT_KB: u64 = 3 << 20;
 const THREADS: usize = 2;
 /// Numbers fed to every value-taking option.
-const HOSTILE_NUMBERS: [&str; 7] = ["0", "-1", "1e308", "inf", "NaN", "18446744073709551615", "1e-40"];
-
+const HOSTILE_NUMBERS: [&str; 7] = [
+    "0",
+    "-1",
+    "1e308",
+    "inf",
+    "NaN",
+    "18446744073709551615",
+    "1e-40",
+];
 
 /// Writes frames 0..3 of the bending bar as OBJ into `dir/seq` and tracks
 /// them once into `dir/centers.exr` (for refine and metrics).
@@ -58,7 +65,11 @@ fn make_fixture(dir: &Path) {
         .current_dir(dir)
         .output()
         .unwrap();
-    assert!(out.status.success(), "tracking the fixture failed: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "tracking the fixture failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 /// One argument of a baseline command line: its clap id and its values.
@@ -70,11 +81,26 @@ type Setting = (String, Vec<String>);
 fn baseline(sub: &str) -> Vec<Setting> {
     let s = |id: &str, v: &str| (id.to_string(), vec![v.to_string()]);
     match sub {
-        "convert" => vec![s("input", "seq"), s("resolution", "16"), s("centers", "8"), s("output", "out.glb")],
+        "convert" => vec![
+            s("input", "seq"),
+            s("resolution", "16"),
+            s("centers", "8"),
+            s("output", "out.glb"),
+        ],
         "voxelize" => vec![s("input", "seq"), s("resolution", "16"), s("output", "vox")],
         // With --refine, so that track's refinement options are exercised too.
-        "track" => vec![s("input", "seq"), s("resolution", "16"), s("centers", "8"), s("output", "out.exr"), ("refine".into(), vec![])],
-        "refine" => vec![s("centers", "centers.exr"), s("input", "seq"), s("output", "out.exr")],
+        "track" => vec![
+            s("input", "seq"),
+            s("resolution", "16"),
+            s("centers", "8"),
+            s("output", "out.exr"),
+            ("refine".into(), vec![]),
+        ],
+        "refine" => vec![
+            s("centers", "centers.exr"),
+            s("input", "seq"),
+            s("output", "out.exr"),
+        ],
         "metrics" => vec![s("centers", "centers.exr"), s("input", "seq")],
         other => panic!("no baseline for the new subcommand '{other}': add one to baseline()"),
     }
@@ -83,10 +109,21 @@ fn baseline(sub: &str) -> Vec<Setting> {
 /// The argv (without the program name) for `settings` of subcommand `sub`.
 fn render(sub: &ClapCommand, settings: &[Setting]) -> Vec<String> {
     let mut argv = vec![sub.get_name().to_string()];
-    let find = |id: &str| sub.get_arguments().find(|a| a.get_id() == id).unwrap_or_else(|| panic!("{}: no argument '{id}'", sub.get_name()));
+    let find = |id: &str| {
+        sub.get_arguments()
+            .find(|a| a.get_id() == id)
+            .unwrap_or_else(|| panic!("{}: no argument '{id}'", sub.get_name()))
+    };
     // Positionals first, in their order; then options as --long=value.
-    let mut positionals: Vec<(usize, &Setting)> =
-        settings.iter().filter_map(|s| find(&s.0).get_index().filter(|_| find(&s.0).is_positional()).map(|i| (i, s))).collect();
+    let mut positionals: Vec<(usize, &Setting)> = settings
+        .iter()
+        .filter_map(|s| {
+            find(&s.0)
+                .get_index()
+                .filter(|_| find(&s.0).is_positional())
+                .map(|i| (i, s))
+        })
+        .collect();
     positionals.sort_by_key(|p| p.0);
     for (_, (_, values)) in positionals {
         argv.extend(values.iter().cloned());
@@ -115,12 +152,19 @@ fn takes_value(arg: &Arg) -> bool {
 }
 
 fn is_path(arg: &Arg) -> bool {
-    matches!(arg.get_value_hint(), ValueHint::AnyPath | ValueHint::FilePath | ValueHint::DirPath)
+    matches!(
+        arg.get_value_hint(),
+        ValueHint::AnyPath | ValueHint::FilePath | ValueHint::DirPath
+    )
 }
 
 /// Whether `arg` takes fractions (its own value parser accepts "0.5").
 fn takes_fractions(arg: &Arg) -> bool {
-    let probe = ClapCommand::new("probe").arg(Arg::new("x").long("x").value_parser(arg.get_value_parser().clone()));
+    let probe = ClapCommand::new("probe").arg(
+        Arg::new("x")
+            .long("x")
+            .value_parser(arg.get_value_parser().clone()),
+    );
     probe.try_get_matches_from(["probe", "--x=0.5"]).is_ok()
 }
 
@@ -128,7 +172,12 @@ fn takes_fractions(arg: &Arg) -> bool {
 /// nudged by a small step either side: ±1 for whole numbers, relative 1e-6
 /// for fractions (`fractional`: the option takes them).
 fn range_values(arg: &Arg, fractional: bool) -> Vec<String> {
-    let help = [arg.get_help(), arg.get_long_help()].into_iter().flatten().map(|h| h.to_string()).collect::<Vec<_>>().join(" ");
+    let help = [arg.get_help(), arg.get_long_help()]
+        .into_iter()
+        .flatten()
+        .map(|h| h.to_string())
+        .collect::<Vec<_>>()
+        .join(" ");
     let mut out = Vec::new();
     let mut rest = help.as_str();
     while let Some(start) = rest.find("(range:") {
@@ -177,7 +226,9 @@ fn number_tokens(s: &str) -> Vec<String> {
                 i += 1;
             }
         }
-        if matches!(b.get(i), Some(b'e' | b'E')) && (digit(i + 1) || (matches!(b.get(i + 1), Some(b'-' | b'+')) && digit(i + 2))) {
+        if matches!(b.get(i), Some(b'e' | b'E'))
+            && (digit(i + 1) || (matches!(b.get(i + 1), Some(b'-' | b'+')) && digit(i + 2)))
+        {
             i += 2;
             while digit(i) {
                 i += 1;
@@ -227,13 +278,21 @@ struct Case {
 
 /// In-process parse of `argv` by the same clap definitions.
 fn parses(cmd: &ClapCommand, argv: &[String]) -> Result<(), clap::Error> {
-    cmd.clone().try_get_matches_from(std::iter::once("voltrack".to_string()).chain(argv.iter().cloned())).map(|_| ())
+    cmd.clone()
+        .try_get_matches_from(std::iter::once("voltrack".to_string()).chain(argv.iter().cloned()))
+        .map(|_| ())
 }
 
 /// `settings` plus whatever other argument the one under test `requires`
 /// (found by asking clap: the first absent optional argument whose addition
 /// makes a plausible value parse). `probe` is that plausible value.
-fn with_requirements(cmd: &ClapCommand, sub: &ClapCommand, mut settings: Vec<Setting>, id: &str, probe: &str) -> Vec<Setting> {
+fn with_requirements(
+    cmd: &ClapCommand,
+    sub: &ClapCommand,
+    mut settings: Vec<Setting>,
+    id: &str,
+    probe: &str,
+) -> Vec<Setting> {
     let mut trial = settings.clone();
     set(&mut trial, id, probe);
     match parses(cmd, &render(sub, &trial)) {
@@ -245,7 +304,11 @@ fn with_requirements(cmd: &ClapCommand, sub: &ClapCommand, mut settings: Vec<Set
         if oid == id || settings.iter().any(|s| s.0 == oid) || other.is_positional() {
             continue;
         }
-        let value = if is_path(other) { "companion_dir".to_string() } else { "1".to_string() };
+        let value = if is_path(other) {
+            "companion_dir".to_string()
+        } else {
+            "1".to_string()
+        };
         let mut t = trial.clone();
         set(&mut t, oid, &value);
         if parses(cmd, &render(sub, &t)).is_ok() {
@@ -253,7 +316,10 @@ fn with_requirements(cmd: &ClapCommand, sub: &ClapCommand, mut settings: Vec<Set
             return settings;
         }
     }
-    panic!("{} --{id}: clap wants another argument and none found makes the command line parse", sub.get_name());
+    panic!(
+        "{} --{id}: clap wants another argument and none found makes the command line parse",
+        sub.get_name()
+    );
 }
 
 fn set(settings: &mut Vec<Setting>, id: &str, value: &str) {
@@ -274,14 +340,27 @@ fn cases() -> Vec<Case> {
             continue;
         }
         let base = baseline(name);
-        assert!(parses(&cmd, &render(sub, &base)).is_ok(), "the baseline of {name} does not parse: {:?}", parses(&cmd, &render(sub, &base)));
+        assert!(
+            parses(&cmd, &render(sub, &base)).is_ok(),
+            "the baseline of {name} does not parse: {:?}",
+            parses(&cmd, &render(sub, &base))
+        );
         for arg in sub.get_arguments() {
             let id = arg.get_id().as_str();
-            if matches!(arg.get_action(), ArgAction::Help | ArgAction::HelpShort | ArgAction::HelpLong | ArgAction::Version) {
+            if matches!(
+                arg.get_action(),
+                ArgAction::Help | ArgAction::HelpShort | ArgAction::HelpLong | ArgAction::Version
+            ) {
                 continue;
             }
             let mut push = |value: &str, path: bool| {
-                let settings = with_requirements(&cmd, sub, base.clone(), id, if path { "probe_path" } else { "1" });
+                let settings = with_requirements(
+                    &cmd,
+                    sub,
+                    base.clone(),
+                    id,
+                    if path { "probe_path" } else { "1" },
+                );
                 let mut settings = settings;
                 let shown = if takes_value(arg) {
                     set(&mut settings, id, value);
@@ -294,7 +373,13 @@ fn cases() -> Vec<Case> {
                     settings.push((id.to_string(), Vec::new()));
                     "(flag)".to_string()
                 };
-                out.push(Case { sub: name.into(), option: id.into(), value: shown, argv: render(sub, &settings), path });
+                out.push(Case {
+                    sub: name.into(),
+                    option: id.into(),
+                    value: shown,
+                    argv: render(sub, &settings),
+                    path,
+                });
             };
             if !takes_value(arg) {
                 push("", false);
@@ -302,14 +387,23 @@ fn cases() -> Vec<Case> {
                 let ext = base
                     .iter()
                     .find(|s| s.0 == id)
-                    .and_then(|s| Path::new(&s.1[0]).extension().map(|e| format!(".{}", e.to_string_lossy())))
+                    .and_then(|s| {
+                        Path::new(&s.1[0])
+                            .extension()
+                            .map(|e| format!(".{}", e.to_string_lossy()))
+                    })
                     .unwrap_or_default();
                 for v in hostile_paths(&ext) {
                     push(&v, true);
                 }
             } else {
-                let mut values: Vec<String> = HOSTILE_NUMBERS.iter().map(|s| s.to_string()).collect();
-                values.extend(arg.get_possible_values().iter().map(|p| p.get_name().to_string()));
+                let mut values: Vec<String> =
+                    HOSTILE_NUMBERS.iter().map(|s| s.to_string()).collect();
+                values.extend(
+                    arg.get_possible_values()
+                        .iter()
+                        .map(|p| p.get_name().to_string()),
+                );
                 values.extend(range_values(arg, takes_fractions(arg)));
                 let mut seen = std::collections::HashSet::new();
                 for v in values.into_iter().filter(|v| seen.insert(v.clone())) {
@@ -356,11 +450,19 @@ fn run(root: &Path, fixture: &Path, k: usize, argv: &[String]) -> Outcome {
     let seconds = clock.elapsed().as_secs_f64();
     let stderr = std::fs::read_to_string(&stderr_path).unwrap_or_default();
     let _ = std::fs::remove_dir_all(&dir);
-    Outcome { status, seconds, stderr }
+    Outcome {
+        status,
+        seconds,
+        stderr,
+    }
 }
 
 /// Runs every case on [`THREADS`] threads; returns the failures as table rows.
-fn run_all(cases: &[Case], name: &str, allowed: impl Fn(&Case) -> &'static [i32] + Sync) -> (Vec<String>, f64) {
+fn run_all(
+    cases: &[Case],
+    name: &str,
+    allowed: impl Fn(&Case) -> &'static [i32] + Sync,
+) -> (Vec<String>, f64) {
     let scratch = Scratch::new("options", name);
     let fixture = scratch.0.join("fixture");
     make_fixture(&fixture);
@@ -368,7 +470,9 @@ fn run_all(cases: &[Case], name: &str, allowed: impl Fn(&Case) -> &'static [i32]
     let failures = Mutex::new(Vec::new());
     let slowest = Mutex::new((0.0f64, String::new()));
     // VOLTRACK_OPTIONS_LOG=prefix: one line per case in prefix.NAME, for reading the whole run.
-    let log = std::env::var("VOLTRACK_OPTIONS_LOG").ok().map(|p| Mutex::new(std::fs::File::create(format!("{p}.{name}")).unwrap()));
+    let log = std::env::var("VOLTRACK_OPTIONS_LOG")
+        .ok()
+        .map(|p| Mutex::new(std::fs::File::create(format!("{p}.{name}")).unwrap()));
     let clock = Instant::now();
     std::thread::scope(|s| {
         for _ in 0..THREADS {
@@ -386,36 +490,70 @@ fn run_all(cases: &[Case], name: &str, allowed: impl Fn(&Case) -> &'static [i32]
                 if let Some(log) = &log {
                     use std::io::Write;
                     let first = o.stderr.lines().next().unwrap_or("");
-                    writeln!(log.lock().unwrap(), "{:?}\t{:.3}\t{}\t{}", o.status, o.seconds, case.argv.join(" "), first).unwrap();
+                    writeln!(
+                        log.lock().unwrap(),
+                        "{:?}\t{:.3}\t{}\t{}",
+                        o.status,
+                        o.seconds,
+                        case.argv.join(" "),
+                        first
+                    )
+                    .unwrap();
                 }
                 if !ok_code || o.seconds > TIME_LIMIT {
                     let code = match &o.status {
                         Ok(c) => c.to_string(),
                         Err(e) => e.clone(),
                     };
-                    let first = o.stderr.lines().map(str::trim).find(|l| !l.is_empty()).unwrap_or("").chars().take(110).collect::<String>();
-                    failures.lock().unwrap().push((k, case.clone(), code, o.seconds, first));
+                    let first = o
+                        .stderr
+                        .lines()
+                        .map(str::trim)
+                        .find(|l| !l.is_empty())
+                        .unwrap_or("")
+                        .chars()
+                        .take(110)
+                        .collect::<String>();
+                    failures
+                        .lock()
+                        .unwrap()
+                        .push((k, case.clone(), code, o.seconds, first));
                 }
             });
         }
     });
     let slowest = slowest.into_inner().unwrap();
     if !slowest.1.is_empty() {
-        eprintln!("{name}: slowest passing run {:.2} s: {}", slowest.0, slowest.1);
+        eprintln!(
+            "{name}: slowest passing run {:.2} s: {}",
+            slowest.0, slowest.1
+        );
     }
     let mut failures = failures.into_inner().unwrap();
     failures.sort_by_key(|f| f.0);
     let rows = failures
         .iter()
         .map(|(_, c, code, secs, first)| {
-            format!("{:<9} {:<20} {:<24} {:<16} {:>6.2}  {}\n          argv: {}", c.sub, c.option, format!("{:?}", c.value), code, secs, first, c.argv.join(" "))
+            format!(
+                "{:<9} {:<20} {:<24} {:<16} {:>6.2}  {}\n          argv: {}",
+                c.sub,
+                c.option,
+                format!("{:?}", c.value),
+                code,
+                secs,
+                first,
+                c.argv.join(" ")
+            )
         })
         .collect();
     (rows, clock.elapsed().as_secs_f64())
 }
 
 fn report(title: &str, want: &str, cases: usize, seconds: f64, rows: &[String]) {
-    eprintln!("{title}: {cases} cases in {seconds:.1} s, {} failing", rows.len());
+    eprintln!(
+        "{title}: {cases} cases in {seconds:.1} s, {} failing",
+        rows.len()
+    );
     if !rows.is_empty() {
         let table = rows.join("\n");
         panic!(
@@ -438,12 +576,30 @@ fn every_option_exits_0_or_2_within_a_second() {
     let mut cmd = cli::Cli::command();
     cmd.build();
     for sub in cmd.get_subcommands().filter(|s| s.get_name() != "help") {
-        for arg in sub.get_arguments().filter(|a| !matches!(a.get_action(), ArgAction::Help | ArgAction::HelpShort | ArgAction::HelpLong | ArgAction::Version)) {
-            assert!(cases.iter().any(|c| c.sub == sub.get_name() && c.option == arg.get_id().as_str()), "{} {} not covered", sub.get_name(), arg.get_id());
+        for arg in sub.get_arguments().filter(|a| {
+            !matches!(
+                a.get_action(),
+                ArgAction::Help | ArgAction::HelpShort | ArgAction::HelpLong | ArgAction::Version
+            )
+        }) {
+            assert!(
+                cases
+                    .iter()
+                    .any(|c| c.sub == sub.get_name() && c.option == arg.get_id().as_str()),
+                "{} {} not covered",
+                sub.get_name(),
+                arg.get_id()
+            );
         }
     }
     let (rows, seconds) = run_all(&cases, "all", |c| if c.path { &[0, 1, 2] } else { &[0, 2] });
-    report("options", "exit 0 or 2, also 1 for paths", cases.len(), seconds, &rows);
+    report(
+        "options",
+        "exit 0 or 2, also 1 for paths",
+        cases.len(),
+        seconds,
+        &rows,
+    );
 }
 
 /// The documented conflicts are usage errors (exit 2), found before any work.
@@ -457,9 +613,18 @@ fn documented_conflicts_exit_2() {
     let cases: Vec<Case> = conflicts
         .iter()
         .map(|extra| {
-            let mut argv: Vec<String> = ["convert", "seq", "-r", "16", "-n", "8"].iter().map(|s| s.to_string()).collect();
+            let mut argv: Vec<String> = ["convert", "seq", "-r", "16", "-n", "8"]
+                .iter()
+                .map(|s| s.to_string())
+                .collect();
             argv.extend(extra.iter().map(|s| s.to_string()));
-            Case { sub: "convert".into(), option: "(conflict)".into(), value: extra.join(" "), argv, path: false }
+            Case {
+                sub: "convert".into(),
+                option: "(conflict)".into(),
+                value: extra.join(" "),
+                argv,
+                path: false,
+            }
         })
         .collect();
     let (rows, seconds) = run_all(&cases, "conflicts", |_| &[2]);
@@ -470,16 +635,51 @@ fn documented_conflicts_exit_2() {
 #[test]
 fn range_notes_are_parsed() {
     let values = |help: &'static str, fractional: bool| -> Vec<f64> {
-        range_values(&Arg::new("x").help(help), fractional).iter().map(|v| v.parse().unwrap()).collect()
+        range_values(&Arg::new("x").help(help), fractional)
+            .iter()
+            .map(|v| v.parse().unwrap())
+            .collect()
     };
     let same = |got: Vec<f64>, want: &[f64]| {
-        assert!(got.len() == want.len() && got.iter().zip(want).all(|(a, b)| (a - b).abs() <= 1e-12 * b.abs().max(1e-300)), "{got:?} != {want:?}")
+        assert!(
+            got.len() == want.len()
+                && got
+                    .iter()
+                    .zip(want)
+                    .all(|(a, b)| (a - b).abs() <= 1e-12 * b.abs().max(1e-300)),
+            "{got:?} != {want:?}"
+        )
     };
-    same(values("Weight (range: 0.0..1.0)", true), &[0.0, -1e-6, 1e-6, 1.0, 1.0 - 1e-6, 1.0 + 1e-6]);
-    same(values("Voxels along the longest side (range: 1..=100000)", false), &[1.0, 0.0, 2.0, 1e5, 1e5 - 1.0, 1e5 + 1.0]);
-    same(values("Frames per second (range: 0.001..=1000)", true), &[1e-3, 1e-3 - 1e-9, 1e-3 + 1e-9, 1e3, 1e3 - 1e-3, 1e3 + 1e-3]);
-    same(values("Threshold (range: 1e-9..=0.5; default 1e-3)", true), &[1e-9, 1e-9 - 1e-15, 1e-9 + 1e-15, 0.5, 0.5 - 5e-7, 0.5 + 5e-7, 1e-3, 1e-3 - 1e-9, 1e-3 + 1e-9]);
-    same(values("Offset (range: -2..2) of x2 (not a range: 7)", false), &[-2.0, -3.0, -1.0, 2.0, 1.0, 3.0]);
+    same(
+        values("Weight (range: 0.0..1.0)", true),
+        &[0.0, -1e-6, 1e-6, 1.0, 1.0 - 1e-6, 1.0 + 1e-6],
+    );
+    same(
+        values("Voxels along the longest side (range: 1..=100000)", false),
+        &[1.0, 0.0, 2.0, 1e5, 1e5 - 1.0, 1e5 + 1.0],
+    );
+    same(
+        values("Frames per second (range: 0.001..=1000)", true),
+        &[1e-3, 1e-3 - 1e-9, 1e-3 + 1e-9, 1e3, 1e3 - 1e-3, 1e3 + 1e-3],
+    );
+    same(
+        values("Threshold (range: 1e-9..=0.5; default 1e-3)", true),
+        &[
+            1e-9,
+            1e-9 - 1e-15,
+            1e-9 + 1e-15,
+            0.5,
+            0.5 - 5e-7,
+            0.5 + 5e-7,
+            1e-3,
+            1e-3 - 1e-9,
+            1e-3 + 1e-9,
+        ],
+    );
+    same(
+        values("Offset (range: -2..2) of x2 (not a range: 7)", false),
+        &[-2.0, -3.0, -1.0, 2.0, 1.0, 3.0],
+    );
     assert!(values("ρ_gp: largest distance at which ω_max is 0.5", true).is_empty());
     // Whole-number and fractional options are told apart by their own parsers.
     let cmd = cli::Cli::command();

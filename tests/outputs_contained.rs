@@ -23,7 +23,12 @@ const SMALL: [&str; 4] = ["-r", "32", "-n", "20"];
 const FRAMES: usize = 8;
 
 fn run(dir: &Path, args: &[&str]) -> Output {
-    Command::new(BIN).args(args).current_dir(dir).env("RUST_LOG", "warn").output().expect("the voltrack binary runs")
+    Command::new(BIN)
+        .args(args)
+        .current_dir(dir)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("the voltrack binary runs")
 }
 
 fn text(b: &[u8]) -> String {
@@ -36,21 +41,34 @@ fn bar(dir: &Path, name: &str) -> PathBuf {
     std::fs::create_dir_all(&seq).unwrap();
     let committed = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/bending_bar");
     for f in 0..FRAMES {
-        std::fs::copy(committed.join(format!("frame_{f}.obj")), seq.join(format!("frame_{f}.obj"))).unwrap();
+        std::fs::copy(
+            committed.join(format!("frame_{f}.obj")),
+            seq.join(format!("frame_{f}.obj")),
+        )
+        .unwrap();
     }
     seq
 }
 
 /// Every file under `dir` (following nothing) with its bytes.
 fn contents(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
-    let mut out: Vec<_> = std::fs::read_dir(dir).unwrap().flatten().filter(|e| e.file_type().unwrap().is_file()).map(|e| (e.path(), std::fs::read(e.path()).unwrap())).collect();
+    let mut out: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_type().unwrap().is_file())
+        .map(|e| (e.path(), std::fs::read(e.path()).unwrap()))
+        .collect();
     out.sort();
     out
 }
 
 fn succeeds(dir: &Path, args: &[&str]) -> Output {
     let o = run(dir, args);
-    assert!(o.status.success(), "voltrack {args:?} failed:\n{}", text(&o.stderr));
+    assert!(
+        o.status.success(),
+        "voltrack {args:?} failed:\n{}",
+        text(&o.stderr)
+    );
     o
 }
 
@@ -59,9 +77,16 @@ fn succeeds(dir: &Path, args: &[&str]) -> Output {
 fn refused(dir: &Path, args: &[&str], needles: &[&str]) -> String {
     let o = run(dir, args);
     let stderr = text(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "voltrack {args:?} was not refused:\n{stderr}");
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "voltrack {args:?} was not refused:\n{stderr}"
+    );
     for n in needles {
-        assert!(stderr.contains(n), "voltrack {args:?}: the message lacks '{n}':\n{stderr}");
+        assert!(
+            stderr.contains(n),
+            "voltrack {args:?}: the message lacks '{n}':\n{stderr}"
+        );
     }
     stderr
 }
@@ -84,17 +109,61 @@ fn links_inside_output_folders_are_replaced_not_followed() {
     let seq = bar(dir, "bar");
     let inputs = contents(&seq);
     let cases: [(&str, Vec<&str>, &[&str]); 6] = [
-        ("ck1", vec!["convert", "bar", "-o", "a.glb", "--checkpoint", "ck1"], &["track.ckpt", "refine.ckpt"]),
-        ("ck2", vec!["track", "bar", "-o", "t.exr", "--checkpoint", "ck2"], &["track.ckpt"]),
-        ("ck3", vec!["track", "bar", "-o", "t3.exr", "--refine", "--checkpoint", "ck3"], &["track.ckpt", "refine.ckpt"]),
-        ("ck4", vec!["refine", "t.exr", "--input", "bar", "-o", "r.exr", "--checkpoint", "ck4"], &["refine.ckpt"]),
-        ("objs", vec!["convert", "bar", "-o", "objs"], &["frame_0003.obj"]),
-        ("vox", vec!["voxelize", "bar", "-r", "32", "-o", "vox"], &["frame_3.binvox"]),
+        (
+            "ck1",
+            vec!["convert", "bar", "-o", "a.glb", "--checkpoint", "ck1"],
+            &["track.ckpt", "refine.ckpt"],
+        ),
+        (
+            "ck2",
+            vec!["track", "bar", "-o", "t.exr", "--checkpoint", "ck2"],
+            &["track.ckpt"],
+        ),
+        (
+            "ck3",
+            vec![
+                "track",
+                "bar",
+                "-o",
+                "t3.exr",
+                "--refine",
+                "--checkpoint",
+                "ck3",
+            ],
+            &["track.ckpt", "refine.ckpt"],
+        ),
+        (
+            "ck4",
+            vec![
+                "refine",
+                "t.exr",
+                "--input",
+                "bar",
+                "-o",
+                "r.exr",
+                "--checkpoint",
+                "ck4",
+            ],
+            &["refine.ckpt"],
+        ),
+        (
+            "objs",
+            vec!["convert", "bar", "-o", "objs"],
+            &["frame_0003.obj"],
+        ),
+        (
+            "vox",
+            vec!["voxelize", "bar", "-r", "32", "-o", "vox"],
+            &["frame_3.binvox"],
+        ),
     ];
     for (folder, mut args, planted) in cases {
         std::fs::create_dir_all(dir.join(folder)).unwrap();
         for (k, name) in planted.iter().enumerate() {
-            link(&format!("../bar/frame_{}.obj", 3 + k), &dir.join(folder).join(name));
+            link(
+                &format!("../bar/frame_{}.obj", 3 + k),
+                &dir.join(folder).join(name),
+            );
         }
         if args[0] == "convert" || args[0] == "track" {
             args.extend(SMALL);
@@ -103,7 +172,11 @@ fn links_inside_output_folders_are_replaced_not_followed() {
         assert_eq!(contents(&seq), inputs, "voltrack {args:?} changed an input");
         for name in planted {
             let p = dir.join(folder).join(name);
-            assert!(p.is_file() && !is_link(&p), "{}: the link is still there", p.display());
+            assert!(
+                p.is_file() && !is_link(&p),
+                "{}: the link is still there",
+                p.display()
+            );
         }
     }
 }
@@ -122,18 +195,39 @@ fn an_obj_sequence_folder_is_replaced_as_a_whole_and_only_if_ours() {
     let mut args = vec!["convert", "bar", "-o", "seq_out"];
     args.extend(SMALL);
     refused(dir, &args, &["seq_out", "frame_0003.obj"]);
-    assert_eq!(std::fs::read(out.join("frame_0003.obj")).unwrap(), b"v 0 0 0\n# the user's own\n");
+    assert_eq!(
+        std::fs::read(out.join("frame_0003.obj")).unwrap(),
+        b"v 0 0 0\n# the user's own\n"
+    );
 
     std::fs::remove_file(out.join("frame_0003.obj")).unwrap();
     succeeds(dir, &args);
     // A later run on fewer frames: frame 7 of the first must go.
-    let mut short = vec!["convert", "bar/frame_0.obj", "bar/frame_1.obj", "bar/frame_2.obj", "-o", "seq_out"];
+    let mut short = vec![
+        "convert",
+        "bar/frame_0.obj",
+        "bar/frame_1.obj",
+        "bar/frame_2.obj",
+        "-o",
+        "seq_out",
+    ];
     short.extend(SMALL);
     succeeds(dir, &short);
-    let mut names: Vec<String> = std::fs::read_dir(&out).unwrap().flatten().map(|e| e.file_name().to_string_lossy().into_owned()).filter(|n| !n.starts_with('.')).collect();
+    let mut names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| !n.starts_with('.'))
+        .collect();
     names.sort();
-    assert_eq!(names, ["frame_0000.obj", "frame_0001.obj", "frame_0002.obj"]);
-    assert!(std::fs::read_dir(dir).unwrap().flatten().all(|e| !e.file_name().to_string_lossy().ends_with(".partial")));
+    assert_eq!(
+        names,
+        ["frame_0000.obj", "frame_0001.obj", "frame_0002.obj"]
+    );
+    assert!(std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .all(|e| !e.file_name().to_string_lossy().ends_with(".partial")));
 
     // The current folder and the root are never an output folder.
     let inside = dir.join("inside");
@@ -167,7 +261,14 @@ fn an_output_among_frames_given_one_by_one_is_refused() {
     let scratch = Scratch::new("outputs-contained", "file-list");
     let dir = &scratch.0;
     bar(dir, "bx");
-    let mut args = vec!["convert", "bx/frame_0.obj", "bx/frame_1.obj", "bx/frame_2.obj", "-o", "bx/anim.glb"];
+    let mut args = vec![
+        "convert",
+        "bx/frame_0.obj",
+        "bx/frame_1.obj",
+        "bx/frame_2.obj",
+        "-o",
+        "bx/anim.glb",
+    ];
     args.extend(SMALL);
     refused(dir, &args, &["bx/anim.glb", "input frames"]);
     assert!(!dir.join("bx/anim.glb").exists());
@@ -181,8 +282,20 @@ fn non_utf8_arguments_do_not_panic() {
     let dir = &scratch.0;
     bar(dir, "bar");
     let report = std::ffi::OsStr::from_bytes(b"r\xff.html");
-    let o = Command::new(BIN).args(["convert", "bar", "-o", "x.glb"]).args(SMALL).arg("--report").arg(report).current_dir(dir).output().unwrap();
-    assert!(o.status.success(), "exit {:?}:\n{}", o.status.code(), text(&o.stderr));
+    let o = Command::new(BIN)
+        .args(["convert", "bar", "-o", "x.glb"])
+        .args(SMALL)
+        .arg("--report")
+        .arg(report)
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "exit {:?}:\n{}",
+        o.status.code(),
+        text(&o.stderr)
+    );
     assert!(dir.join(report).is_file());
 }
 
@@ -204,17 +317,27 @@ fn killed_runs_leave_nothing_for_long_and_no_sidecar_beside_a_fifo() {
     assert!(!dir.join(".x.glb.4194999.partial").exists());
     assert!(dir.join(&alive).exists());
 
-    let status = Command::new("mkfifo").arg(dir.join("cache.pc2")).status().unwrap();
+    let status = Command::new("mkfifo")
+        .arg(dir.join("cache.pc2"))
+        .status()
+        .unwrap();
     assert!(status.success());
     let mut args = vec!["convert", "bar", "-o", "cache.pc2"];
     args.extend(SMALL);
     refused(dir, &args, &["cache.obj", "not a regular file"]);
-    let status = Command::new("mkfifo").arg(dir.join("tex.exr")).status().unwrap();
+    let status = Command::new("mkfifo")
+        .arg(dir.join("tex.exr"))
+        .status()
+        .unwrap();
     assert!(status.success());
     let mut args = vec!["convert", "bar", "--vat", "-o", "tex.exr"];
     args.extend(SMALL);
     refused(dir, &args, &["tex.glb"]);
-    assert!(!dir.join("cache.obj").exists() && !dir.join("tex.glb").exists() && !dir.join("tex.json").exists());
+    assert!(
+        !dir.join("cache.obj").exists()
+            && !dir.join("tex.glb").exists()
+            && !dir.join("tex.json").exists()
+    );
 }
 
 /// Item 11: a gap in the frame numbers is warned of; something named like
@@ -229,7 +352,10 @@ fn nothing_named_like_a_frame_is_skipped_without_a_word() {
     args.extend(SMALL);
     let o = succeeds(dir, &args);
     let stderr = text(&o.stderr);
-    assert!(stderr.contains("frames missing") && stderr.contains("4 to 6"), "{stderr}");
+    assert!(
+        stderr.contains("frames missing") && stderr.contains("4 to 6"),
+        "{stderr}"
+    );
 
     for (name, make) in [("folder", 0), ("fifo", 1), ("dangling", 2)] {
         let seq = bar(dir, name);
@@ -257,7 +383,10 @@ fn nothing_named_like_a_frame_is_skipped_without_a_word() {
     let o = run(dir, &args);
     let stderr = text(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("take_a/frame_0.obj") && stderr.contains("take_b/frame_0.obj"), "{stderr}");
+    assert!(
+        stderr.contains("take_a/frame_0.obj") && stderr.contains("take_b/frame_0.obj"),
+        "{stderr}"
+    );
 }
 
 /// Item 12: options that have no effect with the rest of the command line.
@@ -267,12 +396,33 @@ fn options_that_would_be_ignored_are_refused() {
     let dir = &scratch.0;
     bar(dir, "bar");
     let cases: [(&[&str], &str); 6] = [
-        (&["convert", "bar", "-o", "a.glb", "--alpha", "0.5"], "--alpha"),
-        (&["track", "bar", "-o", "t.exr", "--remove", "3"], "--remove"),
-        (&["track", "bar", "-o", "t.exr", "--batches", "2"], "--batches"),
+        (
+            &["convert", "bar", "-o", "a.glb", "--alpha", "0.5"],
+            "--alpha",
+        ),
+        (
+            &["track", "bar", "-o", "t.exr", "--remove", "3"],
+            "--remove",
+        ),
+        (
+            &["track", "bar", "-o", "t.exr", "--batches", "2"],
+            "--batches",
+        ),
         (&["convert", "bar", "-o", "t.exr", "--fps", "30"], "--fps"),
         (&["convert", "bar", "-o", "objs", "--fps", "30"], "--fps"),
-        (&["convert", "bar", "-o", "a.glb", "--conform-iterations", "0", "--conform-stiffness", "3"], "--conform-stiffness"),
+        (
+            &[
+                "convert",
+                "bar",
+                "-o",
+                "a.glb",
+                "--conform-iterations",
+                "0",
+                "--conform-stiffness",
+                "3",
+            ],
+            "--conform-stiffness",
+        ),
     ];
     for (args, needle) in cases {
         let mut args = args.to_vec();
@@ -280,7 +430,18 @@ fn options_that_would_be_ignored_are_refused() {
         refused(dir, &args, &[needle]);
     }
     // Where they do act, they are taken.
-    let mut args = vec!["convert", "bar", "-o", "a.glb", "--alpha", "0.5", "--affinity", "iir", "--fps", "30"];
+    let mut args = vec![
+        "convert",
+        "bar",
+        "-o",
+        "a.glb",
+        "--alpha",
+        "0.5",
+        "--affinity",
+        "iir",
+        "--fps",
+        "30",
+    ];
     args.extend(SMALL);
     succeeds(dir, &args);
 }
@@ -302,12 +463,27 @@ fn a_frame_that_changes_between_reads_is_an_error() {
     let other = std::fs::read(seq.join("frame_6.obj")).unwrap();
     std::fs::write(seq.join("frame_2.obj"), &other).unwrap();
     let e = files.frame(2).unwrap_err().to_string();
-    assert!(e.contains("frame_2.obj") && e.contains("changed during the run"), "{e}");
-    std::fs::write(seq.join("tmp"), std::fs::read(seq.join("frame_3.obj")).unwrap()).unwrap();
+    assert!(
+        e.contains("frame_2.obj") && e.contains("changed during the run"),
+        "{e}"
+    );
+    std::fs::write(
+        seq.join("tmp"),
+        std::fs::read(seq.join("frame_3.obj")).unwrap(),
+    )
+    .unwrap();
     std::fs::rename(seq.join("tmp"), seq.join("frame_3.obj")).unwrap();
-    assert!(files.frame(3).unwrap_err().to_string().contains("frame_3.obj"));
+    assert!(files
+        .frame(3)
+        .unwrap_err()
+        .to_string()
+        .contains("frame_3.obj"));
     std::fs::remove_file(seq.join("frame_4.obj")).unwrap();
-    assert!(files.frame(4).unwrap_err().to_string().contains("frame_4.obj"));
+    assert!(files
+        .frame(4)
+        .unwrap_err()
+        .to_string()
+        .contains("frame_4.obj"));
     // The others read as before.
     files.frame(5).unwrap();
 }
@@ -329,8 +505,16 @@ fn a_capture_far_from_the_origin_converts_as_it_does_at_the_origin() {
             .lines()
             .map(|l| match l.strip_prefix("v ") {
                 Some(rest) => {
-                    let c: Vec<f64> = rest.split_whitespace().map(|t| t.parse().unwrap()).collect();
-                    format!("v {:.10} {:.10} {:.10}\n", c[0] + 5e6, c[1] - 5e6, c[2] + 5e6)
+                    let c: Vec<f64> = rest
+                        .split_whitespace()
+                        .map(|t| t.parse().unwrap())
+                        .collect();
+                    format!(
+                        "v {:.10} {:.10} {:.10}\n",
+                        c[0] + 5e6,
+                        c[1] - 5e6,
+                        c[2] + 5e6
+                    )
                 }
                 None => format!("{l}\n"),
             })
@@ -339,9 +523,17 @@ fn a_capture_far_from_the_origin_converts_as_it_does_at_the_origin() {
     }
     let fit = |input: &str| -> (f64, f64) {
         let out = format!("{input}.glb");
-        let o = succeeds(dir, &["convert", input, "-r", "48", "-n", "60", "-o", &out, "--json"]);
+        let o = succeeds(
+            dir,
+            &[
+                "convert", input, "-r", "48", "-n", "60", "-o", &out, "--json",
+            ],
+        );
         let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        (json["fit_percent"]["mean"].as_f64().unwrap(), json["fit_percent"]["max"].as_f64().unwrap())
+        (
+            json["fit_percent"]["mean"].as_f64().unwrap(),
+            json["fit_percent"]["max"].as_f64().unwrap(),
+        )
     };
     let (near_mean, near_max) = fit("near");
     let (far_mean, far_max) = fit("far");
@@ -351,7 +543,24 @@ fn a_capture_far_from_the_origin_converts_as_it_does_at_the_origin() {
     let glb = gltf::Gltf::from_slice(&std::fs::read(dir.join("far.glb")).unwrap()).unwrap();
     let node = glb.nodes().find(|n| n.mesh().is_some()).unwrap();
     let (t, _, _) = node.transform().decomposed();
-    assert!((t[0] - 5e6).abs() < 10.0 && (t[1] + 5e6).abs() < 10.0, "{t:?}");
-    let positions = glb.meshes().next().unwrap().primitives().next().unwrap().get(&gltf::Semantic::Positions).unwrap();
-    assert!(positions.max().unwrap().as_array().unwrap().iter().all(|c| c.as_f64().unwrap().abs() < 10.0));
+    assert!(
+        (t[0] - 5e6).abs() < 10.0 && (t[1] + 5e6).abs() < 10.0,
+        "{t:?}"
+    );
+    let positions = glb
+        .meshes()
+        .next()
+        .unwrap()
+        .primitives()
+        .next()
+        .unwrap()
+        .get(&gltf::Semantic::Positions)
+        .unwrap();
+    assert!(positions
+        .max()
+        .unwrap()
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|c| c.as_f64().unwrap().abs() < 10.0));
 }

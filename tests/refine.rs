@@ -1,9 +1,9 @@
 //! Irregular-center removal and the global optimisation.
 
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
+use voltrack::model::{Rigid, Trajectories};
 use voltrack::params::{RefineParams, TrackParams};
 use voltrack::refine::{global_affinity, most_irregular, optimise, refine, SequenceCells};
-use voltrack::model::{Rigid, Trajectories};
 use voltrack::track::track;
 use voltrack::voxel::VoxelSequence;
 
@@ -15,7 +15,10 @@ fn two_bodies(frames: usize, resolution: usize) -> VoxelSequence {
     let b = voltrack::fixtures::cube(Point3::new(1.6, 0.0, 0.0), 1.0);
     let meshes: Vec<voltrack::TriangleMesh> = (0..frames)
         .map(|f| {
-            let m = Rigid { rotation: *Rotation3::new(Vector3::new(0.0, 0.0, 0.05 * f as Real)).matrix(), translation: Vector3::new(0.08 * f as Real, 0.0, 0.0) };
+            let m = Rigid {
+                rotation: *Rotation3::new(Vector3::new(0.0, 0.0, 0.05 * f as Real)).matrix(),
+                translation: Vector3::new(0.08 * f as Real, 0.0, 0.0),
+            };
             let mut moved = b.clone();
             moved.positions.iter_mut().for_each(|p| *p = m.apply(p));
             voltrack::fixtures::merge(&[a.clone(), moved])
@@ -27,16 +30,47 @@ fn two_bodies(frames: usize, resolution: usize) -> VoxelSequence {
 #[test]
 fn accepted_iterations_lower_the_energy_monotonically() {
     let seq = two_bodies(6, 40);
-    let tracked = track(&seq, &TrackParams { centers: 40, ..Default::default() }, Default::default()).unwrap();
+    let tracked = track(
+        &seq,
+        &TrackParams {
+            centers: 40,
+            ..Default::default()
+        },
+        Default::default(),
+    )
+    .unwrap();
     let mut traj = tracked.trajectories.clone();
     let p = RefineParams::default();
     let scale = p.length_scale(&seq.bounds);
     let mut cells = SequenceCells::new(&seq, usize::MAX);
-    let omega = global_affinity(&traj, &seq, &mut cells, p.rho_gp * scale, p.rho_gm * scale, p.mu);
-    let history = optimise(&mut traj, &seq.grid, &mut cells, &omega, &RefineParams { max_iterations: 10, ..p.clone() }, |_, _, _| true).unwrap();
+    let omega = global_affinity(
+        &traj,
+        &seq,
+        &mut cells,
+        p.rho_gp * scale,
+        p.rho_gm * scale,
+        p.mu,
+    );
+    let history = optimise(
+        &mut traj,
+        &seq.grid,
+        &mut cells,
+        &omega,
+        &RefineParams {
+            max_iterations: 10,
+            ..p.clone()
+        },
+        |_, _, _| true,
+    )
+    .unwrap();
     assert!(history.len() >= 2, "at least one step was accepted");
     for w in history.windows(2) {
-        assert!(w[1].energy < w[0].energy, "energy rose: {} -> {}", w[0].energy, w[1].energy);
+        assert!(
+            w[1].energy < w[0].energy,
+            "energy rose: {} -> {}",
+            w[0].energy,
+            w[1].energy
+        );
         assert!((w[1].energy - (w[1].smooth + p.beta_hat * w[1].data)).abs() <= 1e-9 * w[1].energy);
     }
     assert_ne!(traj, tracked.trajectories);
@@ -45,13 +79,25 @@ fn accepted_iterations_lower_the_energy_monotonically() {
 #[test]
 fn a_center_jumping_between_bodies_is_removed_first() {
     let seq = two_bodies(6, 40);
-    let tracked = track(&seq, &TrackParams { centers: 40, ..Default::default() }, Default::default()).unwrap();
+    let tracked = track(
+        &seq,
+        &TrackParams {
+            centers: 40,
+            ..Default::default()
+        },
+        Default::default(),
+    )
+    .unwrap();
     let mut traj: Trajectories = tracked.trajectories.clone();
     // Center 7 alternates between a center of each body.
     let (on_a, on_b) = {
         let f0 = traj.frame(0);
-        let a = (0..traj.centers).min_by(|&i, &j| f0[i].x.total_cmp(&f0[j].x)).unwrap();
-        let b = (0..traj.centers).max_by(|&i, &j| f0[i].x.total_cmp(&f0[j].x)).unwrap();
+        let a = (0..traj.centers)
+            .min_by(|&i, &j| f0[i].x.total_cmp(&f0[j].x))
+            .unwrap();
+        let b = (0..traj.centers)
+            .max_by(|&i, &j| f0[i].x.total_cmp(&f0[j].x))
+            .unwrap();
         (a, b)
     };
     let jumper = (0..traj.centers).find(|&i| i != on_a && i != on_b).unwrap();
@@ -62,7 +108,17 @@ fn a_center_jumping_between_bodies_is_removed_first() {
     }
     let irregularity = voltrack::metrics::irregularity(&traj);
     assert_eq!(most_irregular(&irregularity, 1), vec![jumper]);
-    let res = refine(traj.clone(), &seq, &RefineParams { remove: Some(1), batches: 1, ..Default::default() }, Default::default()).unwrap();
+    let res = refine(
+        traj.clone(),
+        &seq,
+        &RefineParams {
+            remove: Some(1),
+            batches: 1,
+            ..Default::default()
+        },
+        Default::default(),
+    )
+    .unwrap();
     assert_eq!(res.trajectories.centers, traj.centers - 1);
     let res = res.refinement;
     assert_eq!(res.removed, vec![jumper]);
@@ -73,11 +129,24 @@ fn a_center_jumping_between_bodies_is_removed_first() {
 #[test]
 fn removal_spreads_over_batches() {
     let seq = two_bodies(4, 32);
-    let tracked = track(&seq, &TrackParams { centers: 30, ..Default::default() }, Default::default()).unwrap();
+    let tracked = track(
+        &seq,
+        &TrackParams {
+            centers: 30,
+            ..Default::default()
+        },
+        Default::default(),
+    )
+    .unwrap();
     let res = refine(
         tracked.trajectories.clone(),
         &seq,
-        &RefineParams { remove: Some(7), batches: 3, optimise: false, ..Default::default() },
+        &RefineParams {
+            remove: Some(7),
+            batches: 3,
+            optimise: false,
+            ..Default::default()
+        },
         Default::default(),
     )
     .unwrap();
@@ -103,10 +172,25 @@ fn removal_spreads_over_batches() {
 fn kept_assignments_fill_the_byte_budget() {
     use voltrack::params::{KEPT_CELL_BYTES_PER_VOXEL, KEPT_CELL_FRAMES};
     let seq = two_bodies(7, 40);
-    let bytes: Vec<usize> = seq.frames.iter().map(|f| f.len() * KEPT_CELL_BYTES_PER_VOXEL).collect();
+    let bytes: Vec<usize> = seq
+        .frames
+        .iter()
+        .map(|f| f.len() * KEPT_CELL_BYTES_PER_VOXEL)
+        .collect();
     let first_three: usize = bytes[..3].iter().sum();
-    for (budget, kept) in [(0, 0), (bytes[0] - 1, 0), (bytes[0], 1), (first_three, 3), (first_three + bytes[3] - 1, 3), (usize::MAX, 7.min(KEPT_CELL_FRAMES))] {
-        assert_eq!(SequenceCells::new(&seq, budget).cached_frames(), kept, "budget {budget} bytes (frames of {bytes:?} bytes)");
+    for (budget, kept) in [
+        (0, 0),
+        (bytes[0] - 1, 0),
+        (bytes[0], 1),
+        (first_three, 3),
+        (first_three + bytes[3] - 1, 3),
+        (usize::MAX, 7.min(KEPT_CELL_FRAMES)),
+    ] {
+        assert_eq!(
+            SequenceCells::new(&seq, budget).cached_frames(),
+            kept,
+            "budget {budget} bytes (frames of {bytes:?} bytes)"
+        );
     }
 }
 
@@ -118,7 +202,15 @@ fn kept_assignments_fill_the_byte_budget() {
 #[test]
 fn kept_and_fresh_assignments_and_gradients_in_a_file_give_the_same_optimisation() {
     let seq = two_bodies(7, 40);
-    let tracked = track(&seq, &TrackParams { centers: 40, ..Default::default() }, Default::default()).unwrap();
+    let tracked = track(
+        &seq,
+        &TrackParams {
+            centers: 40,
+            ..Default::default()
+        },
+        Default::default(),
+    )
+    .unwrap();
     let p = RefineParams::default();
     let scale = p.length_scale(&seq.bounds);
     let run = |kept: usize, memory: usize| {
@@ -134,19 +226,54 @@ fn kept_and_fresh_assignments_and_gradients_in_a_file_give_the_same_optimisation
                 let survivors = traj.remove_centers(&[3, 17, 30]);
                 cells.keep_centers(&survivors);
             }
-            let w = global_affinity(&traj, &seq, &mut cells, p.rho_gp * scale, p.rho_gm * scale, p.mu);
-            let history = optimise(&mut traj, &seq.grid, &mut cells, &w, &RefineParams { max_iterations: 8, memory, ..p.clone() }, |_, _, _| true).unwrap();
+            let w = global_affinity(
+                &traj,
+                &seq,
+                &mut cells,
+                p.rho_gp * scale,
+                p.rho_gm * scale,
+                p.mu,
+            );
+            let history = optimise(
+                &mut traj,
+                &seq.grid,
+                &mut cells,
+                &w,
+                &RefineParams {
+                    max_iterations: 8,
+                    memory,
+                    ..p.clone()
+                },
+                |_, _, _| true,
+            )
+            .unwrap();
             energies.extend(history.iter().map(|h| h.energy.to_bits()));
             omega.get_or_insert(w);
         }
         (traj, omega.expect("two batches"), energies)
     };
     let all = run(usize::MAX, usize::MAX);
-    assert!(all.2.len() >= 6, "some steps were accepted in both batches: {:?}", all.2);
-    for (kept, memory) in [(0, usize::MAX), (1, usize::MAX), (4, usize::MAX), (usize::MAX, 0), (1, 0)] {
+    assert!(
+        all.2.len() >= 6,
+        "some steps were accepted in both batches: {:?}",
+        all.2
+    );
+    for (kept, memory) in [
+        (0, usize::MAX),
+        (1, usize::MAX),
+        (4, usize::MAX),
+        (usize::MAX, 0),
+        (1, 0),
+    ] {
         let some = run(kept, memory);
         assert_eq!(some.1, all.1, "affinity with {kept} frames kept");
-        assert_eq!(some.2, all.2, "energies with {kept} frames kept, gradients in memory up to {memory} bytes");
-        assert_eq!(some.0, all.0, "trajectories with {kept} frames kept, gradients in memory up to {memory} bytes");
+        assert_eq!(
+            some.2, all.2,
+            "energies with {kept} frames kept, gradients in memory up to {memory} bytes"
+        );
+        assert_eq!(
+            some.0, all.0,
+            "trajectories with {kept} frames kept, gradients in memory up to {memory} bytes"
+        );
     }
 }

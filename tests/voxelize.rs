@@ -8,7 +8,9 @@ use voltrack::voxel::{voxelize, winding_number};
 use voltrack::{fixtures, Aabb};
 
 fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fixtures")
+        .join(name)
 }
 
 fn grid_for(mesh: &voltrack::TriangleMesh, r: usize) -> GridSpec {
@@ -18,8 +20,12 @@ fn grid_for(mesh: &voltrack::TriangleMesh, r: usize) -> GridSpec {
 #[test]
 fn committed_fixtures_match_their_generator() {
     for (path, bytes) in fixtures::files().unwrap() {
-        let committed = std::fs::read(fixture(&path)).unwrap_or_else(|e| panic!("{path}: {e}; run the make_fixtures example"));
-        assert!(committed == bytes, "{path} differs from what fixtures::files() generates");
+        let committed = std::fs::read(fixture(&path))
+            .unwrap_or_else(|e| panic!("{path}: {e}; run the make_fixtures example"));
+        assert!(
+            committed == bytes,
+            "{path} differs from what fixtures::files() generates"
+        );
     }
 }
 
@@ -34,12 +40,20 @@ fn every_format_gives_the_identical_grid() {
             let m = read_mesh(&fixture(&format!("shapes/{name}{ext}"))).unwrap();
             // tobj numbers OBJ vertices by first use, so compare as sets.
             let sorted = |m: &voltrack::TriangleMesh| {
-                let mut v: Vec<[u64; 3]> = m.positions.iter().map(|p| [p.x, p.y, p.z].map(f64::to_bits)).collect();
+                let mut v: Vec<[u64; 3]> = m
+                    .positions
+                    .iter()
+                    .map(|p| [p.x, p.y, p.z].map(f64::to_bits))
+                    .collect();
                 v.sort();
                 v
             };
             assert_eq!(sorted(&m), sorted(&reference), "{name}{ext}: positions");
-            assert_eq!(m.triangles.len(), reference.triangles.len(), "{name}{ext}: triangles");
+            assert_eq!(
+                m.triangles.len(),
+                reference.triangles.len(),
+                "{name}{ext}: triangles"
+            );
             assert_eq!(voxelize(&m, &grid), expected, "{name}{ext}: occupancy");
         }
     }
@@ -55,7 +69,11 @@ fn closed_fixtures_have_their_volume_within_one_percent_at_128() {
         let occ = voxelize(&m, &grid);
         let (vox, exact) = (occ.volume(&grid), m.signed_volume());
         let rel = (vox - exact).abs() / exact;
-        assert!(rel < 0.01, "{name}: voxel volume {vox:.5} vs mesh volume {exact:.5} ({:.3} %)", 100.0 * rel);
+        assert!(
+            rel < 0.01,
+            "{name}: voxel volume {vox:.5} vs mesh volume {exact:.5} ({:.3} %)",
+            100.0 * rel
+        );
     }
 }
 
@@ -87,11 +105,17 @@ fn closed_fixtures_agree_exactly_with_the_winding_number() {
 
 #[test]
 fn open_cup_is_filled_without_leaks() {
-    let (_, cup) = fixtures::shapes().into_iter().find(|(n, _)| *n == "open_cup").unwrap();
+    let (_, cup) = fixtures::shapes()
+        .into_iter()
+        .find(|(n, _)| *n == "open_cup")
+        .unwrap();
     let (bad, n) = gwn_mismatches(&cup, 24);
     assert!(n > 0);
     // Only the rim, where the winding number passes 0.5, may differ.
-    assert!((bad as f64) < 0.03 * n as f64, "{bad} of {n} voxels disagree");
+    assert!(
+        (bad as f64) < 0.03 * n as f64,
+        "{bad} of {n} voxels disagree"
+    );
 }
 
 #[test]
@@ -108,7 +132,9 @@ fn voxelisation_matches_point_in_mesh_for_random_rotations() {
     // relative to the voxel centers: still exact on closed meshes.
     let mut state = 12345u64;
     let mut rnd = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         (state >> 11) as f64 / (1u64 << 53) as f64
     };
     for (name, m) in fixtures::shapes() {
@@ -138,8 +164,16 @@ fn binvox_round_trips() {
     assert!((g2.voxel_size - grid.voxel_size).abs() < 1e-12);
     assert_eq!(g2.origin, grid.origin);
     // Same voxels, re-indexed on the cubic grid.
-    let back: Vec<[usize; 3]> = o2.indices.iter().map(|&i| g2.voxel_coords(i as usize)).collect();
-    let orig: Vec<[usize; 3]> = occ.indices.iter().map(|&i| grid.voxel_coords(i as usize)).collect();
+    let back: Vec<[usize; 3]> = o2
+        .indices
+        .iter()
+        .map(|&i| g2.voxel_coords(i as usize))
+        .collect();
+    let orig: Vec<[usize; 3]> = occ
+        .indices
+        .iter()
+        .map(|&i| grid.voxel_coords(i as usize))
+        .collect();
     let mut a = back.clone();
     let mut b = orig.clone();
     a.sort();
@@ -165,7 +199,14 @@ fn sequence_grid_spans_all_frames_with_a_margin() {
 fn occupancy_runs_give_back_the_voxels() {
     use voltrack::math::Point3;
     use voltrack::model::{Occupancy, OccupancyRuns};
-    let grid = GridSpec::for_bounds(&voltrack::Aabb { min: Point3::new(-1.0, -1.0, -1.0), max: Point3::new(1.0, 1.0, 1.0) }, 32).unwrap();
+    let grid = GridSpec::for_bounds(
+        &voltrack::Aabb {
+            min: Point3::new(-1.0, -1.0, -1.0),
+            max: Point3::new(1.0, 1.0, 1.0),
+        },
+        32,
+    )
+    .unwrap();
     let torus = voltrack::fixtures::torus(Point3::origin(), 0.6, 0.25, 32, 16);
     let mut state = 0x9e37_79b9_u64;
     let scattered: Vec<u32> = (0..grid.len() as u32)
@@ -181,8 +222,12 @@ fn occupancy_runs_give_back_the_voxels() {
         voxelize(&torus, &grid),
         Occupancy { indices: scattered },
         Occupancy::default(),
-        Occupancy { indices: vec![0, 1, 2, grid.len() as u32 - 1] },
-        Occupancy { indices: vec![127, 128, 16_511, 2_113_663, u32::MAX - 2, u32::MAX - 1] },
+        Occupancy {
+            indices: vec![0, 1, 2, grid.len() as u32 - 1],
+        },
+        Occupancy {
+            indices: vec![127, 128, 16_511, 2_113_663, u32::MAX - 2, u32::MAX - 1],
+        },
     ];
     for occ in cases {
         let runs = OccupancyRuns::from(&occ);
@@ -192,8 +237,21 @@ fn occupancy_runs_give_back_the_voxels() {
         assert!(runs.runs() <= occ.len());
     }
     // A solid's rows are long: far fewer runs than voxels.
-    let solid = OccupancyRuns::from(voxelize(&voltrack::fixtures::cube(Point3::origin(), 1.0), &grid));
-    assert!(solid.runs() * 8 <= solid.len(), "{} runs for {} voxels", solid.runs(), solid.len());
+    let solid = OccupancyRuns::from(voxelize(
+        &voltrack::fixtures::cube(Point3::origin(), 1.0),
+        &grid,
+    ));
+    assert!(
+        solid.runs() * 8 <= solid.len(),
+        "{} runs for {} voxels",
+        solid.runs(),
+        solid.len()
+    );
     // Gaps and lengths of a few hundred voxels take a byte or two each.
-    assert!(solid.bytes() <= 3 * solid.runs(), "{} bytes for {} runs", solid.bytes(), solid.runs());
+    assert!(
+        solid.bytes() <= 3 * solid.runs(),
+        "{} bytes for {} runs",
+        solid.bytes(),
+        solid.runs()
+    );
 }

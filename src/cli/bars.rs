@@ -39,8 +39,15 @@ const PLAIN_EVERY: Duration = Duration::from_secs(10);
 
 impl Bars {
     pub fn new() -> Self {
-        let multi = std::io::stderr().is_terminal().then(|| MultiProgress::with_draw_target(ProgressDrawTarget::stderr()));
-        Bars { multi, current: Mutex::new(None), announced: AtomicBool::new(false), plain: Mutex::new(None) }
+        let multi = std::io::stderr()
+            .is_terminal()
+            .then(|| MultiProgress::with_draw_target(ProgressDrawTarget::stderr()));
+        Bars {
+            multi,
+            current: Mutex::new(None),
+            announced: AtomicBool::new(false),
+            plain: Mutex::new(None),
+        }
     }
 
     /// A line when a stage begins, and every [`PLAIN_EVERY`] within it.
@@ -50,7 +57,11 @@ impl Bars {
         match &mut *plain {
             Some((shown, began, printed)) if *shown == stage => {
                 if now.duration_since(*printed) >= PLAIN_EVERY {
-                    eprintln!("voltrack: {} {done}/{total} ({:.0} s)", stage.name(), now.duration_since(*began).as_secs_f64());
+                    eprintln!(
+                        "voltrack: {} {done}/{total} ({:.0} s)",
+                        stage.name(),
+                        now.duration_since(*began).as_secs_f64()
+                    );
                     *printed = now;
                 }
             }
@@ -76,7 +87,9 @@ impl ProgressSink for Bars {
     fn cancelled(&self) -> bool {
         let stop = INTERRUPTED.load(Ordering::Relaxed);
         if stop && !self.announced.swap(true, Ordering::Relaxed) {
-            let say = || eprintln!("voltrack: stopping at the next safe point (Ctrl-C again quits at once)");
+            let say = || {
+                eprintln!("voltrack: stopping at the next safe point (Ctrl-C again quits at once)")
+            };
             match &self.multi {
                 Some(multi) => multi.suspend(say),
                 None => say(),
@@ -86,7 +99,9 @@ impl ProgressSink for Bars {
     }
 
     fn report(&self, stage: Stage, done: usize, total: usize) {
-        let Some(multi) = &self.multi else { return self.plain_report(stage, done, total) };
+        let Some(multi) = &self.multi else {
+            return self.plain_report(stage, done, total);
+        };
         let mut cur = self.current.lock().unwrap();
         if cur.as_ref().map(|(s, _)| *s) != Some(stage) {
             if let Some((_, bar)) = cur.take() {
@@ -94,9 +109,11 @@ impl ProgressSink for Bars {
             }
             let bar = multi.add(ProgressBar::new(total as u64));
             bar.set_style(
-                ProgressStyle::with_template("{prefix:>9} [{bar:32}] {pos}/{len} {elapsed_precise} eta {eta}")
-                    .unwrap()
-                    .progress_chars("=> "),
+                ProgressStyle::with_template(
+                    "{prefix:>9} [{bar:32}] {pos}/{len} {elapsed_precise} eta {eta}",
+                )
+                .unwrap()
+                .progress_chars("=> "),
             );
             bar.set_prefix(stage.name());
             *cur = Some((stage, bar));

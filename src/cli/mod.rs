@@ -13,14 +13,18 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use options::{ConvertArgs, InputArgs, OutputFormat, RefineArgs, TrackArgs};
 use std::path::{Path, PathBuf};
+use voltrack::checkpoint::Checkpointing;
+use voltrack::io::FrameFiles;
 use voltrack::params::CoverageParams;
 use voltrack::pipeline::{self, Quality};
-use voltrack::io::FrameFiles;
-use voltrack::checkpoint::Checkpointing;
 use voltrack::Stage;
 
 #[derive(Parser)]
-#[command(name = "voltrack", version, about = "Time-varying meshes to dynamic meshes by volume tracking")]
+#[command(
+    name = "voltrack",
+    version,
+    about = "Time-varying meshes to dynamic meshes by volume tracking"
+)]
 pub(crate) struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -95,28 +99,59 @@ enum Command {
 
 pub fn run() -> Result<()> {
     let matches = <Cli as clap::CommandFactory>::command().get_matches();
-    let cli = <Cli as clap::FromArgMatches>::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    let cli =
+        <Cli as clap::FromArgMatches>::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     check_ignored(&cli, &matches)?;
     bars::handle_interrupts().context("installing the Ctrl-C handler")?;
     match cli.command {
         Command::Convert(args) => convert(args),
-        Command::Voxelize { input, output, json } => voxelize(input, output, json),
-        Command::Track { input, output, track, refine, refine_args, json } => {
-            track_command(input, output, track, refine.then_some(refine_args), json)
-        }
-        Command::Refine { centers, input, output, refine_args, checkpoint, resume, json } => {
-            let checkpoint = checkpoint.map(|dir| Checkpointing { resume, ..Checkpointing::new(dir) });
+        Command::Voxelize {
+            input,
+            output,
+            json,
+        } => voxelize(input, output, json),
+        Command::Track {
+            input,
+            output,
+            track,
+            refine,
+            refine_args,
+            json,
+        } => track_command(input, output, track, refine.then_some(refine_args), json),
+        Command::Refine {
+            centers,
+            input,
+            output,
+            refine_args,
+            checkpoint,
+            resume,
+            json,
+        } => {
+            let checkpoint = checkpoint.map(|dir| Checkpointing {
+                resume,
+                ..Checkpointing::new(dir)
+            });
             refine_command(centers, input, output, refine_args, checkpoint, json)
         }
-        Command::Metrics { centers, input, json, plot } => metrics(centers, input, json, plot),
+        Command::Metrics {
+            centers,
+            input,
+            json,
+            plot,
+        } => metrics(centers, input, json, plot),
     }
 }
 
 /// Refuses options given on the command line that the rest of it makes
 /// pointless: a user who sets one expects it to change something.
 fn check_ignored(cli: &Cli, matches: &clap::ArgMatches) -> Result<()> {
-    let Some((_, sub)) = matches.subcommand() else { return Ok(()) };
-    let given = |id: &str| sub.ids().any(|i| i.as_str() == id) && sub.value_source(id) == Some(clap::parser::ValueSource::CommandLine);
+    let Some((_, sub)) = matches.subcommand() else {
+        return Ok(());
+    };
+    let given = |id: &str| {
+        sub.ids().any(|i| i.as_str() == id)
+            && sub.value_source(id) == Some(clap::parser::ValueSource::CommandLine)
+    };
     let flag = |id: &str| format!("--{}", id.replace('_', "-"));
     let refuse = |m: String| -> Result<()> { Err(voltrack::Error::InvalidParameter(m).into()) };
     let track = match &cli.command {
@@ -138,7 +173,11 @@ fn check_ignored(cli: &Cli, matches: &clap::ArgMatches) -> Result<()> {
                 return refuse(format!("--fps times an animation, but the output is {}, which has no frame rate: drop it", format.name()));
             }
         }
-        let conform = ["conform_stiffness", "conform_bend_strain", "conform_joint_strain"];
+        let conform = [
+            "conform_stiffness",
+            "conform_bend_strain",
+            "conform_joint_strain",
+        ];
         if args.conform_iterations == 0 {
             if let Some(id) = conform.iter().find(|id| given(id)) {
                 return refuse(format!("{} shapes the conform stage, which --conform-iterations 0 turns off: drop one of them", flag(id)));
@@ -149,7 +188,11 @@ fn check_ignored(cli: &Cli, matches: &clap::ArgMatches) -> Result<()> {
 }
 
 /// The frames `inputs` name, voxelised.
-fn load(inputs: &[PathBuf], voxel: &voltrack::voxel::VoxelParams, bars: &bars::Bars) -> Result<(FrameFiles, voltrack::voxel::VoxelSequence)> {
+fn load(
+    inputs: &[PathBuf],
+    voxel: &voltrack::voxel::VoxelParams,
+    bars: &bars::Bars,
+) -> Result<(FrameFiles, voltrack::voxel::VoxelSequence)> {
     let files = FrameFiles::discover(inputs)?;
     let seq = voltrack::voxel::voxelize_sequence(&files, voxel, bars.progress())?;
     Ok((files, seq))
@@ -184,7 +227,10 @@ fn voxelize(input: InputArgs, output: PathBuf, json: bool) -> Result<()> {
             "seconds": {"read": seq.read_seconds, "voxelize": seq.voxelize_seconds},
         }));
     }
-    println!("grid {} x {} x {} voxels of {:.6} (origin {:.4} {:.4} {:.4})", g.dims[0], g.dims[1], g.dims[2], g.voxel_size, g.origin.x, g.origin.y, g.origin.z);
+    println!(
+        "grid {} x {} x {} voxels of {:.6} (origin {:.4} {:.4} {:.4})",
+        g.dims[0], g.dims[1], g.dims[2], g.voxel_size, g.origin.x, g.origin.y, g.origin.z
+    );
     for (o, w) in seq.frames.iter().zip(&written) {
         println!("{:>10} occupied  {}", o.len(), w.display());
     }
@@ -202,7 +248,13 @@ fn quality_json(q: &Quality) -> serde_json::Value {
     serde_json::json!({"pcac": q.pcac, "dfu": q.dfu, "dfu_per_frame": q.dfu_per_frame, "largest_irregularity": q.largest_irregularity(20)})
 }
 
-fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Option<RefineArgs>, json: bool) -> Result<()> {
+fn track_command(
+    input: InputArgs,
+    output: PathBuf,
+    track: TrackArgs,
+    refine: Option<RefineArgs>,
+    json: bool,
+) -> Result<()> {
     let voxel = input.voxel_params();
     let params = track.params();
     voxel.validate()?;
@@ -218,18 +270,42 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
     plan.check()?;
     let bars = bars::Bars::new();
     let (_, seq) = load(&input.input, &voxel, &bars)?;
-    let tracked = voltrack::track::track_with_checkpoints(&seq, &params, checkpoint.as_ref(), bars.progress())?;
-    let (pipeline::Tracked { quality, timings, .. }, trajectories) = pipeline::Tracked::split(tracked, true);
+    let tracked = voltrack::track::track_with_checkpoints(
+        &seq,
+        &params,
+        checkpoint.as_ref(),
+        bars.progress(),
+    )?;
+    let (
+        pipeline::Tracked {
+            quality, timings, ..
+        },
+        trajectories,
+    ) = pipeline::Tracked::split(tracked, true);
     let before = quality.expect("measured");
     let (traj, refined, refine_params) = match refine {
         Some(r) => {
             let rp = r.params(track.absolute_units).within(voxel.max_memory);
-            let res = pipeline::refine_tracked(trajectories, &seq, &rp, checkpoint.as_ref(), bars.progress())?;
+            let res = pipeline::refine_tracked(
+                trajectories,
+                &seq,
+                &rp,
+                checkpoint.as_ref(),
+                bars.progress(),
+            )?;
             (res.trajectories, Some(res.refinement), Some(rp))
         }
         None => (trajectories, None, None),
     };
-    let meta = pipeline::trajectory_metadata(&seq, &voxel, &params, refine_params.as_ref().zip(refined.as_ref()).map(|(p, r)| (p, r.removed.as_slice())));
+    let meta = pipeline::trajectory_metadata(
+        &seq,
+        &voxel,
+        &params,
+        refine_params
+            .as_ref()
+            .zip(refined.as_ref())
+            .map(|(p, r)| (p, r.removed.as_slice())),
+    );
     voltrack::export::exr::write_trajectories_exr(&output, &traj, &meta)?;
     bars.finish();
     let after = refined.as_ref().map(|_| pipeline::measure(&traj, &seq));
@@ -250,20 +326,45 @@ fn track_command(input: InputArgs, output: PathBuf, track: TrackArgs, refine: Op
         }));
     }
     let tracking: f64 = timings.iter().skip(1).map(|t| t.total).sum();
-    println!("{} frames, {} centers, resolution {}, affinity {:?}", seq.frames.len(), params.centers, voxel.resolution, params.affinity);
-    println!("voxelised in {:.2} s; frame 0 placed in {:.2} s; tracked in {:.2} s ({:.3} s/frame)", seq.voxelize_seconds, timings[0].total, tracking, tracking / (seq.frames.len() - 1).max(1) as f64);
+    println!(
+        "{} frames, {} centers, resolution {}, affinity {:?}",
+        seq.frames.len(),
+        params.centers,
+        voxel.resolution,
+        params.affinity
+    );
+    println!(
+        "voxelised in {:.2} s; frame 0 placed in {:.2} s; tracked in {:.2} s ({:.3} s/frame)",
+        seq.voxelize_seconds,
+        timings[0].total,
+        tracking,
+        tracking / (seq.frames.len() - 1).max(1) as f64
+    );
     println!("PCAC {:.4}  DFU {:.4}", before.pcac, before.dfu);
     if let (Some(r), Some(q)) = (&refined, &after) {
-        println!("refined: removed {} centers in {:.1} s; PCAC {:.4}  DFU {:.4}", r.removed.len(), r.seconds, q.pcac, q.dfu);
+        println!(
+            "refined: removed {} centers in {:.1} s; PCAC {:.4}  DFU {:.4}",
+            r.removed.len(),
+            r.seconds,
+            q.pcac,
+            q.dfu
+        );
     }
     println!("wrote {}", output.display());
-    for w in voltrack::metrics::lost_parts(&coverage, None).warnings().into_iter().map(|w| w.message) {
+    for w in voltrack::metrics::lost_parts(&coverage, None)
+        .warnings()
+        .into_iter()
+        .map(|w| w.message)
+    {
         println!("{w}");
     }
     Ok(())
 }
 
-type Tracked = (voltrack::model::Trajectories, voltrack::model::TrajectoryMetadata);
+type Tracked = (
+    voltrack::model::Trajectories,
+    voltrack::model::TrajectoryMetadata,
+);
 
 /// Reads trajectories written by `voltrack track`.
 fn read_tracked(centers: &Path) -> Result<Tracked> {
@@ -271,10 +372,18 @@ fn read_tracked(centers: &Path) -> Result<Tracked> {
 }
 
 /// Re-voxelises the input of trajectories at their stored resolution.
-fn load_tracked_input(centers: &Path, tracked: &Tracked, input: &[PathBuf], bars: &bars::Bars) -> Result<voltrack::voxel::VoxelSequence> {
+fn load_tracked_input(
+    centers: &Path,
+    tracked: &Tracked,
+    input: &[PathBuf],
+    bars: &bars::Bars,
+) -> Result<voltrack::voxel::VoxelSequence> {
     let (traj, meta) = tracked;
     let resolution = pipeline::resolution_of(meta, centers)?;
-    let voxel = voltrack::voxel::VoxelParams { resolution, ..Default::default() };
+    let voxel = voltrack::voxel::VoxelParams {
+        resolution,
+        ..Default::default()
+    };
     let (_, seq) = load(input, &voxel, bars)?;
     pipeline::check_grid(meta, &seq.grid, traj, &seq, centers)?;
     Ok(seq)
@@ -286,11 +395,20 @@ fn plan_reading(inputs: &[PathBuf]) -> Result<voltrack::pipeline::OutputPlan> {
     Ok(voltrack::pipeline::OutputPlan::new().reading(inputs, &frames))
 }
 
-fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: RefineArgs, checkpoint: Option<Checkpointing>, json: bool) -> Result<()> {
+fn refine_command(
+    centers: PathBuf,
+    input: Vec<PathBuf>,
+    output: PathBuf,
+    args: RefineArgs,
+    checkpoint: Option<Checkpointing>,
+    json: bool,
+) -> Result<()> {
     let tracked = read_tracked(&centers)?;
     let params = args.params(tracked.1.absolute_units());
     params.validate(tracked.0.centers)?;
-    let mut plan = plan_reading(&input)?.reading_file(&centers).file(&output, "the output");
+    let mut plan = plan_reading(&input)?
+        .reading_file(&centers)
+        .file(&output, "the output");
     if let Some(c) = &checkpoint {
         plan = plan.checkpoints(c);
     }
@@ -299,8 +417,16 @@ fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: 
     let seq = load_tracked_input(&centers, &tracked, &input, &bars)?;
     let (traj, meta) = tracked;
     let before = pipeline::measure(&traj, &seq);
-    let voltrack::refine::RefineResult { trajectories, refinement: res } =
-        voltrack::refine::refine_with_checkpoints(traj, &seq, &params, checkpoint.as_ref(), bars.progress())?;
+    let voltrack::refine::RefineResult {
+        trajectories,
+        refinement: res,
+    } = voltrack::refine::refine_with_checkpoints(
+        traj,
+        &seq,
+        &params,
+        checkpoint.as_ref(),
+        bars.progress(),
+    )?;
     let after = pipeline::measure(&trajectories, &seq);
     let mut meta = meta;
     pipeline::record_refinement(&mut meta, &params, &res.removed);
@@ -312,11 +438,24 @@ fn refine_command(centers: PathBuf, input: Vec<PathBuf>, output: PathBuf, args: 
             "energy": res.batches, "seconds": res.seconds,
         }));
     }
-    println!("removed {} irregular centers: {:?}", res.removed.len(), res.removed);
-    println!("PCAC {:.4} -> {:.4}   DFU {:.4} -> {:.4}", before.pcac, after.pcac, before.dfu, after.dfu);
+    println!(
+        "removed {} irregular centers: {:?}",
+        res.removed.len(),
+        res.removed
+    );
+    println!(
+        "PCAC {:.4} -> {:.4}   DFU {:.4} -> {:.4}",
+        before.pcac, after.pcac, before.dfu, after.dfu
+    );
     for (b, h) in res.batches.iter().enumerate() {
         if let (Some(first), Some(last)) = (h.first(), h.last()) {
-            println!("batch {}: energy {:.6e} -> {:.6e} in {} steps", b + 1, first.energy, last.energy, h.len() - 1);
+            println!(
+                "batch {}: energy {:.6e} -> {:.6e} in {} steps",
+                b + 1,
+                first.energy,
+                last.energy,
+                h.len() - 1
+            );
         }
     }
     println!("wrote {} ({:.1} s)", output.display(), res.seconds);
@@ -337,7 +476,8 @@ fn metrics(centers: PathBuf, input: Vec<PathBuf>, json: bool, plot: Option<PathB
     bars.finish();
     if let Some(p) = &plot {
         let svg = plot::irregularity_curve_svg(&q.irregularity);
-        voltrack::files::write_atomic(p, |w| std::io::Write::write_all(w, svg.as_bytes())).with_context(|| "writing the plot")?;
+        voltrack::files::write_atomic(p, |w| std::io::Write::write_all(w, svg.as_bytes()))
+            .with_context(|| "writing the plot")?;
     }
     if json {
         return print_json(&serde_json::json!({
@@ -347,9 +487,19 @@ fn metrics(centers: PathBuf, input: Vec<PathBuf>, json: bool, plot: Option<PathB
     }
     println!("{} frames, {} centers", traj.frames, traj.centers);
     println!("PCAC {:.4}", q.pcac);
-    println!("DFU  {:.4} (mean over frames; worst frame {:.4})", q.dfu, q.dfu_per_frame.iter().copied().fold(0.0, f64::max));
+    println!(
+        "DFU  {:.4} (mean over frames; worst frame {:.4})",
+        q.dfu,
+        q.dfu_per_frame.iter().copied().fold(0.0, f64::max)
+    );
     let top = q.largest_irregularity(10);
-    println!("largest irregularity: {}", top.iter().map(|v| format!("{v:.4e}")).collect::<Vec<_>>().join(" "));
+    println!(
+        "largest irregularity: {}",
+        top.iter()
+            .map(|v| format!("{v:.4e}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
     if let Some(p) = plot {
         println!("irregularity curve: {}", p.display());
     }
@@ -375,7 +525,8 @@ fn convert(args: ConvertArgs) -> Result<()> {
     if let Some(name) = &args.name {
         voltrack::model::check_name(name)?;
     }
-    args.gltf_options(voltrack::model::DEFAULT_NAME.into()).validate()?;
+    args.gltf_options(voltrack::model::DEFAULT_NAME.into())
+        .validate()?;
     let vat = args.vat_options(voltrack::model::DEFAULT_NAME.into());
     vat.validate()?;
     if format == OutputFormat::Exr && args.report.is_none() {
@@ -425,7 +576,11 @@ fn convert(args: ConvertArgs) -> Result<()> {
     let fit_only = match (&measured, format) {
         // Trajectories alone: the mesh was not fitted and is not written.
         (None, OutputFormat::Exr) => None,
-        (None, _) => Some(pipeline::Measurements::fit_of(&conv, &source, bars.progress())?),
+        (None, _) => Some(pipeline::Measurements::fit_of(
+            &conv,
+            &source,
+            bars.progress(),
+        )?),
         (Some(_), _) => None,
     };
     let clock = std::time::Instant::now();
@@ -437,9 +592,22 @@ fn convert(args: ConvertArgs) -> Result<()> {
     let files = match format {
         OutputFormat::Glb => {
             // Targets named after the input files, not frame indices.
-            let frame_names = source.paths().iter().map(|p| p.file_stem().unwrap_or_default().to_string_lossy().into_owned()).collect();
-            let gltf = voltrack::export::gltf::GltfExportOptions { frame_names, ..args.gltf_options(name.clone()) };
-            let report = voltrack::export::gltf::write_dynamic_glb(out, &conv.mesh, &gltf, bars.progress())?;
+            let frame_names = source
+                .paths()
+                .iter()
+                .map(|p| {
+                    p.file_stem()
+                        .unwrap_or_default()
+                        .to_string_lossy()
+                        .into_owned()
+                })
+                .collect();
+            let gltf = voltrack::export::gltf::GltfExportOptions {
+                frame_names,
+                ..args.gltf_options(name.clone())
+            };
+            let report =
+                voltrack::export::gltf::write_dynamic_glb(out, &conv.mesh, &gltf, bars.progress())?;
             if let Some(k) = report.basis {
                 if args.basis.is_none() {
                     notes.push(format!(
@@ -459,7 +627,12 @@ fn convert(args: ConvertArgs) -> Result<()> {
                 }
             }
             if report.compressed {
-                let basis = report.basis.map_or(String::new(), |k| format!(", compact basis of {k} components ({} morph targets)", report.targets));
+                let basis = report.basis.map_or(String::new(), |k| {
+                    format!(
+                        ", compact basis of {k} components ({} morph targets)",
+                        report.targets
+                    )
+                });
                 notes.push(format!(
                     "compressed (KHR_mesh_quantization + EXT_meshopt_compression{basis}): reconstruction error max {:.4} %, mean {:.4} % of the diagonal",
                     100.0 * report.reconstruction_error_max,
@@ -470,39 +643,77 @@ fn convert(args: ConvertArgs) -> Result<()> {
             vec![out.clone()]
         }
         OutputFormat::Exr => {
-            let removed = conv.refined.as_ref().map(|r| r.removed.clone()).unwrap_or_default();
-            let meta = pipeline::trajectory_metadata(&conv.sequence, &voxel, &track, refine.as_ref().map(|r| (r, removed.as_slice())));
+            let removed = conv
+                .refined
+                .as_ref()
+                .map(|r| r.removed.clone())
+                .unwrap_or_default();
+            let meta = pipeline::trajectory_metadata(
+                &conv.sequence,
+                &voxel,
+                &track,
+                refine.as_ref().map(|r| (r, removed.as_slice())),
+            );
             voltrack::export::exr::write_trajectories_exr(out, &conv.trajectories, &meta)?;
             vec![out.clone()]
         }
         OutputFormat::Vat => {
-            let report = voltrack::export::vat::write_vat(out, &conv.mesh, &args.vat_options(name.clone()))?;
+            let report =
+                voltrack::export::vat::write_vat(out, &conv.mesh, &args.vat_options(name.clone()))?;
             let l = report.layout;
-            notes.push(format!("texture {} x {} texels, {} row(s) per frame; mesh {}", l.width, l.height, l.rows_per_frame, out.with_extension("glb").display()));
+            notes.push(format!(
+                "texture {} x {} texels, {} row(s) per frame; mesh {}",
+                l.width,
+                l.height,
+                l.rows_per_frame,
+                out.with_extension("glb").display()
+            ));
             vat_layout = Some(l);
-            vec![out.clone(), out.with_extension("glb"), out.with_extension("json")]
+            vec![
+                out.clone(),
+                out.with_extension("glb"),
+                out.with_extension("json"),
+            ]
         }
         OutputFormat::Pc2 => {
             voltrack::export::pc2::write_pc2(out, &conv.mesh, args.fps, &name)?;
             vec![out.clone(), out.with_extension("obj")]
         }
-        OutputFormat::ObjSequence => voltrack::export::obj::write_obj_sequence(out, &conv.mesh, &name)?,
+        OutputFormat::ObjSequence => {
+            voltrack::export::obj::write_obj_sequence(out, &conv.mesh, &name)?
+        }
     };
     bars.progress().report(Stage::Export, 1, 1);
     let mut seconds = conv.seconds.clone();
-    if let Some(s) = measured.as_ref().map(|m| m.fit.seconds).or(fit_only.as_ref().map(|f| f.0.seconds)) {
+    if let Some(s) = measured
+        .as_ref()
+        .map(|m| m.fit.seconds)
+        .or(fit_only.as_ref().map(|f| f.0.seconds))
+    {
         seconds.push((Stage::Fit, s));
     }
     seconds.push((Stage::Export, clock.elapsed().as_secs_f64()));
     let fit = match (&args.report, measured) {
         (Some(path), Some(measured)) => {
             // Arguments need not be UTF-8 (file names): shown as well as they can be.
-            let command = std::env::args_os().map(|a| a.to_string_lossy().into_owned()).collect::<Vec<_>>().join(" ");
+            let command = std::env::args_os()
+                .map(|a| a.to_string_lossy().into_owned())
+                .collect::<Vec<_>>()
+                .join(" ");
             let report = report::ReportInput {
                 seconds: &seconds,
                 output: Some(out),
                 command: Some(&command),
-                ..report::ReportInput::new(&conv, &measured, source.paths(), &voxel, &track, refine.as_ref(), &deform, &conform)
+                ..report::ReportInput::new(
+                    &conv,
+                    &measured,
+                    source.paths(),
+                    &voxel,
+                    &track,
+                    refine.as_ref(),
+                    &deform,
+                    &conform,
+                )
             };
             report::write_report(path, &report)?;
             notes.push(format!("report: {}", path.display()));
@@ -515,12 +726,21 @@ fn convert(args: ConvertArgs) -> Result<()> {
     let traj = &conv.trajectories;
     let total: f64 = seconds.iter().map(|s| s.1).sum();
     // What carries the name and the frame rate, and where they are written.
-    let named = matches!(format, OutputFormat::Glb | OutputFormat::Vat | OutputFormat::Pc2 | OutputFormat::ObjSequence);
-    let timed = matches!(format, OutputFormat::Glb | OutputFormat::Vat | OutputFormat::Pc2);
+    let named = matches!(
+        format,
+        OutputFormat::Glb | OutputFormat::Vat | OutputFormat::Pc2 | OutputFormat::ObjSequence
+    );
+    let timed = matches!(
+        format,
+        OutputFormat::Glb | OutputFormat::Vat | OutputFormat::Pc2
+    );
     let lost = pipeline::lost_parts(&conv, fit.as_ref().map(|f| (&f.0, &f.1)));
     let warnings = lost.warnings();
     if args.json {
-        let mut stages: serde_json::Map<String, serde_json::Value> = seconds.iter().map(|(stage, s)| (stage.name().to_string(), (*s).into())).collect();
+        let mut stages: serde_json::Map<String, serde_json::Value> = seconds
+            .iter()
+            .map(|(stage, s)| (stage.name().to_string(), (*s).into()))
+            .collect();
         stages.insert("total".into(), total.into());
         return print_json(&serde_json::json!({
             "output": out,
@@ -559,20 +779,35 @@ fn convert(args: ConvertArgs) -> Result<()> {
         conv.mesh.base.positions.len(),
         conv.mesh.base.triangles.len(),
         traj.centers,
-        conv.refined.as_ref().map_or(String::new(), |r| format!(" ({} irregular removed)", r.removed.len()))
+        conv.refined.as_ref().map_or(String::new(), |r| format!(
+            " ({} irregular removed)",
+            r.removed.len()
+        ))
     );
     for (stage, s) in &seconds {
-        println!("  {:>9} {:>8.2} s  {:>5.1} %", stage.name(), s, 100.0 * s / total.max(1e-9));
+        println!(
+            "  {:>9} {:>8.2} s  {:>5.1} %",
+            stage.name(),
+            s,
+            100.0 * s / total.max(1e-9)
+        );
     }
     println!("  {:>9} {:>8.2} s", "total", total);
     if let Some((fit, _)) = &fit {
         let s = fit.summary();
-        println!("fit to the input: mean {:.3} %, p95 {:.3} %, max {:.3} % of the diagonal", s.mean, s.p95, s.max);
+        println!(
+            "fit to the input: mean {:.3} %, p95 {:.3} %, max {:.3} % of the diagonal",
+            s.mean, s.p95, s.max
+        );
     }
     for n in notes {
         println!("{n}");
     }
-    let called = if named { format!(", object \"{name}\"") } else { String::new() };
+    let called = if named {
+        format!(", object \"{name}\"")
+    } else {
+        String::new()
+    };
     println!("wrote {} ({}{called})", out.display(), human_size(size));
     for w in warnings {
         println!("{}", w.message);
@@ -581,14 +816,30 @@ fn convert(args: ConvertArgs) -> Result<()> {
 }
 
 /// Adds every path `format` writes for `out` to `plan`.
-fn planned_outputs(format: OutputFormat, out: &Path, plan: voltrack::pipeline::OutputPlan) -> voltrack::pipeline::OutputPlan {
+fn planned_outputs(
+    format: OutputFormat,
+    out: &Path,
+    plan: voltrack::pipeline::OutputPlan,
+) -> voltrack::pipeline::OutputPlan {
     match format {
         OutputFormat::Glb | OutputFormat::Exr => plan.file(out, "the output"),
         OutputFormat::Vat => plan
             .file(out, "the output")
-            .sidecar(&out.with_extension("glb"), "its mesh", voltrack::export::vat::MESH_MARK)
-            .sidecar(&out.with_extension("json"), "its JSON sidecar", voltrack::export::vat::SIDECAR_MARK),
-        OutputFormat::Pc2 => plan.file(out, "the output").sidecar(&out.with_extension("obj"), "its OBJ mesh", voltrack::export::pc2::MESH_MARK),
+            .sidecar(
+                &out.with_extension("glb"),
+                "its mesh",
+                voltrack::export::vat::MESH_MARK,
+            )
+            .sidecar(
+                &out.with_extension("json"),
+                "its JSON sidecar",
+                voltrack::export::vat::SIDECAR_MARK,
+            ),
+        OutputFormat::Pc2 => plan.file(out, "the output").sidecar(
+            &out.with_extension("obj"),
+            "its OBJ mesh",
+            voltrack::export::pc2::MESH_MARK,
+        ),
         OutputFormat::ObjSequence => plan.dir(out, "the output folder"),
     }
 }
@@ -596,7 +847,14 @@ fn planned_outputs(format: OutputFormat, out: &Path, plan: voltrack::pipeline::O
 /// Bytes under `path` (a file, or a directory of files).
 fn output_size(path: &Path) -> u64 {
     if path.is_dir() {
-        std::fs::read_dir(path).map(|d| d.flatten().filter_map(|e| e.metadata().ok()).map(|m| m.len()).sum()).unwrap_or(0)
+        std::fs::read_dir(path)
+            .map(|d| {
+                d.flatten()
+                    .filter_map(|e| e.metadata().ok())
+                    .map(|m| m.len())
+                    .sum()
+            })
+            .unwrap_or(0)
     } else {
         std::fs::metadata(path).map(|m| m.len()).unwrap_or(0)
     }

@@ -6,7 +6,9 @@ use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use voltrack::export::gltf::{BasisChoice, GltfExportOptions};
 use voltrack::export::vat::VatOptions;
-use voltrack::params::{AffinityKind, Blending, ConformParams, DeformParams, RefineParams, TrackParams};
+use voltrack::params::{
+    AffinityKind, Blending, ConformParams, DeformParams, RefineParams, TrackParams,
+};
 use voltrack::track::Checkpointing;
 use voltrack::voxel::VoxelParams;
 
@@ -30,7 +32,11 @@ impl InputArgs {
     }
 
     pub fn voxel_params(&self) -> VoxelParams {
-        VoxelParams { resolution: self.resolution, max_memory: self.max_memory.map(|g| g * (1u64 << 30) as f64), ..Default::default() }
+        VoxelParams {
+            resolution: self.resolution,
+            max_memory: self.max_memory.map(|g| g * (1u64 << 30) as f64),
+            ..Default::default()
+        }
     }
 }
 
@@ -125,11 +131,21 @@ pub struct TrackArgs {
 impl TrackArgs {
     /// The checkpoint settings (None without --checkpoint); the interval must be in range.
     pub fn checkpointing(&self) -> Result<Option<Checkpointing>> {
-        let Some(dir) = self.checkpoint.clone() else { return Ok(None) };
+        let Some(dir) = self.checkpoint.clone() else {
+            return Ok(None);
+        };
         if !(1..=1_000_000).contains(&self.checkpoint_every) {
-            return Err(voltrack::Error::InvalidParameter(format!("--checkpoint-every is {}, outside 1..=1000000", self.checkpoint_every)).into());
+            return Err(voltrack::Error::InvalidParameter(format!(
+                "--checkpoint-every is {}, outside 1..=1000000",
+                self.checkpoint_every
+            ))
+            .into());
         }
-        Ok(Some(Checkpointing { every: self.checkpoint_every, resume: self.resume, ..Checkpointing::new(dir) }))
+        Ok(Some(Checkpointing {
+            every: self.checkpoint_every,
+            resume: self.resume,
+            ..Checkpointing::new(dir)
+        }))
     }
 
     pub fn params(&self) -> TrackParams {
@@ -164,7 +180,17 @@ impl TrackArgs {
 }
 
 /// The ids of [`RefineArgs`]' options.
-pub const REFINE_IDS: [&str; 9] = ["remove", "batches", "no_optimise", "absolute_irregularity", "beta_hat", "rho_gp", "rho_gm", "global_iterations", "cell_memory"];
+pub const REFINE_IDS: [&str; 9] = [
+    "remove",
+    "batches",
+    "no_optimise",
+    "absolute_irregularity",
+    "beta_hat",
+    "rho_gp",
+    "rho_gm",
+    "global_iterations",
+    "cell_memory",
+];
 
 #[derive(Args)]
 pub struct RefineArgs {
@@ -326,38 +352,62 @@ impl ConvertArgs {
     /// extension.
     pub fn format(&self) -> Result<OutputFormat> {
         let bad = |m: String| Err(voltrack::Error::InvalidParameter(m).into());
-        let ext = self.output.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+        let ext = self
+            .output
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_ascii_lowercase();
         let implied = match ext.as_str() {
             "glb" => Some(OutputFormat::Glb),
             "exr" => Some(OutputFormat::Exr),
             "pc2" => Some(OutputFormat::Pc2),
             _ => None,
         };
-        let given = if self.vat { Some(OutputFormat::Vat) } else { self.format };
+        let given = if self.vat {
+            Some(OutputFormat::Vat)
+        } else {
+            self.format
+        };
         let format = match (given, implied) {
             (Some(f), None) | (None, Some(f)) => f,
             (Some(OutputFormat::Vat), Some(OutputFormat::Exr)) => OutputFormat::Vat,
             (Some(f), Some(i)) if f == i => f,
             (Some(f), Some(i)) => {
                 return bad(format!(
-                    "{}: the extension says {} but {} was asked for; name the output after its format",
-                    self.output.display(),
-                    i.name(),
-                    f.name()
-                ))
+                "{}: the extension says {} but {} was asked for; name the output after its format",
+                self.output.display(),
+                i.name(),
+                f.name()
+            ))
             }
             (None, None) if ext.is_empty() => OutputFormat::ObjSequence,
-            (None, None) => return bad(format!("{}: cannot tell the output format from '.{ext}'; use --format", self.output.display())),
+            (None, None) => {
+                return bad(format!(
+                    "{}: cannot tell the output format from '.{ext}'; use --format",
+                    self.output.display()
+                ))
+            }
         };
         if self.basis.is_some() && format != OutputFormat::Glb {
-            return bad(format!("--basis shapes glTF morph targets, but the output is {}", format.name()));
+            return bad(format!(
+                "--basis shapes glTF morph targets, but the output is {}",
+                format.name()
+            ));
         }
         let d = VatOptions::default();
-        if (self.vat_power_of_two || self.vat_max_width != d.max_width || self.vat_max_height != d.max_height) && format != OutputFormat::Vat {
+        if (self.vat_power_of_two
+            || self.vat_max_width != d.max_width
+            || self.vat_max_height != d.max_height)
+            && format != OutputFormat::Vat
+        {
             return bad(format!("--vat-max-width, --vat-max-height and --vat-power-of-two shape a vertex-animation texture, but the output is {}", format.name()));
         }
         if self.compress && format != OutputFormat::Glb {
-            return bad(format!("--compress compresses a GLB, but the output is {}", format.name()));
+            return bad(format!(
+                "--compress compresses a GLB, but the output is {}",
+                format.name()
+            ));
         }
         Ok(format)
     }
@@ -387,7 +437,13 @@ impl ConvertArgs {
 
     /// The vertex-animation texture's options, the mesh called `name`.
     pub fn vat_options(&self, name: String) -> VatOptions {
-        VatOptions { fps: self.fps, name, max_width: self.vat_max_width, max_height: self.vat_max_height, power_of_two: self.vat_power_of_two }
+        VatOptions {
+            fps: self.fps,
+            name,
+            max_width: self.vat_max_width,
+            max_height: self.vat_max_height,
+            power_of_two: self.vat_power_of_two,
+        }
     }
 
     /// The glTF options, the object called `name`.
@@ -395,7 +451,9 @@ impl ConvertArgs {
         GltfExportOptions {
             fps: self.fps,
             name,
-            basis: self.basis.map_or(BasisChoice::Auto, BasisChoice::Components),
+            basis: self
+                .basis
+                .map_or(BasisChoice::Auto, BasisChoice::Components),
             compress: self.compress,
             ..Default::default()
         }
@@ -410,7 +468,10 @@ mod tests {
     #[test]
     fn refine_ids_are_the_refine_options() {
         let command = RefineArgs::augment_args(clap::Command::new("refine"));
-        let ids: Vec<&str> = command.get_arguments().map(|a| a.get_id().as_str()).collect();
+        let ids: Vec<&str> = command
+            .get_arguments()
+            .map(|a| a.get_id().as_str())
+            .collect();
         assert_eq!(ids, REFINE_IDS);
     }
 }

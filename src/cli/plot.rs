@@ -2,8 +2,8 @@
 //! curve, per-frame measures). No fonts or scripts beyond what every browser
 //! has, so a plot can be opened directly or inlined in an HTML report.
 
-use voltrack::math::Real;
 use std::fmt::Write;
+use voltrack::math::Real;
 
 /// One named polyline.
 pub struct Series {
@@ -19,7 +19,12 @@ pub struct Series {
 impl Series {
     /// A solid line in the colour of its position.
     pub fn new(label: impl Into<String>, points: Vec<(Real, Real)>) -> Self {
-        Series { label: label.into(), points, color: None, dashed: false }
+        Series {
+            label: label.into(),
+            points,
+            color: None,
+            dashed: false,
+        }
     }
     /// Drawn in palette colour `slot`.
     pub fn color(mut self, slot: usize) -> Self {
@@ -34,7 +39,14 @@ impl Series {
     /// Its colour, and its dash attribute (or ""), as the `k`-th series of a plot.
     fn stroke(&self, k: usize) -> (&'static str, &'static str) {
         let color = COLORS[self.color.unwrap_or(k) % COLORS.len()];
-        (color, if self.dashed { r#" stroke-dasharray="6 4""# } else { "" })
+        (
+            color,
+            if self.dashed {
+                r#" stroke-dasharray="6 4""#
+            } else {
+                ""
+            },
+        )
     }
 }
 
@@ -53,11 +65,19 @@ pub struct Axis {
 impl Axis {
     /// A linear axis spanning the data.
     pub fn linear(label: impl Into<String>) -> Self {
-        Axis { label: label.into(), log: false, from_zero: false, integer: false }
+        Axis {
+            label: label.into(),
+            log: false,
+            from_zero: false,
+            integer: false,
+        }
     }
     /// A logarithmic axis (base 10) spanning the data.
     pub fn log(label: impl Into<String>) -> Self {
-        Axis { log: true, ..Axis::linear(label) }
+        Axis {
+            log: true,
+            ..Axis::linear(label)
+        }
     }
     /// Its range also covers 0.
     pub fn from_zero(mut self) -> Self {
@@ -77,7 +97,9 @@ const LEFT: Real = 80.0;
 const RIGHT: Real = 20.0;
 const TOP: Real = 40.0;
 const BOTTOM: Real = 56.0;
-const COLORS: [&str; 6] = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b"];
+const COLORS: [&str; 6] = [
+    "#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b",
+];
 /// Series with at most this many points also get a dot per point, so a
 /// short series (a few frames) reads as measurements, not as a curve.
 const MARKED_POINTS: usize = 60;
@@ -96,10 +118,22 @@ pub fn line_plot(title: &str, x: &Axis, y: &Axis, series: &[Series]) -> String {
     };
     let data: Vec<Vec<(Real, Real)>> = series
         .iter()
-        .map(|s| s.points.iter().filter(|p| usable(p)).map(|&(px, py)| (map(x, px), map(y, py))).collect())
+        .map(|s| {
+            s.points
+                .iter()
+                .filter(|p| usable(p))
+                .map(|&(px, py)| (map(x, px), map(y, py)))
+                .collect()
+        })
         .collect();
     let range = |axis: &Axis, pick: fn(&(Real, Real)) -> Real| {
-        let (mut lo, mut hi) = data.iter().flatten().map(pick).fold((Real::INFINITY, Real::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
+        let (mut lo, mut hi) = data
+            .iter()
+            .flatten()
+            .map(pick)
+            .fold((Real::INFINITY, Real::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(v), hi.max(v))
+            });
         if !lo.is_finite() {
             return (0.0, 1.0);
         }
@@ -115,14 +149,30 @@ pub fn line_plot(title: &str, x: &Axis, y: &Axis, series: &[Series]) -> String {
     let (x0, x1) = range(x, |p| p.0);
     let (y0, y1) = range(y, |p| p.1);
     let y1 = y1 + HEADROOM * (y1 - y0);
-    let y0 = if y.from_zero && y0 == 0.0 { y0 } else { y0 - HEADROOM * (y1 - y0) };
+    let y0 = if y.from_zero && y0 == 0.0 {
+        y0
+    } else {
+        y0 - HEADROOM * (y1 - y0)
+    };
     let (pw, ph) = (WIDTH - LEFT - RIGHT, HEIGHT - TOP - BOTTOM);
     let sx = |v: Real| LEFT + (v - x0) / (x1 - x0) * pw;
     let to_pixels = |y0: Real, y1: Real| -> Vec<Vec<(Real, Real)>> {
-        data.iter().map(|points| points.iter().map(|&(px, py)| (sx(px), TOP + ph - (py - y0) / (y1 - y0) * ph)).collect()).collect()
+        data.iter()
+            .map(|points| {
+                points
+                    .iter()
+                    .map(|&(px, py)| (sx(px), TOP + ph - (py - y0) / (y1 - y0) * ph))
+                    .collect()
+            })
+            .collect()
     };
     let legend_size = (
-        34.0 + 7.0 * series.iter().map(|s| s.label.chars().count()).max().unwrap_or(0) as Real,
+        34.0 + 7.0
+            * series
+                .iter()
+                .map(|s| s.label.chars().count())
+                .max()
+                .unwrap_or(0) as Real,
         8.0 + 16.0 * series.len() as Real,
     );
     let mut pixels = to_pixels(y0, y1);
@@ -141,18 +191,45 @@ pub fn line_plot(title: &str, x: &Axis, y: &Axis, series: &[Series]) -> String {
     let sy = |v: Real| TOP + ph - (v - y0) / (y1 - y0) * ph;
 
     let mut svg = svg_start(HEIGHT, title);
-    let _ = writeln!(svg, r##"<rect x="{LEFT}" y="{TOP}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##);
+    let _ = writeln!(
+        svg,
+        r##"<rect x="{LEFT}" y="{TOP}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
+    );
     for (v, label) in ticks(x0, x1, x) {
         let px = sx(v);
-        let _ = writeln!(svg, r##"<line x1="{px:.1}" y1="{}" x2="{px:.1}" y2="{}" stroke="#444"/>"##, TOP + ph, TOP + ph + 5.0);
-        let _ = writeln!(svg, r#"<text x="{px:.1}" y="{}" text-anchor="middle">{label}</text>"#, TOP + ph + 18.0);
+        let _ = writeln!(
+            svg,
+            r##"<line x1="{px:.1}" y1="{}" x2="{px:.1}" y2="{}" stroke="#444"/>"##,
+            TOP + ph,
+            TOP + ph + 5.0
+        );
+        let _ = writeln!(
+            svg,
+            r#"<text x="{px:.1}" y="{}" text-anchor="middle">{label}</text>"#,
+            TOP + ph + 18.0
+        );
     }
     for (v, label) in ticks(y0, y1, y) {
         let py = sy(v);
-        let _ = writeln!(svg, r##"<line x1="{LEFT}" y1="{py:.1}" x2="{}" y2="{py:.1}" stroke="#ddd"/>"##, LEFT + pw);
-        let _ = writeln!(svg, r#"<text x="{}" y="{:.1}" text-anchor="end">{label}</text>"#, LEFT - 6.0, py + 4.0);
+        let _ = writeln!(
+            svg,
+            r##"<line x1="{LEFT}" y1="{py:.1}" x2="{}" y2="{py:.1}" stroke="#ddd"/>"##,
+            LEFT + pw
+        );
+        let _ = writeln!(
+            svg,
+            r#"<text x="{}" y="{:.1}" text-anchor="end">{label}</text>"#,
+            LEFT - 6.0,
+            py + 4.0
+        );
     }
-    let _ = writeln!(svg, r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#, LEFT + pw / 2.0, HEIGHT - 12.0, escape(&x.label));
+    let _ = writeln!(
+        svg,
+        r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#,
+        LEFT + pw / 2.0,
+        HEIGHT - 12.0,
+        escape(&x.label)
+    );
     let _ = writeln!(
         svg,
         r#"<text transform="translate(16 {}) rotate(-90)" text-anchor="middle">{}</text>"#,
@@ -161,11 +238,21 @@ pub fn line_plot(title: &str, x: &Axis, y: &Axis, series: &[Series]) -> String {
     );
     for (k, (s, points)) in series.iter().zip(&pixels).enumerate() {
         let (color, dash) = s.stroke(k);
-        let path: Vec<String> = points.iter().map(|&(px, py)| format!("{px:.1},{py:.1}")).collect();
-        let _ = writeln!(svg, r#"<polyline fill="none" stroke="{color}" stroke-width="1.5"{dash} points="{}"/>"#, path.join(" "));
+        let path: Vec<String> = points
+            .iter()
+            .map(|&(px, py)| format!("{px:.1},{py:.1}"))
+            .collect();
+        let _ = writeln!(
+            svg,
+            r#"<polyline fill="none" stroke="{color}" stroke-width="1.5"{dash} points="{}"/>"#,
+            path.join(" ")
+        );
         if points.len() <= MARKED_POINTS {
             for &(px, py) in points {
-                let _ = writeln!(svg, r#"<circle cx="{px:.1}" cy="{py:.1}" r="2.5" fill="{color}"/>"#);
+                let _ = writeln!(
+                    svg,
+                    r#"<circle cx="{px:.1}" cy="{py:.1}" r="2.5" fill="{color}"/>"#
+                );
             }
         }
     }
@@ -179,8 +266,19 @@ pub fn line_plot(title: &str, x: &Axis, y: &Axis, series: &[Series]) -> String {
         for (k, s) in series.iter().enumerate() {
             let (color, dash) = s.stroke(k);
             let ly = top + 12.0 + 16.0 * k as Real;
-            let _ = writeln!(svg, r#"<line x1="{:.1}" y1="{ly:.1}" x2="{:.1}" y2="{ly:.1}" stroke="{color}" stroke-width="2"{dash}/>"#, lx + 6.0, lx + 26.0);
-            let _ = writeln!(svg, r#"<text x="{:.1}" y="{:.1}">{}</text>"#, lx + 32.0, ly + 4.0, escape(&s.label));
+            let _ = writeln!(
+                svg,
+                r#"<line x1="{:.1}" y1="{ly:.1}" x2="{:.1}" y2="{ly:.1}" stroke="{color}" stroke-width="2"{dash}/>"#,
+                lx + 6.0,
+                lx + 26.0
+            );
+            let _ = writeln!(
+                svg,
+                r#"<text x="{:.1}" y="{:.1}">{}</text>"#,
+                lx + 32.0,
+                ly + 4.0,
+                escape(&s.label)
+            );
         }
     }
     svg.push_str("</svg>\n");
@@ -191,18 +289,39 @@ pub fn line_plot(title: &str, x: &Axis, y: &Axis, series: &[Series]) -> String {
 /// of the plot area `(left, top, width, height)` covers the fewest points of
 /// the lines (sampled along each segment), top right among equals; and how
 /// many points it covers.
-fn legend_corner(lines: &[Vec<(Real, Real)>], (width, height): (Real, Real), (left, top, pw, ph): (Real, Real, Real, Real)) -> ((Real, Real), usize) {
-    let (right, bottom) = (left + pw - width - LEGEND_MARGIN, top + ph - height - LEGEND_MARGIN);
-    let corners = [(right, top + LEGEND_MARGIN), (left + LEGEND_MARGIN, top + LEGEND_MARGIN), (right, bottom), (left + LEGEND_MARGIN, bottom)];
+fn legend_corner(
+    lines: &[Vec<(Real, Real)>],
+    (width, height): (Real, Real),
+    (left, top, pw, ph): (Real, Real, Real, Real),
+) -> ((Real, Real), usize) {
+    let (right, bottom) = (
+        left + pw - width - LEGEND_MARGIN,
+        top + ph - height - LEGEND_MARGIN,
+    );
+    let corners = [
+        (right, top + LEGEND_MARGIN),
+        (left + LEGEND_MARGIN, top + LEGEND_MARGIN),
+        (right, bottom),
+        (left + LEGEND_MARGIN, bottom),
+    ];
     let covered = |&(cx, cy): &(Real, Real)| {
-        let inside = |(px, py): (Real, Real)| px >= cx - 4.0 && px <= cx + width + 4.0 && py >= cy - 4.0 && py <= cy + height + 4.0;
+        let inside = |(px, py): (Real, Real)| {
+            px >= cx - 4.0 && px <= cx + width + 4.0 && py >= cy - 4.0 && py <= cy + height + 4.0
+        };
         lines
             .iter()
             .map(|points| {
                 let single = points.len() == 1 && inside(points[0]);
                 let along = points
                     .windows(2)
-                    .flat_map(|w| (0..8).map(move |k| (w[0].0 + (w[1].0 - w[0].0) * k as Real / 8.0, w[0].1 + (w[1].1 - w[0].1) * k as Real / 8.0)))
+                    .flat_map(|w| {
+                        (0..8).map(move |k| {
+                            (
+                                w[0].0 + (w[1].0 - w[0].0) * k as Real / 8.0,
+                                w[0].1 + (w[1].1 - w[0].1) * k as Real / 8.0,
+                            )
+                        })
+                    })
                     .chain(points.last().copied())
                     .filter(|&p| inside(p))
                     .count();
@@ -210,7 +329,11 @@ fn legend_corner(lines: &[Vec<(Real, Real)>], (width, height): (Real, Real), (le
             })
             .sum::<usize>()
     };
-    corners.iter().map(|c| (*c, covered(c))).min_by_key(|&(_, n)| n).expect("four corners")
+    corners
+        .iter()
+        .map(|c| (*c, covered(c)))
+        .min_by_key(|&(_, n)| n)
+        .expect("four corners")
 }
 
 /// Horizontal bars, one per `(label, value)` from the top, each with its
@@ -232,15 +355,32 @@ pub fn bar_chart(title: &str, value_axis: &str, unit: &str, bars: &[(String, Rea
     let mut svg = svg_start(height, title);
     for (v, label) in linear_ticks(0.0, top, false) {
         let px = sx(v);
-        let _ = writeln!(svg, r##"<line x1="{px:.1}" y1="{TOP}" x2="{px:.1}" y2="{}" stroke="#ddd"/>"##, axis_y + 5.0);
-        let _ = writeln!(svg, r#"<text x="{px:.1}" y="{}" text-anchor="middle">{label}</text>"#, axis_y + 18.0);
+        let _ = writeln!(
+            svg,
+            r##"<line x1="{px:.1}" y1="{TOP}" x2="{px:.1}" y2="{}" stroke="#ddd"/>"##,
+            axis_y + 5.0
+        );
+        let _ = writeln!(
+            svg,
+            r#"<text x="{px:.1}" y="{}" text-anchor="middle">{label}</text>"#,
+            axis_y + 18.0
+        );
     }
     for (k, (label, v)) in bars.iter().enumerate() {
         let y = TOP + GAP / 2.0 + k as Real * (BAR + GAP);
         let w = sx(value(*v)) - LABELS;
         let color = COLORS[k % COLORS.len()];
-        let _ = writeln!(svg, r#"<text x="{}" y="{:.1}" text-anchor="end">{}</text>"#, LABELS - 8.0, y + BAR / 2.0 + 4.0, escape(label));
-        let _ = writeln!(svg, r#"<rect x="{LABELS}" y="{y:.1}" width="{w:.1}" height="{BAR}" fill="{color}"/>"#);
+        let _ = writeln!(
+            svg,
+            r#"<text x="{}" y="{:.1}" text-anchor="end">{}</text>"#,
+            LABELS - 8.0,
+            y + BAR / 2.0 + 4.0,
+            escape(label)
+        );
+        let _ = writeln!(
+            svg,
+            r#"<rect x="{LABELS}" y="{y:.1}" width="{w:.1}" height="{BAR}" fill="{color}"/>"#
+        );
         let _ = writeln!(
             svg,
             r#"<text x="{:.1}" y="{:.1}">{} {}</text>"#,
@@ -250,8 +390,17 @@ pub fn bar_chart(title: &str, value_axis: &str, unit: &str, bars: &[(String, Rea
             escape(unit)
         );
     }
-    let _ = writeln!(svg, r##"<line x1="{LABELS}" y1="{TOP}" x2="{LABELS}" y2="{axis_y}" stroke="#444"/>"##);
-    let _ = writeln!(svg, r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#, LABELS + pw / 2.0, height - 12.0, escape(value_axis));
+    let _ = writeln!(
+        svg,
+        r##"<line x1="{LABELS}" y1="{TOP}" x2="{LABELS}" y2="{axis_y}" stroke="#444"/>"##
+    );
+    let _ = writeln!(
+        svg,
+        r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#,
+        LABELS + pw / 2.0,
+        height - 12.0,
+        escape(value_axis)
+    );
     svg.push_str("</svg>\n");
     svg
 }
@@ -279,9 +428,15 @@ fn ticks(lo: Real, hi: Real, axis: &Axis) -> Vec<(Real, String)> {
         let (a, b) = (lo.ceil() as i32, hi.floor() as i32);
         if b - a >= 1 {
             let step = ((b - a) / 6 + 1).max(1);
-            return (a..=b).step_by(step as usize).map(|e| (e as Real, format!("1e{e}"))).collect();
+            return (a..=b)
+                .step_by(step as usize)
+                .map(|e| (e as Real, format!("1e{e}")))
+                .collect();
         }
-        let (coarse, fine): (&[Real], &[Real]) = (&[1.0, 2.0, 5.0], &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
+        let (coarse, fine): (&[Real], &[Real]) = (
+            &[1.0, 2.0, 5.0],
+            &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0],
+        );
         for mantissas in [coarse, fine] {
             let found: Vec<(Real, String)> = (lo.floor() as i32..=hi.ceil() as i32)
                 .flat_map(|e| mantissas.iter().map(move |&m| (e, m)))
@@ -293,7 +448,10 @@ fn ticks(lo: Real, hi: Real, axis: &Axis) -> Vec<(Real, String)> {
             }
         }
         // Less than a factor of two: round values of the data themselves.
-        return linear_ticks(Real::powf(10.0, lo), Real::powf(10.0, hi), false).into_iter().map(|(v, l)| (v.log10(), l)).collect();
+        return linear_ticks(Real::powf(10.0, lo), Real::powf(10.0, hi), false)
+            .into_iter()
+            .map(|(v, l)| (v.log10(), l))
+            .collect();
     }
     linear_ticks(lo, hi, axis.integer)
 }
@@ -301,7 +459,11 @@ fn ticks(lo: Real, hi: Real, axis: &Axis) -> Vec<(Real, String)> {
 fn linear_ticks(lo: Real, hi: Real, integer: bool) -> Vec<(Real, String)> {
     let raw = (hi - lo) / 5.0;
     let magnitude = Real::powi(10.0, raw.log10().floor() as i32);
-    let mut step = [1.0, 2.0, 5.0, 10.0].iter().map(|m| m * magnitude).find(|&s| s >= raw).unwrap_or(10.0 * magnitude);
+    let mut step = [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .map(|m| m * magnitude)
+        .find(|&s| s >= raw)
+        .unwrap_or(10.0 * magnitude);
     if integer {
         step = step.max(1.0).round();
     }
@@ -326,7 +488,10 @@ fn log_label(m: Real, e: i32) -> String {
 
 /// `s` safe as XML/HTML text or a quoted attribute value.
 pub fn escape(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
 }
 
 /// The opening of a plot: the root element, a white background and the title.
@@ -337,7 +502,12 @@ fn svg_start(height: Real, title: &str) -> String {
         r#"<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{height}" viewBox="0 0 {WIDTH} {height}" font-family="sans-serif" font-size="12">"#
     );
     let _ = writeln!(svg, r#"<rect width="100%" height="100%" fill="white"/>"#);
-    let _ = writeln!(svg, r#"<text x="{}" y="22" text-anchor="middle" font-size="15">{}</text>"#, WIDTH / 2.0, escape(title));
+    let _ = writeln!(
+        svg,
+        r#"<text x="{}" y="22" text-anchor="middle" font-size="15">{}</text>"#,
+        WIDTH / 2.0,
+        escape(title)
+    );
     svg
 }
 
@@ -355,7 +525,10 @@ pub fn irregularity_curves_svg(curves: &[(&str, &[Real])]) -> String {
         .map(|(label, values)| {
             let mut v: Vec<Real> = values.iter().copied().filter(|x| x.is_finite()).collect();
             v.sort_by(|a, b| b.total_cmp(a));
-            Series::new(*label, v.iter().enumerate().map(|(r, &x)| (r as Real, x)).collect())
+            Series::new(
+                *label,
+                v.iter().enumerate().map(|(r, &x)| (r as Real, x)).collect(),
+            )
         })
         .collect();
     line_plot(

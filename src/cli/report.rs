@@ -9,7 +9,9 @@
 //! (qualities, and the fit, which re-reads every input frame), then
 //! [`report_html`] or [`write_report`] renders a [`ReportInput`] borrowing both.
 
-use super::plot::{bar_chart, escape, irregularity_curves_svg, line_plot, significant, Axis, Series};
+use super::plot::{
+    bar_chart, escape, irregularity_curves_svg, line_plot, significant, Axis, Series,
+};
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 use voltrack::error::Result;
@@ -55,7 +57,19 @@ impl<'a> ReportInput<'a> {
         deform: &'a DeformParams,
         conform: &'a ConformParams,
     ) -> Self {
-        ReportInput { conversion, measurements, inputs, voxel, track, refine, deform, conform, seconds: &conversion.seconds, output: None, command: None }
+        ReportInput {
+            conversion,
+            measurements,
+            inputs,
+            voxel,
+            track,
+            refine,
+            deform,
+            conform,
+            seconds: &conversion.seconds,
+            output: None,
+            command: None,
+        }
     }
 }
 
@@ -124,7 +138,10 @@ fn common_folder(paths: &[std::path::PathBuf]) -> Option<&Path> {
 
 /// The last component of `path` (all of it when there is none, as for `..`).
 fn file_name(path: &Path) -> String {
-    path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned())
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
 }
 
 fn percent(v: Real) -> String {
@@ -159,17 +176,42 @@ fn glance_html(input: &ReportInput) -> String {
     h.push_str(&card(
         "Fit to the input",
         &percent(fit.mean),
-        &format!("mean two-sided distance; p95 {}, max {} (worst frame {worst})", percent(fit.p95), percent(fit.max)),
+        &format!(
+            "mean two-sided distance; p95 {}, max {} (worst frame {worst})",
+            percent(fit.p95),
+            percent(fit.max)
+        ),
     ));
     h.push_str(&card(
         "Centers",
         &conv.trajectories.centers.to_string(),
-        &conv.refined.as_ref().map_or("tracked; not refined".into(), |r| format!("{tracked_n} tracked, {} irregular removed", r.removed.len())),
+        &conv
+            .refined
+            .as_ref()
+            .map_or("tracked; not refined".into(), |r| {
+                format!("{tracked_n} tracked, {} irregular removed", r.removed.len())
+            }),
     ));
     let refined = m.refined.as_ref();
-    h.push_str(&card("PCAC", &arrow(m.tracked.pcac, refined.map(|q| q.pcac)), "trajectory complexity; lower is simpler"));
-    h.push_str(&card("DFU", &arrow(m.tracked.dfu, refined.map(|q| q.dfu)), "uneven cell sizes; lower is more even"));
-    h.push_str(&card("Time", &seconds(total), &format!("{} frames, {} per frame", conv.sequence.frames.len(), seconds(total / conv.sequence.frames.len().max(1) as f64))));
+    h.push_str(&card(
+        "PCAC",
+        &arrow(m.tracked.pcac, refined.map(|q| q.pcac)),
+        "trajectory complexity; lower is simpler",
+    ));
+    h.push_str(&card(
+        "DFU",
+        &arrow(m.tracked.dfu, refined.map(|q| q.dfu)),
+        "uneven cell sizes; lower is more even",
+    ));
+    h.push_str(&card(
+        "Time",
+        &seconds(total),
+        &format!(
+            "{} frames, {} per frame",
+            conv.sequence.frames.len(),
+            seconds(total / conv.sequence.frames.len().max(1) as f64)
+        ),
+    ));
     h.push_str("</section>\n");
     h
 }
@@ -183,8 +225,17 @@ fn input_html(input: &ReportInput) -> String {
     let paths = input.inputs;
     let (first, last) = (&paths[0], &paths[paths.len() - 1]);
     let files = match common_folder(paths) {
-        Some(dir) => format!("{} &#8212; {} &#8230; {}", code(&format!("{}/", dir.display())), code(&file_name(first)), code(&file_name(last))),
-        None => format!("{} &#8230; {}", code(&first.display().to_string()), code(&last.display().to_string())),
+        Some(dir) => format!(
+            "{} &#8212; {} &#8230; {}",
+            code(&format!("{}/", dir.display())),
+            code(&file_name(first)),
+            code(&file_name(last))
+        ),
+        None => format!(
+            "{} &#8230; {}",
+            code(&first.display().to_string()),
+            code(&last.display().to_string())
+        ),
     };
     let mut rows: Vec<(&str, String)> = vec![
         ("Input", files),
@@ -194,7 +245,12 @@ fn input_html(input: &ReportInput) -> String {
         (
             "Centers",
             match &conv.refined {
-                Some(r) => format!("{} tracked, {} after removing {} irregular", conv.tracked.centers, conv.trajectories.centers, r.removed.len()),
+                Some(r) => format!(
+                    "{} tracked, {} after removing {} irregular",
+                    conv.tracked.centers,
+                    conv.trajectories.centers,
+                    r.removed.len()
+                ),
                 None => format!("{} (not refined)", conv.tracked.centers),
             },
         ),
@@ -211,7 +267,11 @@ fn input_html(input: &ReportInput) -> String {
         ),
         (
             "Bounding box",
-            format!("longest side {}, diagonal {}", significant(seq.bounds.longest_side(), 4), significant(seq.bounds.diagonal(), 4)),
+            format!(
+                "longest side {}, diagonal {}",
+                significant(seq.bounds.longest_side(), 4),
+                significant(seq.bounds.diagonal(), 4)
+            ),
         ),
     ];
     if let Some(out) = input.output {
@@ -221,18 +281,29 @@ fn input_html(input: &ReportInput) -> String {
         rows.push(("Command", code(cmd)));
     }
     rows.push(("voltrack", env!("CARGO_PKG_VERSION").to_string()));
-    let mut h = String::from("<section id=\"input\">\n<h2>Input and parameters</h2>\n<table class=\"facts\">\n");
+    let mut h = String::from(
+        "<section id=\"input\">\n<h2>Input and parameters</h2>\n<table class=\"facts\">\n",
+    );
     for (k, v) in rows {
         let _ = writeln!(h, "<tr><th>{k}</th><td>{v}</td></tr>");
     }
     h.push_str("</table>\n");
-    let lengths = if input.track.absolute_units { "in the input's units" } else { "as fractions of the bounding box's longest side" };
-    let _ = writeln!(h, "<details>\n<summary>All parameters (lengths {lengths})</summary>\n<div class=\"params\">");
+    let lengths = if input.track.absolute_units {
+        "in the input's units"
+    } else {
+        "as fractions of the bounding box's longest side"
+    };
+    let _ = writeln!(
+        h,
+        "<details>\n<summary>All parameters (lengths {lengths})</summary>\n<div class=\"params\">"
+    );
     h.push_str(&params_table("Voxelisation", input.voxel));
     h.push_str(&params_table("Tracking", input.track));
     match input.refine {
         Some(r) => h.push_str(&params_table("Refinement", r)),
-        None => h.push_str("<table><caption>Refinement</caption><tr><td>skipped</td></tr></table>\n"),
+        None => {
+            h.push_str("<table><caption>Refinement</caption><tr><td>skipped</td></tr></table>\n")
+        }
     }
     h.push_str(&params_table("Deformation", input.deform));
     h.push_str(&params_table("Conforming to the input", input.conform));
@@ -250,7 +321,12 @@ fn params_table(caption: &str, params: &impl serde::Serialize) -> String {
                 serde_json::Value::String(s) => s,
                 other => other.to_string(),
             };
-            let _ = writeln!(h, "<tr><th>{}</th><td>{}</td></tr>", escape(&k), escape(&value));
+            let _ = writeln!(
+                h,
+                "<tr><th>{}</th><td>{}</td></tr>",
+                escape(&k),
+                escape(&value)
+            );
         }
     }
     h.push_str("</table>\n");
@@ -263,17 +339,44 @@ fn fit_html(input: &ReportInput) -> String {
     let frames = &fit.frames;
     type Pick = fn(&FrameFit) -> Real;
     let stats: [(&str, usize, Pick, Pick); 3] = [
-        ("mean", 0, |f| f.result_to_input.mean, |f| f.input_to_result.mean),
-        ("p95", 3, |f| f.result_to_input.p95, |f| f.input_to_result.p95),
-        ("max", 1, |f| f.result_to_input.max, |f| f.input_to_result.max),
+        (
+            "mean",
+            0,
+            |f| f.result_to_input.mean,
+            |f| f.input_to_result.mean,
+        ),
+        (
+            "p95",
+            3,
+            |f| f.result_to_input.p95,
+            |f| f.input_to_result.p95,
+        ),
+        (
+            "max",
+            1,
+            |f| f.result_to_input.max,
+            |f| f.input_to_result.max,
+        ),
     ];
-    let per_frame = |pick: Pick| frames.iter().enumerate().map(|(f, x)| (f as Real, pick(x))).collect::<Vec<_>>();
+    let per_frame = |pick: Pick| {
+        frames
+            .iter()
+            .enumerate()
+            .map(|(f, x)| (f as Real, pick(x)))
+            .collect::<Vec<_>>()
+    };
     let mut series = Vec::new();
     for (name, color, forward, _) in &stats {
-        series.push(Series::new(format!("result → input, {name}"), per_frame(*forward)).color(*color));
+        series.push(
+            Series::new(format!("result → input, {name}"), per_frame(*forward)).color(*color),
+        );
     }
     for (name, color, _, backward) in &stats {
-        series.push(Series::new(format!("input → result, {name}"), per_frame(*backward)).color(*color).dashed());
+        series.push(
+            Series::new(format!("input → result, {name}"), per_frame(*backward))
+                .color(*color)
+                .dashed(),
+        );
     }
     let svg = line_plot(
         "Distance between the result and the input, per frame",
@@ -302,7 +405,10 @@ fn fit_html(input: &ReportInput) -> String {
         seconds(fit.seconds)
     );
     let open = if frames.len() <= 20 { " open" } else { "" };
-    let _ = writeln!(h, "<details{open}>\n<summary>Distances per frame (% of the diagonal)</summary>");
+    let _ = writeln!(
+        h,
+        "<details{open}>\n<summary>Distances per frame (% of the diagonal)</summary>"
+    );
     h.push_str(
         "<table class=\"numbers\">\n<tr><th rowspan=\"2\" class=\"n\">frame</th><th rowspan=\"2\">input file</th>\
          <th colspan=\"3\" class=\"group\">result &#8594; input</th><th colspan=\"3\" class=\"group\">input &#8594; result</th>\
@@ -312,9 +418,19 @@ fn fit_html(input: &ReportInput) -> String {
          <th class=\"n group\">mean</th><th class=\"n\">p95</th><th class=\"n\">max</th></tr>\n",
     );
     for (f, (x, path)) in frames.iter().zip(input.inputs).enumerate() {
-        let _ = write!(h, "<tr><td>{f}</td><td class=\"file\"><code>{}</code></td>", escape(&file_name(path)));
+        let _ = write!(
+            h,
+            "<tr><td>{f}</td><td class=\"file\"><code>{}</code></td>",
+            escape(&file_name(path))
+        );
         for s in [&x.result_to_input, &x.input_to_result, &x.two_sided] {
-            let _ = write!(h, "<td class=\"group\">{}</td><td>{}</td><td>{}</td>", significant(s.mean, 3), significant(s.p95, 3), significant(s.max, 3));
+            let _ = write!(
+                h,
+                "<td class=\"group\">{}</td><td>{}</td><td>{}</td>",
+                significant(s.mean, 3),
+                significant(s.p95, 3),
+                significant(s.max, 3)
+            );
         }
         h.push_str("</tr>\n");
     }
@@ -331,7 +447,9 @@ fn warning_html(input: &ReportInput) -> String {
     if warnings.is_empty() {
         return String::new();
     }
-    let mut h = String::from("<section class=\"warning\">\n<h2>Warning: a part may have been lost</h2>\n<ul>\n");
+    let mut h = String::from(
+        "<section class=\"warning\">\n<h2>Warning: a part may have been lost</h2>\n<ul>\n",
+    );
     for w in &warnings {
         let text = w.message.strip_prefix("warning: ").unwrap_or(&w.message);
         let _ = writeln!(h, "<li>{}</li>", escape(&capitalised(text)));
@@ -345,21 +463,33 @@ fn warning_html(input: &ReportInput) -> String {
 
 /// The frames where the conversion may have lost a part.
 fn lost_parts(input: &ReportInput) -> voltrack::metrics::LostParts {
-    voltrack::pipeline::lost_parts(input.conversion, Some((&input.measurements.fit, &input.measurements.fit_outliers)))
+    voltrack::pipeline::lost_parts(
+        input.conversion,
+        Some((&input.measurements.fit, &input.measurements.fit_outliers)),
+    )
 }
 
 /// `s` with its first letter upper case.
 fn capitalised(s: &str) -> String {
     let mut c = s.chars();
-    c.next().map_or(String::new(), |first| first.to_uppercase().chain(c).collect())
+    c.next().map_or(String::new(), |first| {
+        first.to_uppercase().chain(c).collect()
+    })
 }
 
 /// Per frame: input volume no cell reaches, and the fit against its limit.
 fn coverage_html(input: &ReportInput) -> String {
     let coverage = &input.conversion.coverage;
     let fit = &input.measurements.fit_outliers;
-    let lost: Vec<(Real, Real)> = coverage.frames.iter().enumerate().map(|(f, c)| (f as Real, 100.0 * c.lost_share)).collect();
-    let limit: Vec<(Real, Real)> = (0..coverage.frames.len()).map(|f| (f as Real, 100.0 * coverage.params.min_share)).collect();
+    let lost: Vec<(Real, Real)> = coverage
+        .frames
+        .iter()
+        .enumerate()
+        .map(|(f, c)| (f as Real, 100.0 * c.lost_share))
+        .collect();
+    let limit: Vec<(Real, Real)> = (0..coverage.frames.len())
+        .map(|f| (f as Real, 100.0 * coverage.params.min_share))
+        .collect();
     let mut h = String::from("<section id=\"coverage\">\n<h2>Lost parts: volume no cell reaches, surface far from the other</h2>\n");
     h.push_str(&figure(
         &line_plot(
@@ -381,7 +511,9 @@ fn coverage_html(input: &ReportInput) -> String {
     let far = |of: fn(&voltrack::metrics::FrameLoss) -> Option<voltrack::metrics::FarRegion>| -> Vec<(Real, Real)> {
         lost.frames.iter().enumerate().map(|(f, x)| (f as Real, of(x).map_or(0.0, |r| r.share))).collect()
     };
-    let far_limit: Vec<(Real, Real)> = (0..lost.frames.len()).map(|f| (f as Real, lost.params.far_share)).collect();
+    let far_limit: Vec<(Real, Real)> = (0..lost.frames.len())
+        .map(|f| (f as Real, lost.params.far_share))
+        .collect();
     h.push_str(&figure(
         &line_plot(
             "Surface far from the other surface, per frame",
@@ -402,7 +534,12 @@ fn coverage_html(input: &ReportInput) -> String {
             if lost.far.is_empty() { "none is".to_string() } else { format!("frames {}", frame_runs(&lost.far)) }
         ),
     ));
-    let p95: Vec<(Real, Real)> = fit.p95.iter().enumerate().map(|(f, &v)| (f as Real, v)).collect();
+    let p95: Vec<(Real, Real)> = fit
+        .p95
+        .iter()
+        .enumerate()
+        .map(|(f, &v)| (f as Real, v))
+        .collect();
     let fit_limit: Vec<(Real, Real)> = (0..fit.p95.len()).map(|f| (f as Real, fit.limit)).collect();
     h.push_str(&figure(
         &line_plot(
@@ -421,15 +558,31 @@ fn coverage_html(input: &ReportInput) -> String {
             if fit.flagged.is_empty() { "none is".to_string() } else { format!("frames {}", frame_runs(&fit.flagged)) }
         ),
     ));
-    let open = if coverage.frames.len() <= 20 || !lost.flagged.is_empty() { " open" } else { "" };
-    let _ = writeln!(h, "<details{open}>\n<summary>Lost parts per frame</summary>");
+    let open = if coverage.frames.len() <= 20 || !lost.flagged.is_empty() {
+        " open"
+    } else {
+        ""
+    };
+    let _ = writeln!(
+        h,
+        "<details{open}>\n<summary>Lost parts per frame</summary>"
+    );
     h.push_str(
         "<table class=\"numbers\">\n<tr><th class=\"n\">frame</th><th class=\"n\">lost volume</th><th class=\"n\">largest region (cells)</th>\
          <th class=\"n\">farthest (&#215; reach)</th><th class=\"n\">input far</th><th class=\"n\">result far</th><th class=\"n\">fit p95</th><th>flagged</th></tr>\n",
     );
     for (f, c) in coverage.frames.iter().enumerate() {
-        let why: Vec<&str> = [(&lost.unreached, "volume"), (&lost.far, "far"), (&lost.fit_outliers, "fit")].iter().filter(|(frames, _)| frames.contains(&f)).map(|(_, name)| *name).collect();
-        let share = |r: Option<voltrack::metrics::FarRegion>| r.map_or("-".into(), |r| percent(r.share));
+        let why: Vec<&str> = [
+            (&lost.unreached, "volume"),
+            (&lost.far, "far"),
+            (&lost.fit_outliers, "fit"),
+        ]
+        .iter()
+        .filter(|(frames, _)| frames.contains(&f))
+        .map(|(_, name)| *name)
+        .collect();
+        let share =
+            |r: Option<voltrack::metrics::FarRegion>| r.map_or("-".into(), |r| percent(r.share));
         let _ = writeln!(
             h,
             "<tr{}><td>{f}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"note\">{}</td></tr>",
@@ -452,9 +605,15 @@ fn tracking_html(input: &ReportInput) -> String {
     let m = input.measurements;
     let conv = input.conversion;
     let mut h = String::from("<section id=\"tracking\">\n<h2>Tracking quality</h2>\n");
-    let qualities: Vec<(&str, &Quality, usize)> = std::iter::once(("forward tracking", &m.tracked, conv.tracked.centers))
-        .chain(m.refined.as_ref().zip(conv.refined.as_ref()).map(|(q, _)| ("after refinement", q, conv.trajectories.centers)))
-        .collect();
+    let qualities: Vec<(&str, &Quality, usize)> =
+        std::iter::once(("forward tracking", &m.tracked, conv.tracked.centers))
+            .chain(
+                m.refined
+                    .as_ref()
+                    .zip(conv.refined.as_ref())
+                    .map(|(q, _)| ("after refinement", q, conv.trajectories.centers)),
+            )
+            .collect();
     h.push_str("<table class=\"numbers\">\n<tr><th></th>");
     for (label, _, _) in &qualities {
         let _ = write!(h, "<th class=\"n\">{label}</th>");
@@ -463,10 +622,35 @@ fn tracking_html(input: &ReportInput) -> String {
     type Row = (&'static str, fn(&Quality, usize) -> String, &'static str);
     let rows: [Row; 5] = [
         ("centers", |_, n| n.to_string(), ""),
-        ("PCAC", |q, _| format!("{:.4}", q.pcac), "PCA compactness of the trajectories; lower = simpler motion"),
-        ("DFU (mean over frames)", |q, _| format!("{:.4}", q.dfu), "spread of cell sizes / mean size; lower = more even cover"),
-        ("DFU (worst frame)", |q, _| format!("{:.4}", q.dfu_per_frame.iter().copied().fold(0.0, Real::max)), ""),
-        ("largest I<sub>i</sub>", |q, _| q.largest_irregularity(1).first().map_or("-".into(), |v| significant(*v, 3)), "the most irregular trajectory; lower is better"),
+        (
+            "PCAC",
+            |q, _| format!("{:.4}", q.pcac),
+            "PCA compactness of the trajectories; lower = simpler motion",
+        ),
+        (
+            "DFU (mean over frames)",
+            |q, _| format!("{:.4}", q.dfu),
+            "spread of cell sizes / mean size; lower = more even cover",
+        ),
+        (
+            "DFU (worst frame)",
+            |q, _| {
+                format!(
+                    "{:.4}",
+                    q.dfu_per_frame.iter().copied().fold(0.0, Real::max)
+                )
+            },
+            "",
+        ),
+        (
+            "largest I<sub>i</sub>",
+            |q, _| {
+                q.largest_irregularity(1)
+                    .first()
+                    .map_or("-".into(), |v| significant(*v, 3))
+            },
+            "the most irregular trajectory; lower is better",
+        ),
     ];
     for (label, value, note) in rows {
         let _ = write!(h, "<tr><th>{label}</th>");
@@ -490,7 +674,10 @@ fn tracking_html(input: &ReportInput) -> String {
         }
     }
 
-    let curves: Vec<(&str, &[Real])> = qualities.iter().map(|(label, q, _)| (*label, q.irregularity.as_slice())).collect();
+    let curves: Vec<(&str, &[Real])> = qualities
+        .iter()
+        .map(|(label, q, _)| (*label, q.irregularity.as_slice()))
+        .collect();
     h.push_str(&figure(
         &irregularity_curves_svg(&curves),
         "Irregularity I<sub>i</sub> of every center (the summed squared distance of its trajectory to the nearest other \
@@ -500,7 +687,16 @@ fn tracking_html(input: &ReportInput) -> String {
 
     let series: Vec<Series> = qualities
         .iter()
-        .map(|(label, q, _)| Series::new(*label, q.dfu_per_frame.iter().enumerate().map(|(f, &v)| (f as Real, v)).collect()))
+        .map(|(label, q, _)| {
+            Series::new(
+                *label,
+                q.dfu_per_frame
+                    .iter()
+                    .enumerate()
+                    .map(|(f, &v)| (f as Real, v))
+                    .collect(),
+            )
+        })
         .collect();
     h.push_str(&figure(
         &line_plot(
@@ -538,7 +734,11 @@ fn energy_html(refined: &voltrack::refine::Refinement) -> String {
     let svg = line_plot(
         "Refinement: energy of the global optimisation",
         &Axis::linear("accepted step (all batches in order)").integer(),
-        &if log { Axis::log("energy Ê (log scale)") } else { Axis::linear("energy Ê").from_zero() },
+        &if log {
+            Axis::log("energy Ê (log scale)")
+        } else {
+            Axis::linear("energy Ê").from_zero()
+        },
         &series,
     );
     let mut h = String::from("<section id=\"refinement\">\n<h2>Refinement</h2>\n");
@@ -562,7 +762,11 @@ fn energy_html(refined: &voltrack::refine::Refinement) -> String {
 fn time_html(input: &ReportInput) -> String {
     let conv = input.conversion;
     let total: f64 = input.seconds.iter().map(|s| s.1).sum();
-    let bars: Vec<(String, Real)> = input.seconds.iter().map(|(s, t)| (s.name().to_string(), *t)).collect();
+    let bars: Vec<(String, Real)> = input
+        .seconds
+        .iter()
+        .map(|(s, t)| (s.name().to_string(), *t))
+        .collect();
     let mut h = String::from("<section id=\"time\">\n<h2>Time</h2>\n");
     h.push_str(&figure(
         &bar_chart("Time per stage", "seconds (wall clock)", "s", &bars),
@@ -573,8 +777,14 @@ fn time_html(input: &ReportInput) -> String {
         ),
     ));
     let timings = &conv.tracked.timings;
-    let tracked: Vec<(usize, &voltrack::track::FrameTiming)> = timings.iter().enumerate().skip(1).collect();
-    let per_frame = |pick: fn(&voltrack::track::FrameTiming) -> f64| tracked.iter().map(|(f, t)| (*f as Real, pick(t))).collect::<Vec<_>>();
+    let tracked: Vec<(usize, &voltrack::track::FrameTiming)> =
+        timings.iter().enumerate().skip(1).collect();
+    let per_frame = |pick: fn(&voltrack::track::FrameTiming) -> f64| {
+        tracked
+            .iter()
+            .map(|(f, t)| (*f as Real, pick(t)))
+            .collect::<Vec<_>>()
+    };
     let series = vec![
         Series::new("total", per_frame(|t| t.total)),
         Series::new("Voronoi assignment", per_frame(|t| t.assign)),
@@ -602,7 +812,10 @@ fn time_html(input: &ReportInput) -> String {
         ),
     ));
     let limit = input.track.max_iterations;
-    let at_limit = tracked.iter().filter(|(_, t)| t.iterations >= limit).count();
+    let at_limit = tracked
+        .iter()
+        .filter(|(_, t)| t.iterations >= limit)
+        .count();
     h.push_str(&figure(
         &line_plot(
             "Tracking iterations per frame",

@@ -3,20 +3,25 @@
 use super::*;
 use crate::cli::test_support::{assert_well_formed, Scratch};
 use std::path::{Path, PathBuf};
-use voltrack::metrics::DistanceSummary;
 use voltrack::fixtures::BENDING_BAR_FRAMES;
+use voltrack::metrics::DistanceSummary;
 use voltrack::params::{ConformParams, DeformParams, RefineParams, TrackParams};
 use voltrack::voxel::VoxelParams;
 use voltrack::{Error, Progress};
 
 fn fixture_frames() -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/bending_bar");
-    (0..BENDING_BAR_FRAMES).map(|f| dir.join(format!("frame_{f}.obj"))).collect()
+    (0..BENDING_BAR_FRAMES)
+        .map(|f| dir.join(format!("frame_{f}.obj")))
+        .collect()
 }
 
 /// Every text between `<open` and `close`.
 fn between<'a>(html: &'a str, open: &str, close: &str) -> Vec<&'a str> {
-    html.split(open).skip(1).map(|s| &s[..s.find(close).expect("closed")]).collect()
+    html.split(open)
+        .skip(1)
+        .map(|s| &s[..s.find(close).expect("closed")])
+        .collect()
 }
 
 #[test]
@@ -30,15 +35,36 @@ fn report_of_a_conversion() {
     }
     let files = voltrack::io::FrameFiles::discover(std::slice::from_ref(&input)).unwrap();
     let inputs = files.paths().to_vec();
-    let voxel = VoxelParams { resolution: 48, ..Default::default() };
-    let track = TrackParams { centers: 150, seed: 3, ..Default::default() };
-    let refine = RefineParams { remove: Some(3), batches: 2, ..Default::default() };
+    let voxel = VoxelParams {
+        resolution: 48,
+        ..Default::default()
+    };
+    let track = TrackParams {
+        centers: 150,
+        seed: 3,
+        ..Default::default()
+    };
+    let refine = RefineParams {
+        remove: Some(3),
+        batches: 2,
+        ..Default::default()
+    };
     let deform = DeformParams::default();
     let conv = voltrack::pipeline::convert(
         &files,
-        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: Some(refine.clone()), deform: deform.clone(), conform: Default::default(), checkpoint: None, measure_tracked: true, ..Default::default() },
+        &voltrack::pipeline::ConvertOptions {
+            voxel: voxel.clone(),
+            track: track.clone(),
+            refine: Some(refine.clone()),
+            deform: deform.clone(),
+            conform: Default::default(),
+            checkpoint: None,
+            measure_tracked: true,
+            ..Default::default()
+        },
         Progress::none(),
-    ).unwrap();
+    )
+    .unwrap();
     let measured = Measurements::of(&conv, &files, Progress::none()).unwrap();
 
     // The fit: frame 0 is the input mesh itself; later frames are close (the
@@ -50,36 +76,68 @@ fn report_of_a_conversion() {
     assert_eq!(fit.frames[0].input_to_result, DistanceSummary::default());
     for (f, x) in fit.frames.iter().enumerate().skip(1) {
         for s in [&x.result_to_input, &x.input_to_result] {
-            assert!(s.mean > 0.0 && s.mean <= s.p95 && s.p95 <= s.max, "frame {f}: {x:?}");
-            assert!(s.mean < 1.0 && s.p95 < 3.0 && s.max < 8.0, "frame {f} is off by more than a few % of the diagonal: {x:?}");
+            assert!(
+                s.mean > 0.0 && s.mean <= s.p95 && s.p95 <= s.max,
+                "frame {f}: {x:?}"
+            );
+            assert!(
+                s.mean < 1.0 && s.p95 < 3.0 && s.max < 8.0,
+                "frame {f} is off by more than a few % of the diagonal: {x:?}"
+            );
         }
     }
     let summary = fit.summary();
     assert!(summary.mean < 0.75, "{summary:?}");
 
     let glb = dir.join("out <b>.glb");
-    let seconds: Vec<_> = conv.seconds.iter().copied().chain([(voltrack::Stage::Export, 0.25)]).collect();
-    let command = format!("voltrack convert '{}' -r 48 -n 150 --report r.html", input.display());
+    let seconds: Vec<_> = conv
+        .seconds
+        .iter()
+        .copied()
+        .chain([(voltrack::Stage::Export, 0.25)])
+        .collect();
+    let command = format!(
+        "voltrack convert '{}' -r 48 -n 150 --report r.html",
+        input.display()
+    );
     let conform = ConformParams::default();
     let report = ReportInput {
         seconds: &seconds,
         output: Some(&glb),
         command: Some(&command),
-        ..ReportInput::new(&conv, &measured, &inputs, &voxel, &track, Some(&refine), &deform, &conform)
+        ..ReportInput::new(
+            &conv,
+            &measured,
+            &inputs,
+            &voxel,
+            &track,
+            Some(&refine),
+            &deform,
+            &conform,
+        )
     };
     let html = report_html(&report);
     assert!(html.starts_with("<!DOCTYPE html>"));
-    assert!(assert_well_formed(&html) > 100, "a report of some substance");
+    assert!(
+        assert_well_formed(&html) > 100,
+        "a report of some substance"
+    );
 
     // Self-contained: nothing to fetch, nothing to run. The SVG namespace is
     // a name, not a resource.
     let without_namespace = html.replace("xmlns=\"http://www.w3.org/2000/svg\"", "");
-    for bad in ["http://", "https://", "<script", "<link", " src=", " href=", "url(", "@import", "<img", "<iframe"] {
+    for bad in [
+        "http://", "https://", "<script", "<link", " src=", " href=", "url(", "@import", "<img",
+        "<iframe",
+    ] {
         assert!(!without_namespace.contains(bad), "{bad} in the report");
     }
 
     // Names from the file system are escaped everywhere.
-    assert!(!html.contains("bar <&>") && !html.contains("out <b>"), "unescaped file name");
+    assert!(
+        !html.contains("bar <&>") && !html.contains("out <b>"),
+        "unescaped file name"
+    );
     assert!(html.contains("<title>voltrack report: bar &lt;&amp;&gt; &quot;x&quot;</title>"));
     assert!(html.contains("out &lt;b&gt;.glb"));
     assert!(html.contains("-r 48 -n 150"));
@@ -89,7 +147,10 @@ fn report_of_a_conversion() {
     assert_eq!(svgs.len(), 10, "plots");
     assert_eq!(html.matches("<figure>").count(), 10);
     for caption in between(&html, "<figcaption>", "</figcaption>") {
-        assert!(caption.contains("is better") || caption.contains("is faster"), "caption without a direction: {caption}");
+        assert!(
+            caption.contains("is better") || caption.contains("is faster"),
+            "caption without a direction: {caption}"
+        );
     }
     for title in [
         "Distance between the result and the input, per frame",
@@ -103,29 +164,47 @@ fn report_of_a_conversion() {
         "Surface far from the other surface, per frame",
         "Fit to the input against the sequence's usual, per frame",
     ] {
-        let plot = svgs.iter().find(|s| s.contains(&format!(">{title}</text>"))).unwrap_or_else(|| panic!("no plot titled {title}"));
-        assert!(plot.contains("<polyline") || plot.contains("<rect x="), "{title} draws nothing");
+        let plot = svgs
+            .iter()
+            .find(|s| s.contains(&format!(">{title}</text>")))
+            .unwrap_or_else(|| panic!("no plot titled {title}"));
+        assert!(
+            plot.contains("<polyline") || plot.contains("<rect x="),
+            "{title} draws nothing"
+        );
     }
     // The fit plot: both directions, three statistics each, one point per frame.
     let fit_plot = svgs[0];
     assert_eq!(fit_plot.matches("<polyline").count(), 6);
     assert_eq!(fit_plot.matches("<circle").count(), 6 * BENDING_BAR_FRAMES);
-    assert_eq!(fit_plot.matches("stroke-dasharray").count(), 3 + 3, "dashed lines and their legend entries");
+    assert_eq!(
+        fit_plot.matches("stroke-dasharray").count(),
+        3 + 3,
+        "dashed lines and their legend entries"
+    );
     // Coverage: the lost volume and the fit, each with its limit; the bar
     // is tracked well, so no warning and no flagged frame.
     assert_eq!(svgs[1].matches("<polyline").count(), 2);
     // Far surface: each direction's largest far region and the limit.
     assert_eq!(svgs[2].matches("<polyline").count(), 3);
     assert_eq!(svgs[3].matches("<polyline").count(), 2);
-    assert!(!html.contains("Warning: a part may have been lost") && !html.contains("class=\"flagged\""));
+    assert!(
+        !html.contains("Warning: a part may have been lost") && !html.contains("class=\"flagged\"")
+    );
     // Irregularity and DFU: before and after refinement.
     assert_eq!(svgs[4].matches("<polyline").count(), 2);
     assert_eq!(svgs[5].matches("<polyline").count(), 2);
     assert!(svgs[4].contains("forward tracking") && svgs[4].contains("after refinement"));
     // Energy: one line per batch. Stages: one bar each.
-    assert_eq!(svgs[6].matches("<polyline").count(), conv.refined.as_ref().unwrap().batches.len());
+    assert_eq!(
+        svgs[6].matches("<polyline").count(),
+        conv.refined.as_ref().unwrap().batches.len()
+    );
     for stage in ["read", "voxelize", "track", "refine", "deform", "export"] {
-        assert!(svgs[7].contains(&format!(">{stage}</text>")), "no bar for {stage}");
+        assert!(
+            svgs[7].contains(&format!(">{stage}</text>")),
+            "no bar for {stage}"
+        );
     }
 
     // The numbers: header facts, qualities before and after, the fit table.
@@ -135,8 +214,14 @@ fn report_of_a_conversion() {
         format!("{:.4}", refined.pcac),
         format!("{:.4}", measured.tracked.dfu),
         format!("{:.4}", refined.dfu),
-        format!("<th>Vertices</th><td>{}</td>", conv.mesh.base.positions.len()),
-        format!("<th>Triangles</th><td>{}</td>", conv.mesh.base.triangles.len()),
+        format!(
+            "<th>Vertices</th><td>{}</td>",
+            conv.mesh.base.positions.len()
+        ),
+        format!(
+            "<th>Triangles</th><td>{}</td>",
+            conv.mesh.base.triangles.len()
+        ),
         format!("<th>Frames</th><td>{BENDING_BAR_FRAMES}</td>"),
         "150 tracked, 147 after removing 3 irregular".to_string(),
         "48 voxels along the longest side".to_string(),
@@ -145,14 +230,32 @@ fn report_of_a_conversion() {
     ] {
         assert!(html.contains(&number), "{number} missing");
     }
-    assert_eq!(html.matches("<td class=\"file\"><code>frame_").count(), BENDING_BAR_FRAMES, "one table row per frame");
+    assert_eq!(
+        html.matches("<td class=\"file\"><code>frame_").count(),
+        BENDING_BAR_FRAMES,
+        "one table row per frame"
+    );
     // Users have no evaluate.py; a DFU that rises with refinement is explained;
     // wide tables scroll within a narrow page.
-    assert!(!html.contains("evaluate"), "the report names a tool users do not have");
-    assert_eq!(html.contains("DFU rises after refinement here"), refined.dfu > measured.tracked.dfu);
+    assert!(
+        !html.contains("evaluate"),
+        "the report names a tool users do not have"
+    );
+    assert_eq!(
+        html.contains("DFU rises after refinement here"),
+        refined.dfu > measured.tracked.dfu
+    );
     assert!(html.contains("table.numbers { display: block; max-width: 100%; overflow-x: auto; }"));
-    for (name, value) in [("centers", "150"), ("rho_gm", "0.0167"), ("blending", "dualquaternion"), ("resolution", "48")] {
-        assert!(html.contains(&format!("<tr><th>{name}</th><td>{value}</td></tr>")), "parameter {name}");
+    for (name, value) in [
+        ("centers", "150"),
+        ("rho_gm", "0.0167"),
+        ("blending", "dualquaternion"),
+        ("resolution", "48"),
+    ] {
+        assert!(
+            html.contains(&format!("<tr><th>{name}</th><td>{value}</td></tr>")),
+            "parameter {name}"
+        );
     }
 
     // Written whole or not at all.
@@ -163,21 +266,47 @@ fn report_of_a_conversion() {
     assert!(written.contains("<h2>Fit of the result to the input</h2>"));
     let err = write_report(&dir.join("no/such/dir/report.html"), &report).unwrap_err();
     assert!(matches!(err, Error::Write { .. }), "{err}");
-    assert!(dir.files().iter().all(|f| !f.contains("partial")), "{:?}", dir.files());
+    assert!(
+        dir.files().iter().all(|f| !f.contains("partial")),
+        "{:?}",
+        dir.files()
+    );
 
     // Without refinement: no refinement section, one curve per quality plot.
     let conv = voltrack::pipeline::convert(
         &files,
-        &voltrack::pipeline::ConvertOptions { voxel: voxel.clone(), track: track.clone(), refine: None, deform: deform.clone(), conform: Default::default(), checkpoint: None, measure_tracked: true, ..Default::default() },
+        &voltrack::pipeline::ConvertOptions {
+            voxel: voxel.clone(),
+            track: track.clone(),
+            refine: None,
+            deform: deform.clone(),
+            conform: Default::default(),
+            checkpoint: None,
+            measure_tracked: true,
+            ..Default::default()
+        },
         Progress::none(),
-    ).unwrap();
+    )
+    .unwrap();
     let measured = Measurements::of(&conv, &files, Progress::none()).unwrap();
     assert!(measured.refined.is_none());
-    let html = report_html(&ReportInput::new(&conv, &measured, &inputs, &voxel, &track, None, &deform, &Default::default()));
+    let html = report_html(&ReportInput::new(
+        &conv,
+        &measured,
+        &inputs,
+        &voxel,
+        &track,
+        None,
+        &deform,
+        &Default::default(),
+    ));
     assert_well_formed(&html);
     let svgs = between(&html, "<svg", "</svg>");
     assert_eq!(svgs.len(), 9);
-    assert!(!html.contains("Refinement: energy") && html.contains("<caption>Refinement</caption><tr><td>skipped</td></tr>"));
+    assert!(
+        !html.contains("Refinement: energy")
+            && html.contains("<caption>Refinement</caption><tr><td>skipped</td></tr>")
+    );
     assert_eq!(svgs[4].matches("<polyline").count(), 1);
     assert!(html.contains("150 (not refined)"));
 }

@@ -16,13 +16,20 @@ impl DualQuaternion {
         let rot = Rotation3::from_matrix_unchecked(m.rotation);
         let real = *UnitQuaternion::from_rotation_matrix(&rot).quaternion();
         let t = Quaternion::from_imag(m.translation);
-        DualQuaternion { real, dual: t * real * 0.5 }
+        DualQuaternion {
+            real,
+            dual: t * real * 0.5,
+        }
     }
 
     /// Weighted sum with every term on the real part's hemisphere of the
     /// heaviest one (q and -q are the same rotation), normalised.
     pub fn blend(terms: impl Iterator<Item = (DualQuaternion, Real)> + Clone) -> DualQuaternion {
-        let pivot = terms.clone().max_by(|a, b| a.1.total_cmp(&b.1)).map(|t| t.0.real).unwrap_or(Quaternion::identity());
+        let pivot = terms
+            .clone()
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|t| t.0.real)
+            .unwrap_or(Quaternion::identity());
         let mut real = Quaternion::new(0.0, 0.0, 0.0, 0.0);
         let mut dual = Quaternion::new(0.0, 0.0, 0.0, 0.0);
         for (q, w) in terms {
@@ -32,9 +39,15 @@ impl DualQuaternion {
         }
         let norm = real.norm();
         if norm <= Real::MIN_POSITIVE {
-            return DualQuaternion { real: Quaternion::identity(), dual: Quaternion::new(0.0, 0.0, 0.0, 0.0) };
+            return DualQuaternion {
+                real: Quaternion::identity(),
+                dual: Quaternion::new(0.0, 0.0, 0.0, 0.0),
+            };
         }
-        DualQuaternion { real: real / norm, dual: dual / norm }
+        DualQuaternion {
+            real: real / norm,
+            dual: dual / norm,
+        }
     }
 
     /// Applies the (normalised) motion to a point.

@@ -55,13 +55,13 @@ use super::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Matrix3, Point3, Real, Rotation3, UnitQuaternion, Vector3};
 use crate::model::mesh::{Aabb, TriangleMesh};
-use crate::spatial::surface::SurfaceIndex;
+use crate::model::rotation_from_covariance;
+use crate::model::FrameSource;
 use crate::params::ConformParams;
 use crate::progress::{Counter, Progress, Stage};
-use crate::model::rotation_from_covariance;
+use crate::spatial::surface::SurfaceIndex;
 use nalgebra::Unit;
 use rayon::prelude::*;
-use crate::model::FrameSource;
 
 /// Weight ε of staying at the blended position, against 1 for the surface:
 /// only there to keep a part that meets no compatible surface in place.
@@ -120,10 +120,25 @@ impl Topology {
         let (weld, triangles) = base.welded();
         let rest = &base.positions;
         let edges = edges(rest.len(), &triangles);
-        let entries: Vec<(u32, Vector3)> = (0..rest.len()).flat_map(|v| edges.of(v).iter().map(move |&u| (v as u32, rest[v] - rest[u as usize]))).collect();
+        let entries: Vec<(u32, Vector3)> = (0..rest.len())
+            .flat_map(|v| {
+                edges
+                    .of(v)
+                    .iter()
+                    .map(move |&u| (v as u32, rest[v] - rest[u as usize]))
+            })
+            .collect();
         let offsets = PerVertex::new(rest.len(), &entries);
-        let spread = (0..rest.len()).map(|v| offsets.of(v).iter().sum()).collect();
-        Topology { weld, triangles, edges, spread, offsets }
+        let spread = (0..rest.len())
+            .map(|v| offsets.of(v).iter().sum())
+            .collect();
+        Topology {
+            weld,
+            triangles,
+            edges,
+            spread,
+            offsets,
+        }
     }
 }
 
@@ -162,8 +177,11 @@ impl<T: Copy + Default> PerVertex<T> {
 type Edges = PerVertex<u32>;
 
 fn edges(vertices: usize, triangles: &[[u32; 3]]) -> Edges {
-    let mut pairs: Vec<(u32, u32)> =
-        triangles.iter().flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3])))).filter(|(a, b)| a != b).collect();
+    let mut pairs: Vec<(u32, u32)> = triangles
+        .iter()
+        .flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]))))
+        .filter(|(a, b)| a != b)
+        .collect();
     pairs.sort_unstable();
     pairs.dedup();
     let entries: Vec<(u32, u32)> = pairs.iter().flat_map(|&(a, b)| [(a, b), (b, a)]).collect();
@@ -183,7 +201,10 @@ fn fans(mesh: &TriangleMesh) -> Fans {
         .iter()
         .flat_map(|t| {
             let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
-            let normal = (b - a).cross(&(c - a)).try_normalize(0.0).unwrap_or_else(Vector3::zeros);
+            let normal = (b - a)
+                .cross(&(c - a))
+                .try_normalize(0.0)
+                .unwrap_or_else(Vector3::zeros);
             t.map(|v| (v, normal))
         })
         .collect();
@@ -199,7 +220,13 @@ fn fans(mesh: &TriangleMesh) -> Fans {
 /// is the mesh as loaded and stays. Reports `(Stage::Conform, frames done,
 /// frames after the first)` and stops with [`Error::Interrupted`] when
 /// cancelled.
-pub fn conform(mesh: DynamicMesh, source: &dyn FrameSource, bounds: &Aabb, params: &ConformParams, progress: Progress) -> Result<DynamicMesh> {
+pub fn conform(
+    mesh: DynamicMesh,
+    source: &dyn FrameSource,
+    bounds: &Aabb,
+    params: &ConformParams,
+    progress: Progress,
+) -> Result<DynamicMesh> {
     params.validate()?;
     if params.iterations == 0 {
         return Ok(mesh);
@@ -214,19 +241,37 @@ pub fn conform(mesh: DynamicMesh, source: &dyn FrameSource, bounds: &Aabb, param
     let topology = Topology::new(&mesh.base);
     let max_distance = params.length_scale(bounds) * params.max_distance;
     let later = source.len().saturating_sub(1);
-    let samples = if params.joint_strain > 0.0 { later.min(JOINT_SAMPLES) } else { 0 };
+    let samples = if params.joint_strain > 0.0 {
+        later.min(JOINT_SAMPLES)
+    } else {
+        0
+    };
     let counter = Counter::new(progress, Stage::Conform, samples + later);
     // A few frames at a time, each replaced where it lies: memory holds a
     // block, whether the frames are in memory or in a file.
     let DynamicMesh { base, mut frames } = mesh;
     let block = 4 * rayon::current_num_threads().max(1);
-    let fit = |f: usize, blended: &[Point3], joints: Option<&[Real]>, strains: Option<&mut Vec<Real>>| -> Result<Vec<Point3>> {
+    let fit = |f: usize,
+               blended: &[Point3],
+               joints: Option<&[Real]>,
+               strains: Option<&mut Vec<Real>>|
+     -> Result<Vec<Point3>> {
         if progress.cancelled() {
             return Err(Error::Interrupted { saved: None });
         }
         let input = source.mesh(f)?;
-        let fitted = fit_frame(&base, &topology, blended, &input, max_distance, params, joints, strains, &|| progress.cancelled())
-            .ok_or(Error::Interrupted { saved: None })?;
+        let fitted = fit_frame(
+            &base,
+            &topology,
+            blended,
+            &input,
+            max_distance,
+            params,
+            joints,
+            strains,
+            &|| progress.cancelled(),
+        )
+        .ok_or(Error::Interrupted { saved: None })?;
         counter.tick();
         Ok(fitted)
     };
@@ -247,13 +292,23 @@ pub fn conform(mesh: DynamicMesh, source: &dyn FrameSource, bounds: &Aabb, param
                 total.iter_mut().zip(strains).for_each(|(t, s)| *t += s);
             }
         }
-        Some(total.into_iter().map(|t| cauchy_weight(t / samples as Real, params.joint_strain).max(params.least_joint_weight)).collect::<Vec<Real>>())
+        Some(
+            total
+                .into_iter()
+                .map(|t| {
+                    cauchy_weight(t / samples as Real, params.joint_strain)
+                        .max(params.least_joint_weight)
+                })
+                .collect::<Vec<Real>>(),
+        )
     } else {
         None
     };
     for start in (1..frames.len()).step_by(block) {
-        let fitted: Vec<Vec<Point3>> =
-            (start..(start + block).min(frames.len())).into_par_iter().map(|f| fit(f, &frames.get(f)?, joints.as_deref(), None)).collect::<Result<_>>()?;
+        let fitted: Vec<Vec<Point3>> = (start..(start + block).min(frames.len()))
+            .into_par_iter()
+            .map(|f| fit(f, &frames.get(f)?, joints.as_deref(), None))
+            .collect::<Result<_>>()?;
         for (k, frame) in fitted.into_iter().enumerate() {
             frames.replace(start + k, frame)?;
         }
@@ -266,13 +321,34 @@ pub fn conform(mesh: DynamicMesh, source: &dyn FrameSource, bounds: &Aabb, param
 /// `bounds` is the box whose longest side `params.max_distance` is a
 /// fraction of (the whole input's, in a sequence). Both
 /// meshes' indices must be in range, as [`TriangleMesh::validate`] checks.
-pub fn conform_frame(base: &TriangleMesh, blended: &[Point3], input: &TriangleMesh, bounds: &Aabb, params: &ConformParams) -> Result<Vec<Point3>> {
+pub fn conform_frame(
+    base: &TriangleMesh,
+    blended: &[Point3],
+    input: &TriangleMesh,
+    bounds: &Aabb,
+    params: &ConformParams,
+) -> Result<Vec<Point3>> {
     params.validate()?;
     if blended.len() != base.positions.len() {
-        return Err(Error::InvalidInput(format!("{} positions for a mesh of {} vertices", blended.len(), base.positions.len())));
+        return Err(Error::InvalidInput(format!(
+            "{} positions for a mesh of {} vertices",
+            blended.len(),
+            base.positions.len()
+        )));
     }
     let max_distance = params.length_scale(bounds) * params.max_distance;
-    fit_frame(base, &Topology::new(base), blended, input, max_distance, params, None, None, &|| false).ok_or(Error::Interrupted { saved: None })
+    fit_frame(
+        base,
+        &Topology::new(base),
+        blended,
+        input,
+        max_distance,
+        params,
+        None,
+        None,
+        &|| false,
+    )
+    .ok_or(Error::Interrupted { saved: None })
 }
 
 /// [`conform_frame`] with the mesh's topology at hand; None when `cancelled`
@@ -294,16 +370,30 @@ fn fit_frame(
     strains: Option<&mut Vec<Real>>,
     cancelled: &dyn Fn() -> bool,
 ) -> Option<Vec<Point3>> {
-    let (rest, edges, triangles, spread, offsets) = (&base.positions, &topology.edges, &topology.triangles, &topology.spread, &topology.offsets);
+    let (rest, edges, triangles, spread, offsets) = (
+        &base.positions,
+        &topology.edges,
+        &topology.triangles,
+        &topology.spread,
+        &topology.offsets,
+    );
     let n = rest.len();
     let stiffness = 2.0 * params.stiffness;
     let mut y: Vec<Vector3> = blended.iter().map(|p| p.coords).collect();
     let fans = fans(input);
-    let mut diagonal: Vec<Real> = (0..n).map(|v| stiffness * edges.of(v).len() as Real + ANCHOR).collect();
+    let mut diagonal: Vec<Real> = (0..n)
+        .map(|v| stiffness * edges.of(v).len() as Real + ANCHOR)
+        .collect();
     // Per edge (in `edges`' order) its weight w_uv and w_uv (X_v − X_u), and
     // per vertex Σ_u w_uv (X_v − X_u).
-    let mut weights = PerVertex { start: edges.start.clone(), items: joints.map_or_else(|| vec![1.0; edges.items.len()], <[Real]>::to_vec) };
-    let mut weighted = PerVertex { start: offsets.start.clone(), items: offsets.items.clone() };
+    let mut weights = PerVertex {
+        start: edges.start.clone(),
+        items: joints.map_or_else(|| vec![1.0; edges.items.len()], <[Real]>::to_vec),
+    };
+    let mut weighted = PerVertex {
+        start: offsets.start.clone(),
+        items: offsets.items.clone(),
+    };
     let mut weighted_spread: Vec<Vector3> = spread.clone();
     let reweigh_from = (params.iterations as Real * REWEIGH_FROM).ceil() as usize;
     let mut rhs = vec![Vector3::zeros(); n];
@@ -319,7 +409,13 @@ fn fit_frame(
             return None;
         }
         let points: Vec<Point3> = y.iter().map(|v| Point3::from(*v)).collect();
-        let point_of = |(t, w): (u32, [Real; 3])| -> Point3 { Point3::from((0..3).map(|k| points[triangles[t as usize][k] as usize].coords * w[k]).sum::<Vector3>()) };
+        let point_of = |(t, w): (u32, [Real; 3])| -> Point3 {
+            Point3::from(
+                (0..3)
+                    .map(|k| points[triangles[t as usize][k] as usize].coords * w[k])
+                    .sum::<Vector3>(),
+            )
+        };
         if round < FIRST_SEARCHES || round % SEARCH_EVERY == 0 {
             match &mut index {
                 None => index = Some(SurfaceIndex::new(&points, triangles)),
@@ -329,7 +425,8 @@ fn fit_frame(
             for (q, found) in input.positions.iter().zip(matches.iter_mut()) {
                 // Last search's point is still on the mesh: the nearest one
                 // is at most that far, which prunes the search.
-                let bound = found.map_or(max_distance, |m| (point_of(m) - q).norm().min(max_distance));
+                let bound =
+                    found.map_or(max_distance, |m| (point_of(m) - q).norm().min(max_distance));
                 let nearest = match *found {
                     Some((t, _)) => index.closest_triangle_near(q, bound, t),
                     None => index.closest_triangle_within(q, bound),
@@ -346,23 +443,40 @@ fn fit_frame(
         for (v, q) in rotations.iter_mut().enumerate() {
             // A = Σ w_uv (y_v − y_u)(X_v − X_u)ᵀ: its rotation carries the frame-0
             // edges onto the current ones.
-            let a: Matrix3 = edges.of(v).iter().zip(weighted.of(v)).map(|(&u, x)| (y[v] - y[u as usize]) * x.transpose()).sum();
+            let a: Matrix3 = edges
+                .of(v)
+                .iter()
+                .zip(weighted.of(v))
+                .map(|(&u, x)| (y[v] - y[u as usize]) * x.transpose())
+                .sum();
             if round == 0 {
                 // Already a rotation: no polar decomposition needed.
-                *q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rotation_from_covariance(&a.transpose())));
+                *q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(
+                    rotation_from_covariance(&a.transpose()),
+                ));
             } else {
                 refine_rotation(&a, q);
             }
         }
-        let matrices: Vec<Matrix3> = rotations.iter().map(|q| q.to_rotation_matrix().into_inner()).collect();
-        let reweigh_now = params.bend_strain > 0.0 && round >= reweigh_from && (round - reweigh_from) % SEARCH_EVERY == 0;
+        let matrices: Vec<Matrix3> = rotations
+            .iter()
+            .map(|q| q.to_rotation_matrix().into_inner())
+            .collect();
+        let reweigh_now = params.bend_strain > 0.0
+            && round >= reweigh_from
+            && (round - reweigh_from) % SEARCH_EVERY == 0;
         if reweigh_now {
             reweigh(edges, offsets, &y, &matrices, params, joints, &mut weights);
         }
         // The take's weights apply from the first solve, the frame's own from their first reweighing.
         let weighed = joints.is_some() || (params.bend_strain > 0.0 && round >= reweigh_from);
         if reweigh_now || (round == 0 && joints.is_some()) {
-            for ((w, x), wx) in weights.items.iter().zip(&offsets.items).zip(weighted.items.iter_mut()) {
+            for ((w, x), wx) in weights
+                .items
+                .iter()
+                .zip(&offsets.items)
+                .zip(weighted.items.iter_mut())
+            {
                 *wx = x * *w;
             }
             for v in 0..n {
@@ -371,7 +485,13 @@ fn fit_frame(
             }
         }
         for v in 0..n {
-            let b: Vector3 = matrices[v] * weighted_spread[v] + edges.of(v).iter().zip(weighted.of(v)).map(|(&u, x)| matrices[u as usize] * x).sum::<Vector3>();
+            let b: Vector3 = matrices[v] * weighted_spread[v]
+                + edges
+                    .of(v)
+                    .iter()
+                    .zip(weighted.of(v))
+                    .map(|(&u, x)| matrices[u as usize] * x)
+                    .sum::<Vector3>();
             rhs[v] = 0.5 * stiffness * b + ANCHOR * blended[v].coords;
         }
         terms.clear();
@@ -385,9 +505,15 @@ fn fit_frame(
             let Some((t, weights)) = *found else { continue };
             let corners = triangles[t as usize];
             let [a, b, c] = corners.map(|i| points[i as usize]);
-            let Some(normal) = (b - a).cross(&(c - a)).try_normalize(0.0) else { continue };
+            let Some(normal) = (b - a).cross(&(c - a)).try_normalize(0.0) else {
+                continue;
+            };
             let fan = fans.of(j);
-            if fan.is_empty() || fan.iter().any(|n| facing * n.dot(&normal) < params.min_normal_cosine) {
+            if fan.is_empty()
+                || fan
+                    .iter()
+                    .any(|n| facing * n.dot(&normal) < params.min_normal_cosine)
+            {
                 continue;
             }
             let m = normal * normal.transpose() + Matrix3::identity() * params.point_weight;
@@ -395,25 +521,59 @@ fn fit_frame(
             for k in 0..3 {
                 rhs[corners[k] as usize] += mq * weights[k];
             }
-            terms.push(Term { corners, weights, m });
+            terms.push(Term {
+                corners,
+                weights,
+                m,
+            });
         }
-        solve(edges, weighed.then_some(&weights), stiffness, &diagonal, &terms, &rhs, SOLVER_TOLERANCE * max_distance, &mut y);
+        solve(
+            edges,
+            weighed.then_some(&weights),
+            stiffness,
+            &diagonal,
+            &terms,
+            &rhs,
+            SOLVER_TOLERANCE * max_distance,
+            &mut y,
+        );
     }
     if let Some(strains) = strains {
-        let matrices: Vec<Matrix3> = rotations.iter().map(|q| q.to_rotation_matrix().into_inner()).collect();
+        let matrices: Vec<Matrix3> = rotations
+            .iter()
+            .map(|q| q.to_rotation_matrix().into_inner())
+            .collect();
         strains.clear();
-        strains.extend((0..n).flat_map(|v| (edges.start[v]..edges.start[v + 1]).map(move |k| (v, k))).map(|(v, k)| edge_strain(edges, offsets, &y, &matrices, v, k)));
+        strains.extend(
+            (0..n)
+                .flat_map(|v| (edges.start[v]..edges.start[v + 1]).map(move |k| (v, k)))
+                .map(|(v, k)| edge_strain(edges, offsets, &y, &matrices, v, k)),
+        );
     }
-    Some(topology.weld.iter().map(|&w| Point3::from(y[w as usize])).collect())
+    Some(
+        topology
+            .weld
+            .iter()
+            .map(|&w| Point3::from(y[w as usize]))
+            .collect(),
+    )
 }
 
 /// The strain of `edges`' k-th item, from v to u: |(y_v − y_u) − R (X_v − X_u)|
 /// over |X_v − X_u|, averaged over R = R_v and R_u, so the same for both
 /// directions of an edge.
-fn edge_strain(edges: &Edges, offsets: &PerVertex<Vector3>, y: &[Vector3], rotations: &[Matrix3], v: usize, k: usize) -> Real {
+fn edge_strain(
+    edges: &Edges,
+    offsets: &PerVertex<Vector3>,
+    y: &[Vector3],
+    rotations: &[Matrix3],
+    v: usize,
+    k: usize,
+) -> Real {
     let u = edges.items[k] as usize;
     let (x, d) = (offsets.items[k], y[v] - y[u]);
-    0.5 * ((d - rotations[v] * x).norm() + (d - rotations[u] * x).norm()) / x.norm().max(Real::MIN_POSITIVE)
+    0.5 * ((d - rotations[v] * x).norm() + (d - rotations[u] * x).norm())
+        / x.norm().max(Real::MIN_POSITIVE)
 }
 
 /// 1 / (1 + (strain / half)²): 1 unstrained, ½ at `half`.
@@ -426,10 +586,22 @@ fn cauchy_weight(strain: Real, half: Real) -> Real {
 /// `bend_strain`, at least `least_edge_weight`, times its weight in `joints`
 /// if given: the same for both directions of an edge, so the system stays
 /// symmetric.
-fn reweigh(edges: &Edges, offsets: &PerVertex<Vector3>, y: &[Vector3], rotations: &[Matrix3], params: &ConformParams, joints: Option<&[Real]>, weights: &mut PerVertex<Real>) {
+fn reweigh(
+    edges: &Edges,
+    offsets: &PerVertex<Vector3>,
+    y: &[Vector3],
+    rotations: &[Matrix3],
+    params: &ConformParams,
+    joints: Option<&[Real]>,
+    weights: &mut PerVertex<Real>,
+) {
     for v in 0..y.len() {
         for k in edges.start[v]..edges.start[v + 1] {
-            let own = cauchy_weight(edge_strain(edges, offsets, y, rotations, v, k), params.bend_strain).max(params.least_edge_weight);
+            let own = cauchy_weight(
+                edge_strain(edges, offsets, y, rotations, v, k),
+                params.bend_strain,
+            )
+            .max(params.least_edge_weight);
             weights.items[k] = own * joints.map_or(1.0, |j| j[k]);
         }
     }
@@ -448,7 +620,13 @@ struct Term {
 /// for a degenerate triangle).
 fn barycentric(p: &Point3, a: &Point3, b: &Point3, c: &Point3) -> [Real; 3] {
     let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d00, d01, d11, d20, d21) = (ab.dot(&ab), ab.dot(&ac), ac.dot(&ac), ap.dot(&ab), ap.dot(&ac));
+    let (d00, d01, d11, d20, d21) = (
+        ab.dot(&ab),
+        ab.dot(&ac),
+        ac.dot(&ac),
+        ap.dot(&ab),
+        ap.dot(&ac),
+    );
     let denominator = d00 * d11 - d01 * d01;
     if !(denominator.abs() > Real::MIN_POSITIVE) {
         return [1.0 / 3.0; 3];
@@ -463,7 +641,12 @@ fn barycentric(p: &Point3, a: &Point3, b: &Point3, c: &Point3) -> [Real; 3] {
 /// triangles there (`fans`) face against the mesh's. An input that is
 /// consistently inside-out (another exporter's winding) is then used turned
 /// round instead of rejecting every match.
-fn faces_away(matches: &[Option<(u32, [Real; 3])>], fans: &Fans, points: &[Point3], triangles: &[[u32; 3]]) -> bool {
+fn faces_away(
+    matches: &[Option<(u32, [Real; 3])>],
+    fans: &Fans,
+    points: &[Point3],
+    triangles: &[[u32; 3]],
+) -> bool {
     let agreement: Real = matches
         .iter()
         .enumerate()
@@ -510,13 +693,27 @@ fn refine_rotation(a: &Matrix3, q: &mut UnitQuaternion) {
 /// semi-definite terms plus the anchor. Stops when the preconditioned
 /// residual r·M⁻¹r, about Σ_v diagonal_v |step_v|², falls to what steps of
 /// `tolerance` at every vertex would give.
-fn solve(edges: &Edges, weights: Option<&PerVertex<Real>>, stiffness: Real, diagonal: &[Real], terms: &[Term], rhs: &[Vector3], tolerance: Real, y: &mut [Vector3]) {
+fn solve(
+    edges: &Edges,
+    weights: Option<&PerVertex<Real>>,
+    stiffness: Real,
+    diagonal: &[Real],
+    terms: &[Term],
+    rhs: &[Vector3],
+    tolerance: Real,
+    y: &mut [Vector3],
+) {
     let n = y.len();
     let apply = |x: &[Vector3], out: &mut [Vector3]| {
         match weights {
             Some(weights) => {
                 for v in 0..n {
-                    let neighbours: Vector3 = edges.of(v).iter().zip(weights.of(v)).map(|(&u, &w)| x[u as usize] * w).sum();
+                    let neighbours: Vector3 = edges
+                        .of(v)
+                        .iter()
+                        .zip(weights.of(v))
+                        .map(|(&u, &w)| x[u as usize] * w)
+                        .sum();
                     out[v] = x[v] * diagonal[v] - neighbours * stiffness;
                 }
             }
@@ -528,7 +725,9 @@ fn solve(edges: &Edges, weights: Option<&PerVertex<Real>>, stiffness: Real, diag
             }
         }
         for t in terms {
-            let s: Vector3 = (0..3).map(|k| x[t.corners[k] as usize] * t.weights[k]).sum();
+            let s: Vector3 = (0..3)
+                .map(|k| x[t.corners[k] as usize] * t.weights[k])
+                .sum();
             let ms = t.m * s;
             for k in 0..3 {
                 out[t.corners[k] as usize] += ms * t.weights[k];
@@ -541,8 +740,15 @@ fn solve(edges: &Edges, weights: Option<&PerVertex<Real>>, stiffness: Real, diag
             blocks[t.corners[k] as usize] += t.m * (t.weights[k] * t.weights[k]);
         }
     }
-    let inverse: Vec<Matrix3> = (0..n).map(|v| blocks[v].try_inverse().unwrap_or_else(|| Matrix3::identity() / diagonal[v])).collect();
-    let dot = |a: &[Vector3], b: &[Vector3]| -> Real { a.iter().zip(b).map(|(x, y)| x.dot(y)).sum() };
+    let inverse: Vec<Matrix3> = (0..n)
+        .map(|v| {
+            blocks[v]
+                .try_inverse()
+                .unwrap_or_else(|| Matrix3::identity() / diagonal[v])
+        })
+        .collect();
+    let dot =
+        |a: &[Vector3], b: &[Vector3]| -> Real { a.iter().zip(b).map(|(x, y)| x.dot(y)).sum() };
     let mut ay = vec![Vector3::zeros(); n];
     apply(y, &mut ay);
     let mut r: Vec<Vector3> = rhs.iter().zip(&ay).map(|(b, a)| b - a).collect();

@@ -17,9 +17,9 @@ pub use conform::{conform, conform_frame};
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
 use crate::model::mesh::TriangleMesh;
+use crate::model::{PositionFrames, Rigid, Trajectories};
 use crate::params::{Blending, DeformParams};
 use crate::refine::SparseAffinity;
-use crate::model::{PositionFrames, Rigid, Trajectories};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 use std::num::NonZeroUsize;
@@ -41,7 +41,12 @@ pub struct Binding {
 }
 
 /// Binds every vertex of `mesh` to up to `params.neighbors` centers of frame 0.
-pub fn bind(mesh: &TriangleMesh, centers: &[Point3], omega: &SparseAffinity, params: &DeformParams) -> Vec<Binding> {
+pub fn bind(
+    mesh: &TriangleMesh,
+    centers: &[Point3],
+    omega: &SparseAffinity,
+    params: &DeformParams,
+) -> Vec<Binding> {
     let points: Vec<[Real; 3]> = centers.iter().map(|p| [p.x, p.y, p.z]).collect();
     let tree = ImmutableKdTree::<Real, 3>::new_from_slice(&points).expect("finite centers");
     // Weight falloff: a center one typical spacing away counts half.
@@ -51,11 +56,17 @@ pub fn bind(mesh: &TriangleMesh, centers: &[Point3], omega: &SparseAffinity, par
     mesh.positions
         .par_iter()
         .map(|v| {
-            let found = tree.query(&[v.x, v.y, v.z]).nearest_n::<SquaredEuclidean<Real>>(candidates).execute();
+            let found = tree
+                .query(&[v.x, v.y, v.z])
+                .nearest_n::<SquaredEuclidean<Real>>(candidates)
+                .execute();
             let nearest = found[0].item as usize;
             let mut centers: Vec<(u32, Real)> = found
                 .iter()
-                .filter(|r| r.item as usize == nearest || omega.weight(nearest, r.item as usize) >= params.min_affinity)
+                .filter(|r| {
+                    r.item as usize == nearest
+                        || omega.weight(nearest, r.item as usize) >= params.min_affinity
+                })
                 .take(params.neighbors)
                 .map(|r| (r.item, (-sigma * r.distance).exp().max(1e-12)))
                 .collect();
@@ -73,7 +84,13 @@ fn typical_spacing(tree: &ImmutableKdTree<Real, 3>, points: &[[Real; 3]]) -> Rea
     }
     let mut d: Vec<Real> = points
         .iter()
-        .map(|p| tree.query(p).nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(2).unwrap()).execute()[1].distance.sqrt())
+        .map(|p| {
+            tree.query(p)
+                .nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(2).unwrap())
+                .execute()[1]
+                .distance
+                .sqrt()
+        })
         .collect();
     d.sort_by(Real::total_cmp);
     d[d.len() / 2].max(Real::MIN_POSITIVE)
@@ -97,37 +114,72 @@ pub(crate) fn center_motions(traj: &Trajectories, omega: &SparseAffinity, f: usi
 }
 
 /// The dynamic mesh: `mesh` (frame 0 as loaded) moved by the trajectories.
-pub fn deform(mesh: &TriangleMesh, traj: &Trajectories, omega: &SparseAffinity, params: &DeformParams) -> Result<DynamicMesh> {
+pub fn deform(
+    mesh: &TriangleMesh,
+    traj: &Trajectories,
+    omega: &SparseAffinity,
+    params: &DeformParams,
+) -> Result<DynamicMesh> {
     if params.neighbors == 0 {
-        return Err(Error::InvalidParameter("the number of centers each vertex follows must be at least 1".into()));
+        return Err(Error::InvalidParameter(
+            "the number of centers each vertex follows must be at least 1".into(),
+        ));
     }
     if traj.centers == 0 || omega.lists.len() != traj.centers {
-        return Err(Error::InvalidInput("no centers to deform the mesh with".into()));
+        return Err(Error::InvalidInput(
+            "no centers to deform the mesh with".into(),
+        ));
     }
     // Copies of a vertex (a UV seam) are smoothed as the one vertex they are
     // and share its weights, or the seam would open as the mesh moves.
     let (weld, welded) = mesh.welded();
-    let smoothed = smooth_bindings(&welded, bind(mesh, traj.frame(0), omega, params), omega, params.smoothing, 2 * params.neighbors);
+    let smoothed = smooth_bindings(
+        &welded,
+        bind(mesh, traj.frame(0), omega, params),
+        omega,
+        params.smoothing,
+        2 * params.neighbors,
+    );
     let bindings: Vec<Binding> = weld.iter().map(|&w| smoothed[w as usize].clone()).collect();
     let mut frames = PositionFrames::new(mesh.positions.len(), traj.frames, params.memory)?;
     frames.push(mesh.positions.clone())?;
     for f in 1..traj.frames {
-        frames.push(move_vertices(&mesh.positions, &bindings, &center_motions(traj, omega, f), params.blending))?;
+        frames.push(move_vertices(
+            &mesh.positions,
+            &bindings,
+            &center_motions(traj, omega, f),
+            params.blending,
+        ))?;
     }
-    Ok(DynamicMesh { base: mesh.clone(), frames })
+    Ok(DynamicMesh {
+        base: mesh.clone(),
+        frames,
+    })
 }
 
 /// Every vertex moved by the blend of its centers' motions.
-pub(crate) fn move_vertices(positions: &[Point3], bindings: &[Binding], motions: &[Rigid], blending: Blending) -> Vec<Point3> {
+pub(crate) fn move_vertices(
+    positions: &[Point3],
+    bindings: &[Binding],
+    motions: &[Rigid],
+    blending: Blending,
+) -> Vec<Point3> {
     positions
         .par_iter()
         .zip(bindings)
         .map(|(v, b)| match blending {
-            Blending::Linear => {
-                Point3::from(b.centers.iter().map(|&(c, w)| motions[c as usize].apply(v).coords * w).sum::<crate::math::Vector3>())
-            }
+            Blending::Linear => Point3::from(
+                b.centers
+                    .iter()
+                    .map(|&(c, w)| motions[c as usize].apply(v).coords * w)
+                    .sum::<crate::math::Vector3>(),
+            ),
             Blending::DualQuaternion => {
-                let blended = DualQuaternion::blend(b.centers.iter().map(|&(c, w)| (DualQuaternion::from_rigid(&motions[c as usize]), w)));
+                let blended = DualQuaternion::blend(
+                    b.centers
+                        .iter()
+                        .map(|&(c, w)| (DualQuaternion::from_rigid(&motions[c as usize]), w)),
+                );
                 blended.apply(v)
             }
         })
@@ -141,11 +193,20 @@ pub(crate) fn move_vertices(positions: &[Point3], bindings: &[Binding], motions:
 /// vertices' nearest centers are one and the same or have an affinity at
 /// all: where two bodies touch in frame 0 and part later, their merged
 /// surface still does not mix their centers.
-pub fn smooth_bindings(triangles: &[[u32; 3]], bindings: Vec<Binding>, omega: &SparseAffinity, rounds: usize, keep: usize) -> Vec<Binding> {
+pub fn smooth_bindings(
+    triangles: &[[u32; 3]],
+    bindings: Vec<Binding>,
+    omega: &SparseAffinity,
+    rounds: usize,
+    keep: usize,
+) -> Vec<Binding> {
     if rounds == 0 {
         return bindings;
     }
-    let nearest: Vec<Option<usize>> = bindings.iter().map(|b| b.centers.first().map(|c| c.0 as usize)).collect();
+    let nearest: Vec<Option<usize>> = bindings
+        .iter()
+        .map(|b| b.centers.first().map(|c| c.0 as usize))
+        .collect();
     let linked = |a: usize, b: usize| match (nearest[a], nearest[b]) {
         (Some(x), Some(y)) => x == y || omega.weight(x, y) > 0.0,
         _ => false,
@@ -169,7 +230,11 @@ pub fn smooth_bindings(triangles: &[[u32; 3]], bindings: Vec<Binding>, omega: &S
         current = (0..current.len())
             .into_par_iter()
             .map(|v| {
-                let mut acc: Vec<(u32, Real)> = current[v].centers.iter().map(|&(c, w)| (c, 0.5 * w)).collect();
+                let mut acc: Vec<(u32, Real)> = current[v]
+                    .centers
+                    .iter()
+                    .map(|&(c, w)| (c, 0.5 * w))
+                    .collect();
                 let share = 0.5 / neighbours[v].len().max(1) as Real;
                 for &u in &neighbours[v] {
                     for &(c, w) in &current[u as usize].centers {

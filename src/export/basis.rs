@@ -16,11 +16,11 @@
 //! [`MorphBasis::combine`], and frame 0 is always the base mesh.
 
 use crate::deform::DynamicMesh;
-use crate::model::PositionFrames;
 use crate::error::{Error, Result};
 use crate::math::{Real, Vector3};
-use crate::progress::{Progress, Stage};
 use crate::model::rng::SplitMix64;
+use crate::model::PositionFrames;
+use crate::progress::{Progress, Stage};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 use std::ops::RangeInclusive;
@@ -88,18 +88,33 @@ pub fn check_frames(mesh: &DynamicMesh) -> Result<()> {
         return Err(Error::InvalidInput("the dynamic mesh has no frames".into()));
     }
     if mesh.base.triangles.is_empty() {
-        return Err(Error::InvalidInput("the dynamic mesh has no triangles".into()));
+        return Err(Error::InvalidInput(
+            "the dynamic mesh has no triangles".into(),
+        ));
     }
-    if mesh.base.triangles.iter().flatten().any(|&i| i as usize >= n) {
-        return Err(Error::InvalidInput(format!("a triangle refers to a vertex beyond the {n} of the base mesh")));
+    if mesh
+        .base
+        .triangles
+        .iter()
+        .flatten()
+        .any(|&i| i as usize >= n)
+    {
+        return Err(Error::InvalidInput(format!(
+            "a triangle refers to a vertex beyond the {n} of the base mesh"
+        )));
     }
     for (f, frame) in mesh.frames.iter().enumerate() {
         let frame = frame?;
         if frame.len() != n {
-            return Err(Error::InvalidInput(format!("frame {f} has {} vertices, the base mesh {n}", frame.len())));
+            return Err(Error::InvalidInput(format!(
+                "frame {f} has {} vertices, the base mesh {n}",
+                frame.len()
+            )));
         }
         if let Some(v) = frame.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-            return Err(Error::InvalidInput(format!("vertex {v} of frame {f} has a non-finite coordinate")));
+            return Err(Error::InvalidInput(format!(
+                "vertex {v} of frame {f} has a non-finite coordinate"
+            )));
         }
     }
     Ok(())
@@ -136,7 +151,13 @@ impl MorphBasis {
         let targets = frames.saturating_sub(1);
         MorphBasis {
             mix: (1..frames).map(|g| vec![(g, 1.0)]).collect(),
-            weights: (0..frames).map(|f| (1..=targets).map(|j| if j == f { 1.0 } else { 0.0 }).collect()).collect(),
+            weights: (0..frames)
+                .map(|f| {
+                    (1..=targets)
+                        .map(|j| if j == f { 1.0 } else { 0.0 })
+                        .collect()
+                })
+                .collect(),
             components: None,
             names: (1..frames).map(|g| format!("frame_{g:04}")).collect(),
         }
@@ -159,7 +180,10 @@ impl MorphBasis {
                 *s += a * x;
             }
         }
-        Ok(sum.iter().map(|s| [s.x as f32, s.y as f32, s.z as f32]).collect())
+        Ok(sum
+            .iter()
+            .map(|s| [s.x as f32, s.y as f32, s.z as f32])
+            .collect())
     }
 
     /// Applies the mix to per-frame vectors: target j, vertex v =
@@ -169,7 +193,13 @@ impl MorphBasis {
     /// that stops the work); it is called once
     /// per frame, a few frames at a time in parallel. Reports the frames done
     /// under [`Stage::Export`] and stops between blocks when asked to.
-    pub(crate) fn combine<V>(&self, frames: usize, vertices: usize, vectors: V, progress: Progress) -> Result<Vec<Vec<[f32; 3]>>>
+    pub(crate) fn combine<V>(
+        &self,
+        frames: usize,
+        vertices: usize,
+        vectors: V,
+        progress: Progress,
+    ) -> Result<Vec<Vec<[f32; 3]>>>
     where
         V: Fn(usize) -> Result<Vec<Vector3>> + Sync,
     {
@@ -181,23 +211,33 @@ impl MorphBasis {
             stop_requested(progress)?;
             progress.report(Stage::Export, start - 1, frames - 1);
             let block = start..(start + FRAME_BLOCK).min(frames);
-            let vecs: Vec<Vec<Vector3>> = block.clone().into_par_iter().map(&vectors).collect::<Result<_>>()?;
-            sums.par_iter_mut().zip(out.par_iter_mut()).zip(&self.mix).for_each(|((sum, out), mix)| {
-                let first = mix.partition_point(|&(g, _)| g < block.start);
-                let entries = mix[first..].iter().take_while(|&&(g, _)| g < block.end);
-                for &(g, a) in entries {
-                    if sum.is_empty() {
-                        *sum = vec![Vector3::zeros(); vertices];
+            let vecs: Vec<Vec<Vector3>> = block
+                .clone()
+                .into_par_iter()
+                .map(&vectors)
+                .collect::<Result<_>>()?;
+            sums.par_iter_mut()
+                .zip(out.par_iter_mut())
+                .zip(&self.mix)
+                .for_each(|((sum, out), mix)| {
+                    let first = mix.partition_point(|&(g, _)| g < block.start);
+                    let entries = mix[first..].iter().take_while(|&&(g, _)| g < block.end);
+                    for &(g, a) in entries {
+                        if sum.is_empty() {
+                            *sum = vec![Vector3::zeros(); vertices];
+                        }
+                        for (s, x) in sum.iter_mut().zip(&vecs[g - block.start]) {
+                            *s += a * x;
+                        }
                     }
-                    for (s, x) in sum.iter_mut().zip(&vecs[g - block.start]) {
-                        *s += a * x;
+                    if mix.last().is_some_and(|&(g, _)| g < block.end) && !sum.is_empty() {
+                        *out = sum
+                            .iter()
+                            .map(|s| [s.x as f32, s.y as f32, s.z as f32])
+                            .collect();
+                        *sum = Vec::new();
                     }
-                }
-                if mix.last().is_some_and(|&(g, _)| g < block.end) && !sum.is_empty() {
-                    *out = sum.iter().map(|s| [s.x as f32, s.y as f32, s.z as f32]).collect();
-                    *sum = Vec::new();
-                }
-            });
+                });
         }
         Ok(out)
     }
@@ -208,12 +248,19 @@ impl MorphBasis {
 /// reconstruction error (zero for per-frame targets). Reports its passes over
 /// the frames under [`Stage::Export`] and returns [`Error::Interrupted`] when
 /// `progress` asks it to stop.
-pub fn choose(frames: &PositionFrames, choice: BasisChoice, tolerance: Real, progress: Progress) -> Result<(MorphBasis, BasisError)> {
+pub fn choose(
+    frames: &PositionFrames,
+    choice: BasisChoice,
+    tolerance: Real,
+    progress: Progress,
+) -> Result<(MorphBasis, BasisError)> {
     let exact = || (MorphBasis::per_frame(frames.len()), BasisError::default());
     let mut passes = Passes { progress, done: 0 };
     match choice {
         BasisChoice::PerFrame => Ok(exact()),
-        BasisChoice::Components(0) => Err(Error::InvalidParameter("a compact basis needs at least one component".into())),
+        BasisChoice::Components(0) => Err(Error::InvalidParameter(
+            "a compact basis needs at least one component".into(),
+        )),
         BasisChoice::Components(k) => {
             let pca = Pca::new(frames, k.saturating_add(OVERSAMPLING), &mut passes)?;
             let k = k.min(pca.usable());
@@ -243,12 +290,19 @@ pub fn choose(frames: &PositionFrames, choice: BasisChoice, tolerance: Real, pro
                 let errors = pca.errors(frames, 0..=end, &mut passes)?;
                 if let Some(k) = errors.iter().position(|e| e.max <= tolerance) {
                     let basis = pca.basis(k);
-                    break if basis.targets() < moving { (basis, errors[k]) } else { exact() };
+                    break if basis.targets() < moving {
+                        (basis, errors[k])
+                    } else {
+                        exact()
+                    };
                 }
                 // Nothing within tolerance up to the limit, or more components
                 // would need as many targets as the frames, or than Auto
                 // sketches: per-frame targets.
-                if end == limit || pca.basis(end).targets() >= moving || wanted >= AUTO_MAX_COMPONENTS {
+                if end == limit
+                    || pca.basis(end).targets() >= moving
+                    || wanted >= AUTO_MAX_COMPONENTS
+                {
                     break exact();
                 }
                 wanted = (wanted * 2).min(AUTO_MAX_COMPONENTS);
@@ -278,7 +332,8 @@ impl Passes<'_> {
     /// Before a pass, with `left` passes (this one included) planned so far.
     fn start(&mut self, left: usize) -> Result<()> {
         stop_requested(self.progress)?;
-        self.progress.report(Stage::Export, self.done, self.done + left);
+        self.progress
+            .report(Stage::Export, self.done, self.done + left);
         self.done += 1;
         Ok(())
     }
@@ -321,9 +376,19 @@ impl Pca {
     /// its passes over the frames and one error pass after them.
     fn new(frames: &PositionFrames, width: usize, passes: &mut Passes) -> Result<Self> {
         let moving = frames.len().saturating_sub(1);
-        let rows = 3 * if frames.is_empty() { 0 } else { frames.get(0)?.len() };
+        let rows = 3 * if frames.is_empty() {
+            0
+        } else {
+            frames.get(0)?.len()
+        };
         let width = width.min(moving).min(rows);
-        let mut pca = Pca { components: Vec::new(), squared: Vec::new(), total: 0.0, complete: width == moving.min(rows), frames: frames.len() };
+        let mut pca = Pca {
+            components: Vec::new(),
+            squared: Vec::new(),
+            total: 0.0,
+            complete: width == moving.min(rows),
+            frames: frames.len(),
+        };
         if width == 0 {
             return Ok(pca);
         }
@@ -335,10 +400,18 @@ impl Pca {
         };
         pass(passes)?;
         pca.total = squared_norm(frames)?;
-        let mut q = orthonormal(apply(frames, &gaussian(moving, width), width, passes.progress)?, rows, width);
+        let mut q = orthonormal(
+            apply(frames, &gaussian(moving, width), width, passes.progress)?,
+            rows,
+            width,
+        );
         for _ in 0..POWER_ITERATIONS {
             pass(passes)?;
-            let z = orthonormal(apply_transposed(frames, &q, width, passes.progress)?, moving, width);
+            let z = orthonormal(
+                apply_transposed(frames, &q, width, passes.progress)?,
+                moving,
+                width,
+            );
             pass(passes)?;
             q = orthonormal(apply(frames, &z, width, passes.progress)?, rows, width);
         }
@@ -346,28 +419,40 @@ impl Pca {
         // (Qᵀ A)ᵀ, F − 1 rows: its left singular vectors are the u_k.
         let projected = apply_transposed(frames, &q, width, passes.progress)?;
         let svd = DMatrix::from_row_slice(moving, width, &projected).svd(true, false);
-        let u = svd.u.as_ref().expect("left singular vectors were asked for");
+        let u = svd
+            .u
+            .as_ref()
+            .expect("left singular vectors were asked for");
         let mut order: Vec<usize> = (0..width).collect();
         order.sort_by(|&a, &b| svd.singular_values[b].total_cmp(&svd.singular_values[a]));
         pca.components = order
             .iter()
             .map(|&i| {
                 let mut u: Vec<Real> = u.column(i).iter().copied().collect();
-                let pivot = (0..u.len()).fold(0, |best, r| if u[r].abs() > u[best].abs() { r } else { best });
+                let pivot = (0..u.len()).fold(
+                    0,
+                    |best, r| if u[r].abs() > u[best].abs() { r } else { best },
+                );
                 if u[pivot] < 0.0 {
                     u.iter_mut().for_each(|x| *x = -*x);
                 }
                 u
             })
             .collect();
-        pca.squared = order.iter().map(|&i| svd.singular_values[i].powi(2)).collect();
+        pca.squared = order
+            .iter()
+            .map(|&i| svd.singular_values[i].powi(2))
+            .collect();
         Ok(pca)
     }
 
     /// Number of components that carry motion (see [`NEGLIGIBLE_SQUARED`]).
     fn usable(&self) -> usize {
         let largest = self.squared.first().copied().unwrap_or(0.0);
-        self.squared.iter().take_while(|&&s| s > 0.0 && s > NEGLIGIBLE_SQUARED * largest).count()
+        self.squared
+            .iter()
+            .take_while(|&&s| s > 0.0 && s > NEGLIGIBLE_SQUARED * largest)
+            .count()
     }
 
     /// The numerical rank of A when the sketch reveals it: it is complete, or
@@ -397,9 +482,18 @@ impl Pca {
     /// `ks` (k ≤ number of components). Each vertex's trajectory over the
     /// frames is projected onto the components (x − U_k U_kᵀ x), so this costs
     /// one pass over the frames and never stores the residual.
-    fn errors(&self, frames: &PositionFrames, ks: RangeInclusive<usize>, passes: &mut Passes) -> Result<Vec<BasisError>> {
+    fn errors(
+        &self,
+        frames: &PositionFrames,
+        ks: RangeInclusive<usize>,
+        passes: &mut Passes,
+    ) -> Result<Vec<BasisError>> {
         let (k0, k1) = (*ks.start(), *ks.end());
-        assert!(k0 <= k1 && k1 <= self.components.len(), "component range {k0}..={k1} beyond {}", self.components.len());
+        assert!(
+            k0 <= k1 && k1 <= self.components.len(),
+            "component range {k0}..={k1} beyond {}",
+            self.components.len()
+        );
         passes.start(1)?;
         let progress = passes.progress;
         let moving = self.frames - 1;
@@ -418,7 +512,9 @@ impl Pca {
                 // every component goes over them.
                 let mut x = vec![Vector3::zeros(); moving];
                 let end = (start + VERTEX_CHUNK).min(vertices);
-                let block = (0..frames.len()).map(|f| frames.rows(f, start..end)).collect::<Result<Vec<_>>>()?;
+                let block = (0..frames.len())
+                    .map(|f| frames.rows(f, start..end))
+                    .collect::<Result<Vec<_>>>()?;
                 for v in 0..end - start {
                     for (x, frame) in x.iter_mut().zip(&block[1..]) {
                         *x = frame[v] - block[0][v];
@@ -431,7 +527,9 @@ impl Pca {
                     }
                     for (k, s) in (k0..=k1).zip(&mut stats) {
                         if k > k0 {
-                            e.iter_mut().zip(&u[k - 1]).for_each(|(er, &w)| *er -= w * y[k - 1]);
+                            e.iter_mut()
+                                .zip(&u[k - 1])
+                                .for_each(|(er, &w)| *er -= w * y[k - 1]);
                         }
                         for d in e.iter().map(|er| er.norm()) {
                             s.0 = Real::max(s.0, d);
@@ -446,7 +544,11 @@ impl Pca {
         Ok((0..=k1 - k0)
             .map(|j| BasisError {
                 max: chunks.iter().map(|c| c[j].0).fold(0.0, Real::max),
-                mean: if count > 0.0 { chunks.iter().map(|c| c[j].1).sum::<Real>() / count } else { 0.0 },
+                mean: if count > 0.0 {
+                    chunks.iter().map(|c| c[j].1).sum::<Real>() / count
+                } else {
+                    0.0
+                },
             })
             .collect())
     }
@@ -468,14 +570,26 @@ impl Pca {
                 if scale == 0.0 {
                     continue;
                 }
-                mix.push(u.iter().enumerate().filter(|(_, &x)| x != 0.0).map(|(r, &x)| (r + 1, scale * x)).collect());
+                mix.push(
+                    u.iter()
+                        .enumerate()
+                        .filter(|(_, &x)| x != 0.0)
+                        .map(|(r, &x)| (r + 1, scale * x))
+                        .collect(),
+                );
                 names.push(format!("pc_{:04}_{part}", c + 1));
-                columns.push(std::iter::once(0.0).chain(u.iter().map(|&x| (sign * x).max(0.0) / (sign * scale))).collect());
+                columns.push(
+                    std::iter::once(0.0)
+                        .chain(u.iter().map(|&x| (sign * x).max(0.0) / (sign * scale)))
+                        .collect(),
+                );
             }
         }
         MorphBasis {
             mix,
-            weights: (0..self.frames).map(|f| columns.iter().map(|w| w[f]).collect()).collect(),
+            weights: (0..self.frames)
+                .map(|f| columns.iter().map(|w| w[f]).collect())
+                .collect(),
             components: Some(k),
             names,
         }
@@ -493,7 +607,12 @@ fn squared_norm(frames: &PositionFrames) -> Result<Real> {
             let base = frames.rows(0, range.clone())?;
             let mut sum = 0.0;
             for f in 1..frames.len() {
-                sum += frames.rows(f, range.clone())?.iter().zip(base.iter()).map(|(p, p0)| (p - p0).norm_squared()).sum::<Real>();
+                sum += frames
+                    .rows(f, range.clone())?
+                    .iter()
+                    .zip(base.iter())
+                    .map(|(p, p0)| (p - p0).norm_squared())
+                    .sum::<Real>();
             }
             Ok(sum)
         })
@@ -518,32 +637,48 @@ fn gaussian(rows: usize, width: usize) -> Vec<Real> {
 /// A X, 3V × `width`, for X with one row per frame after the first (both
 /// row-major, A's rows vertex-major: 3v + axis). Parallel over vertex blocks,
 /// each writing its own rows, summed over the frames in order.
-fn apply(frames: &PositionFrames, x: &[Real], width: usize, progress: Progress) -> Result<Vec<Real>> {
+fn apply(
+    frames: &PositionFrames,
+    x: &[Real],
+    width: usize,
+    progress: Progress,
+) -> Result<Vec<Real>> {
     let vertices = frames.get(0)?.len();
     let mut y = vec![0.0; 3 * vertices * width];
-    y.par_chunks_mut(3 * VERTEX_CHUNK * width).enumerate().try_for_each(|(c, out)| {
-        stop_requested(progress)?;
-        let start = c * VERTEX_CHUNK;
-        let range = start..start + out.len() / (3 * width);
-        let base = frames.rows(0, range.clone())?;
-        for (f, xg) in (1..frames.len()).zip(x.chunks_exact(width)) {
-            let frame = frames.rows(f, range.clone())?;
-            for ((p, p0), rows) in frame.iter().zip(base.iter()).zip(out.chunks_exact_mut(3 * width)) {
-                let d = p - p0;
-                for (a, row) in rows.chunks_exact_mut(width).enumerate() {
-                    axpy(d[a], xg, row);
+    y.par_chunks_mut(3 * VERTEX_CHUNK * width)
+        .enumerate()
+        .try_for_each(|(c, out)| {
+            stop_requested(progress)?;
+            let start = c * VERTEX_CHUNK;
+            let range = start..start + out.len() / (3 * width);
+            let base = frames.rows(0, range.clone())?;
+            for (f, xg) in (1..frames.len()).zip(x.chunks_exact(width)) {
+                let frame = frames.rows(f, range.clone())?;
+                for ((p, p0), rows) in frame
+                    .iter()
+                    .zip(base.iter())
+                    .zip(out.chunks_exact_mut(3 * width))
+                {
+                    let d = p - p0;
+                    for (a, row) in rows.chunks_exact_mut(width).enumerate() {
+                        axpy(d[a], xg, row);
+                    }
                 }
             }
-        }
-        Ok(())
-    })?;
+            Ok(())
+        })?;
     Ok(y)
 }
 
 /// Aᵀ Q, (F − 1) × `width`, for Q with 3V rows (layouts as in [`apply`]).
 /// Vertex blocks in order, each added to every frame's row in parallel over
 /// the frames: every entry is summed in the same order whatever the threads.
-fn apply_transposed(frames: &PositionFrames, q: &[Real], width: usize, progress: Progress) -> Result<Vec<Real>> {
+fn apply_transposed(
+    frames: &PositionFrames,
+    q: &[Real],
+    width: usize,
+    progress: Progress,
+) -> Result<Vec<Real>> {
     let vertices = frames.get(0)?.len();
     let mut z = vec![0.0; (frames.len() - 1) * width];
     for start in (0..vertices).step_by(VERTEX_CHUNK) {
@@ -551,16 +686,22 @@ fn apply_transposed(frames: &PositionFrames, q: &[Real], width: usize, progress:
         let end = (start + VERTEX_CHUNK).min(vertices);
         let base = frames.rows(0, start..end)?;
         let block = &q[3 * start * width..3 * end * width];
-        z.par_chunks_mut(width).enumerate().try_for_each(|(g, zg)| {
-            let frame = frames.rows(g + 1, start..end)?;
-            for ((p, p0), rows) in frame.iter().zip(base.iter()).zip(block.chunks_exact(3 * width)) {
-                let d = p - p0;
-                for (a, row) in rows.chunks_exact(width).enumerate() {
-                    axpy(d[a], row, zg);
+        z.par_chunks_mut(width)
+            .enumerate()
+            .try_for_each(|(g, zg)| {
+                let frame = frames.rows(g + 1, start..end)?;
+                for ((p, p0), rows) in frame
+                    .iter()
+                    .zip(base.iter())
+                    .zip(block.chunks_exact(3 * width))
+                {
+                    let d = p - p0;
+                    for (a, row) in rows.chunks_exact(width).enumerate() {
+                        axpy(d[a], row, zg);
+                    }
                 }
-            }
-            Ok::<_, Error>(())
-        })?;
+                Ok::<_, Error>(())
+            })?;
     }
     Ok(z)
 }
@@ -613,7 +754,9 @@ mod tests {
             let chirp = 0.004 * (p.y * (1.0 + 0.002 * t) * 4.0 + 0.05 * t).sin();
             turn * p + Vector3::new(chirp, 0.0, wave + bend)
         };
-        (0..frames).map(|f| base.iter().map(|p| motion(f, p)).collect()).collect()
+        (0..frames)
+            .map(|f| base.iter().map(|p| motion(f, p)).collect())
+            .collect()
     }
 
     /// The exact decomposition, as the Gram matrix's eigenvectors gave it
@@ -628,8 +771,14 @@ mod tests {
         let mut order: Vec<usize> = (0..svd.singular_values.len()).collect();
         order.sort_by(|&x, &y| svd.singular_values[y].total_cmp(&svd.singular_values[x]));
         Pca {
-            components: order.iter().map(|&i| u.column(i).iter().copied().collect()).collect(),
-            squared: order.iter().map(|&i| svd.singular_values[i].powi(2)).collect(),
+            components: order
+                .iter()
+                .map(|&i| u.column(i).iter().copied().collect())
+                .collect(),
+            squared: order
+                .iter()
+                .map(|&i| svd.singular_values[i].powi(2))
+                .collect(),
             total: a.iter().map(|x| x * x).sum(),
             complete: true,
             frames: frames.len(),
@@ -641,14 +790,21 @@ mod tests {
     fn gather(frames: &[Vec<Point3>], start: usize, n: usize, out: &mut [Real]) {
         let base = &frames[0][start..start + n];
         for (row, frame) in out.chunks_exact_mut(3 * n).zip(&frames[1..]) {
-            for ((d, p), p0) in row.chunks_exact_mut(3).zip(&frame[start..start + n]).zip(base) {
+            for ((d, p), p0) in row
+                .chunks_exact_mut(3)
+                .zip(&frame[start..start + n])
+                .zip(base)
+            {
                 d.copy_from_slice((p - p0).as_slice());
             }
         }
     }
 
     fn no_passes() -> Passes<'static> {
-        Passes { progress: Progress::none(), done: 0 }
+        Passes {
+            progress: Progress::none(),
+            done: 0,
+        }
     }
 
     /// Within 1 % of the exact error, or 1e-6 of the bounding-box diagonal
@@ -669,17 +825,35 @@ mod tests {
                 let pca = Pca::new(&frames, k + OVERSAMPLING, &mut no_passes()).unwrap();
                 let got = pca.errors(&frames, k..=k, &mut no_passes()).unwrap()[0];
                 let want = all[k];
-                assert!(close(got.max, want.max, diagonal), "{count} frames, {k} components: max {} vs exact {}", got.max, want.max);
-                assert!(close(got.mean, want.mean, diagonal), "{count} frames, {k} components: mean {} vs exact {}", got.mean, want.mean);
+                assert!(
+                    close(got.max, want.max, diagonal),
+                    "{count} frames, {k} components: max {} vs exact {}",
+                    got.max,
+                    want.max
+                );
+                assert!(
+                    close(got.mean, want.mean, diagonal),
+                    "{count} frames, {k} components: mean {} vs exact {}",
+                    got.mean,
+                    want.mean
+                );
             }
             // Auto: the exact rule (fewest components within tolerance) gives
             // the same count, within tolerance.
             let tolerance = 1e-3 * diagonal;
-            let (basis, error) = choose(&frames, BasisChoice::Auto, tolerance, Progress::none()).unwrap();
+            let (basis, error) =
+                choose(&frames, BasisChoice::Auto, tolerance, Progress::none()).unwrap();
             if count > AUTO_PER_FRAME_LIMIT {
-                let want = all.iter().position(|e| e.max <= tolerance).expect("within 24 components");
+                let want = all
+                    .iter()
+                    .position(|e| e.max <= tolerance)
+                    .expect("within 24 components");
                 assert_eq!(basis.components, Some(want), "{count} frames");
-                assert!(error.max <= tolerance && close(error.max, all[want].max, diagonal), "{error:?} vs {:?}", all[want]);
+                assert!(
+                    error.max <= tolerance && close(error.max, all[want].max, diagonal),
+                    "{error:?} vs {:?}",
+                    all[want]
+                );
             }
         }
     }
@@ -692,7 +866,9 @@ mod tests {
         let frames: Vec<Vec<Point3>> = (0..300)
             .map(|f| {
                 let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.01 * f as Real);
-                base.iter().map(|p| turn * p + Vector3::new(1.0, 2.0, -0.5) * (0.7 * f as Real).sin()).collect()
+                base.iter()
+                    .map(|p| turn * p + Vector3::new(1.0, 2.0, -0.5) * (0.7 * f as Real).sin())
+                    .collect()
             })
             .collect();
         let frames = PositionFrames::from(frames);
@@ -709,11 +885,28 @@ mod tests {
         let base = torus();
         let mut rng = SplitMix64::new(rank as u64);
         let mut unit = move || 2.0 * rng.unit() - 1.0;
-        let fields: Vec<Vec<Vector3>> = (0..rank).map(|_| base.iter().map(|_| Vector3::new(unit(), unit(), unit())).collect()).collect();
+        let fields: Vec<Vec<Vector3>> = (0..rank)
+            .map(|_| {
+                base.iter()
+                    .map(|_| Vector3::new(unit(), unit(), unit()))
+                    .collect()
+            })
+            .collect();
         let frames: Vec<Vec<Point3>> = (0..300)
             .map(|f| {
-                let weights: Vec<Real> = (0..rank).map(|_| if f == 0 { 0.0 } else { 0.01 * unit() }).collect();
-                base.iter().enumerate().map(|(v, p)| p + fields.iter().zip(&weights).map(|(d, w)| *w * d[v]).sum::<Vector3>()).collect()
+                let weights: Vec<Real> = (0..rank)
+                    .map(|_| if f == 0 { 0.0 } else { 0.01 * unit() })
+                    .collect();
+                base.iter()
+                    .enumerate()
+                    .map(|(v, p)| {
+                        p + fields
+                            .iter()
+                            .zip(&weights)
+                            .map(|(d, w)| *w * d[v])
+                            .sum::<Vector3>()
+                    })
+                    .collect()
             })
             .collect();
         PositionFrames::from(frames)
@@ -727,11 +920,22 @@ mod tests {
         // memory it takes, stop growing with the sequence; also just beyond,
         // which the cap's oversampled columns would catch.
         let cap = AUTO_MAX_COMPONENTS;
-        for (rank, components) in [(cap - 8, Some(cap - 8)), (cap, Some(cap)), (cap + 5, None), (cap + 12, None)] {
+        for (rank, components) in [
+            (cap - 8, Some(cap - 8)),
+            (cap, Some(cap)),
+            (cap + 5, None),
+            (cap + 12, None),
+        ] {
             let frames = random_motion(rank);
-            let (basis, error) = choose(&frames, BasisChoice::Auto, 1e-6, Progress::none()).unwrap();
+            let (basis, error) =
+                choose(&frames, BasisChoice::Auto, 1e-6, Progress::none()).unwrap();
             assert_eq!(basis.components, components, "rank {rank}");
-            assert_eq!(basis.targets() >= 299, components.is_none(), "rank {rank}: {} targets", basis.targets());
+            assert_eq!(
+                basis.targets() >= 299,
+                components.is_none(),
+                "rank {rank}: {} targets",
+                basis.targets()
+            );
             assert!(error.max <= 1e-6, "rank {rank}: {error:?}");
         }
     }

@@ -1,7 +1,7 @@
 //! Voxel frames written as `.binvox` (Patrick Min's format, as `io` reads it).
 
-use crate::files::{replace_dir, Fill};
 use crate::error::{Error, Result};
+use crate::files::{replace_dir, Fill};
 use crate::math::Real;
 use crate::model::{GridSpec, Occupancy};
 use std::io::{BufWriter, Write};
@@ -16,7 +16,14 @@ pub fn write_binvox(out: &mut impl Write, grid: &GridSpec, occ: &Occupancy) -> s
         bits[x * d * d + z * d + y] = true;
     }
     let o = grid.origin;
-    write!(out, "#binvox 1\ndim {d} {d} {d}\ntranslate {} {} {}\nscale {}\ndata\n", o.x, o.y, o.z, grid.voxel_size * d as Real)?;
+    write!(
+        out,
+        "#binvox 1\ndim {d} {d} {d}\ntranslate {} {} {}\nscale {}\ndata\n",
+        o.x,
+        o.y,
+        o.z,
+        grid.voxel_size * d as Real
+    )?;
     let mut runs = Vec::new();
     let mut k = 0;
     while k < bits.len() {
@@ -39,7 +46,13 @@ pub fn write_binvox(out: &mut impl Write, grid: &GridSpec, occ: &Occupancy) -> s
 pub fn write_binvox_frames(seq: &crate::voxel::VoxelSequence, dir: &Path) -> Result<Vec<PathBuf>> {
     let mut names: Vec<String> = Vec::with_capacity(seq.names.len());
     for (k, src) in seq.names.iter().enumerate() {
-        let name = format!("{}.binvox", Path::new(src).file_stem().unwrap_or_default().to_string_lossy());
+        let name = format!(
+            "{}.binvox",
+            Path::new(src)
+                .file_stem()
+                .unwrap_or_default()
+                .to_string_lossy()
+        );
         if let Some(j) = names.iter().position(|n| *n == name) {
             return Err(Error::InvalidInput(format!(
                 "{} and {} would both be written as {}: rename one",
@@ -54,7 +67,14 @@ pub fn write_binvox_frames(seq: &crate::voxel::VoxelSequence, dir: &Path) -> Res
         .frames
         .iter()
         .zip(names)
-        .map(|(occ, name)| (name, Box::new(move |w: &mut BufWriter<std::fs::File>| write_binvox(w, &seq.grid, &occ.expand())) as Fill))
+        .map(|(occ, name)| {
+            (
+                name,
+                Box::new(move |w: &mut BufWriter<std::fs::File>| {
+                    write_binvox(w, &seq.grid, &occ.expand())
+                }) as Fill,
+            )
+        })
         .collect();
     replace_dir(dir, files)
 }

@@ -7,8 +7,8 @@
 //! extra attributes in a `HashMap` and writes them in its random order, so one
 //! attribute is what keeps the file bit-identical from run to run.
 
-use crate::files::write_atomic;
 use crate::error::{Error, Result};
+use crate::files::write_atomic;
 use crate::math::Point3;
 use crate::model::{Trajectories, TrajectoryMetadata, METADATA_ATTRIBUTE};
 use exr::meta::attribute::{AttributeValue, Text};
@@ -16,15 +16,25 @@ use exr::prelude::*;
 use std::io::{Seek, Write};
 use std::path::Path;
 
-
 /// Writes `traj` (width = centers, height = frames) with `metadata` (its
 /// version set to this tool's) in the header.
-pub fn write_trajectories_exr(path: &Path, traj: &Trajectories, metadata: &TrajectoryMetadata) -> Result<()> {
+pub fn write_trajectories_exr(
+    path: &Path,
+    traj: &Trajectories,
+    metadata: &TrajectoryMetadata,
+) -> Result<()> {
     let meta = match serde_json::to_value(metadata).map_err(|e| Error::write(path, e))? {
         serde_json::Value::Object(map) => map,
         _ => unreachable!("a struct serialises to an object"),
     };
-    let image = PointImage { path, name: "trajectories", width: traj.centers, height: traj.frames, pixel: |x: usize, y: usize| traj.get(y, x), meta };
+    let image = PointImage {
+        path,
+        name: "trajectories",
+        width: traj.centers,
+        height: traj.frames,
+        pixel: |x: usize, y: usize| traj.get(y, x),
+        meta,
+    };
     let mut bytes = std::io::Cursor::new(Vec::new());
     image.encode(&mut bytes)?;
     write_atomic(path, |w| w.write_all(bytes.get_ref()))
@@ -50,37 +60,69 @@ impl<F: Fn(usize, usize) -> Point3 + Sync> PointImage<'_, F> {
         let Ok(start) = w.stream_position() else {
             let (path, mut bytes) = (self.path, std::io::Cursor::new(Vec::new()));
             self.encode(&mut bytes)?;
-            w.write_all(bytes.get_ref()).map_err(|e| Error::write(path, e))?;
+            w.write_all(bytes.get_ref())
+                .map_err(|e| Error::write(path, e))?;
             return Ok(bytes.get_ref().len() as u64);
         };
-        let mut out = Extent { inner: w, position: start, end: start };
+        let mut out = Extent {
+            inner: w,
+            position: start,
+            end: start,
+        };
         self.encode(&mut out)?;
         Ok(out.end - start)
     }
 
     fn encode(self, w: &mut (impl Write + Seek)) -> Result<()> {
-        let PointImage { path, name, width, height, pixel, mut meta } = self;
+        let PointImage {
+            path,
+            name,
+            width,
+            height,
+            pixel,
+            mut meta,
+        } = self;
         if width == 0 || height == 0 {
-            return Err(Error::InvalidInput(format!("nothing to write to {}: {width} × {height} points", path.display())));
+            return Err(Error::InvalidInput(format!(
+                "nothing to write to {}: {width} × {height} points",
+                path.display()
+            )));
         }
         if width >= i32::MAX as usize / 2 || height >= i32::MAX as usize / 2 {
-            return Err(Error::InvalidInput(format!("{width} × {height} is beyond what OpenEXR can store")));
+            return Err(Error::InvalidInput(format!(
+                "{width} × {height} is beyond what OpenEXR can store"
+            )));
         }
         // Metadata carried over from an older file (`voltrack refine` passes its
         // input's on) never claims that file's version.
         meta.insert("version".into(), env!("CARGO_PKG_VERSION").into());
         let json = ascii_json(&serde_json::Value::Object(meta).to_string());
         let mut layer_attributes = LayerAttributes::named(name);
-        layer_attributes.software_name = Some(Text::new_or_panic(concat!("voltrack ", env!("CARGO_PKG_VERSION"))));
-        layer_attributes.other.insert(Text::new_or_panic(METADATA_ATTRIBUTE), AttributeValue::Text(Text::new_or_panic(&json)));
+        layer_attributes.software_name = Some(Text::new_or_panic(concat!(
+            "voltrack ",
+            env!("CARGO_PKG_VERSION")
+        )));
+        layer_attributes.other.insert(
+            Text::new_or_panic(METADATA_ATTRIBUTE),
+            AttributeValue::Text(Text::new_or_panic(&json)),
+        );
         let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
             let q = pixel(p.x(), p.y());
             (q.x as f32, q.y as f32, q.z as f32)
         });
-        let layer = Layer::new((width, height), layer_attributes, Encoding::SMALL_LOSSLESS, channels);
+        let layer = Layer::new(
+            (width, height),
+            layer_attributes,
+            Encoding::SMALL_LOSSLESS,
+            channels,
+        );
         // Sequential compression: block order, hence bytes, independent of
         // threads; and the blocks are asked for in order, row after row.
-        Image::from_layer(layer).write().non_parallel().to_buffered(w).map_err(|e| Error::write(path, e))
+        Image::from_layer(layer)
+            .write()
+            .non_parallel()
+            .to_buffered(w)
+            .map_err(|e| Error::write(path, e))
     }
 }
 

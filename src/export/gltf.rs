@@ -5,8 +5,8 @@
 //! targets (per frame, or a compact PCA basis, see [`super::basis`]) replay the
 //! captured sequence in Blender, three.js and other glTF viewers.
 
-use super::basis::{self, MorphBasis};
 pub use super::basis::BasisChoice;
+use super::basis::{self, MorphBasis};
 use super::normals::FrameNormals;
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
@@ -14,9 +14,9 @@ use crate::math::{Point3, Real, Vector3};
 use crate::model::mesh::TriangleMesh;
 use crate::model::PositionFrames;
 use crate::progress::{Counter, Progress, Stage};
-use rayon::prelude::*;
 use gltf_json as json;
 use json::validation::{Checked::Valid, USize64};
+use rayon::prelude::*;
 use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -75,12 +75,22 @@ impl GltfExportOptions {
     /// Checks the options before any work is done.
     pub fn validate(&self) -> Result<()> {
         if self.basis == BasisChoice::Components(0) {
-            return Err(Error::InvalidParameter("a compact basis needs at least one component".into()));
+            return Err(Error::InvalidParameter(
+                "a compact basis needs at least one component".into(),
+            ));
         }
-        crate::params::check("the frame rate", self.fps as Real, crate::params::Span::closed(1e-3, 1e5))?;
+        crate::params::check(
+            "the frame rate",
+            self.fps as Real,
+            crate::params::Span::closed(1e-3, 1e5),
+        )?;
         crate::model::check_name(&self.name)?;
         if let BasisChoice::Components(k) = self.basis {
-            crate::params::check_count("the basis components", k, 1..=crate::params::MAX_ITERATIONS)?;
+            crate::params::check_count(
+                "the basis components",
+                k,
+                1..=crate::params::MAX_ITERATIONS,
+            )?;
         }
         if !(self.max_basis_error.is_finite() && self.max_basis_error >= 0.0) {
             return Err(Error::InvalidParameter(format!(
@@ -131,23 +141,37 @@ pub struct GltfExportReport {
 /// the recomputed ones of the other frames). Progress is reported under
 /// [`Stage::Export`](crate::Stage::Export); a stop request returns
 /// [`Error::Interrupted`] and writes nothing.
-pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOptions, progress: Progress) -> Result<GltfExportReport> {
+pub fn write_dynamic_glb(
+    path: &Path,
+    mesh: &DynamicMesh,
+    options: &GltfExportOptions,
+    progress: Progress,
+) -> Result<GltfExportReport> {
     options.validate()?;
     basis::check_frames(mesh)?;
     let frames = &mesh.frames;
     let diagonal = frames.bounds()?.diagonal();
-    let (mut basis, error) = basis::choose(frames, options.basis, options.max_basis_error * diagonal, progress)?;
+    let (mut basis, error) = basis::choose(
+        frames,
+        options.basis,
+        options.max_basis_error * diagonal,
+        progress,
+    )?;
     if basis.components.is_none() {
         name_targets_after_frames(&mut basis, &options.frame_names);
     }
     let relative = |e: Real| if diagonal > 0.0 { e / diagonal } else { 0.0 };
     let first = frames.get(0)?.into_owned();
-    let normals = options.normals.then(|| FrameNormals::new(&mesh.base.triangles, &first));
+    let normals = options
+        .normals
+        .then(|| FrameNormals::new(&mesh.base.triangles, &first));
     let base = TriangleMesh {
         positions: first,
         triangles: mesh.base.triangles.clone(),
         uvs: mesh.base.uvs.clone(),
-        normals: normals.as_ref().map(|n| n.base.iter().map(to_f32).collect()),
+        normals: normals
+            .as_ref()
+            .map(|n| n.base.iter().map(to_f32).collect()),
         texture: mesh.base.texture.clone(),
     };
     // Per-frame targets are read from the frames as the file is written, so
@@ -155,17 +179,32 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
     // targets and a compressed file's quantised ones are computed first.
     let deltas = if basis.components.is_none() && !options.compress {
         let first = base.positions.clone();
-        MorphDeltas::Computed(ComputedDeltas { frames, basis: &basis, first, normals: normals.as_ref() })
+        MorphDeltas::Computed(ComputedDeltas {
+            frames,
+            basis: &basis,
+            first,
+            normals: normals.as_ref(),
+        })
     } else {
         stored_deltas(frames, &basis, normals.as_ref(), progress)?
     };
-    let animation = (basis.targets() > 0).then(|| morph_animation(deltas, frames.len(), &basis, options.fps));
+    let animation =
+        (basis.targets() > 0).then(|| morph_animation(deltas, frames.len(), &basis, options.fps));
     let scene = SceneInfo {
         name: options.name.clone(),
-        timing: Some(Timing { fps: options.fps, frames: frames.len() }),
+        timing: Some(Timing {
+            fps: options.fps,
+            frames: frames.len(),
+        }),
         compress: options.compress,
     };
-    let glb = glb_with(&base, animation.as_ref(), &scene, GlbExtras::default(), progress)?;
+    let glb = glb_with(
+        &base,
+        animation.as_ref(),
+        &scene,
+        GlbExtras::default(),
+        progress,
+    )?;
     let (error_max, error_mean) = if options.compress {
         quantised_error(frames, &base, animation.as_ref())?
     } else {
@@ -175,7 +214,9 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
     // An interruption or a frame that cannot be read while writing is
     // returned as itself, not as a failure to write `path`.
     let mut failed = None;
-    let written = crate::files::write_atomic(path, |w| glb.write(w, animation.as_ref(), progress, &mut failed));
+    let written = crate::files::write_atomic(path, |w| {
+        glb.write(w, animation.as_ref(), progress, &mut failed)
+    });
     if let Some(e) = failed {
         return Err(e);
     }
@@ -192,11 +233,17 @@ pub fn write_dynamic_glb(path: &Path, mesh: &DynamicMesh, options: &GltfExportOp
 
 /// Max and mean distance between the captured frames and the positions a
 /// compressed file decodes to at each frame's keyed weights.
-fn quantised_error(frames: &PositionFrames, base: &TriangleMesh, animation: Option<&MorphAnimation>) -> Result<(Real, Real)> {
+fn quantised_error(
+    frames: &PositionFrames,
+    base: &TriangleMesh,
+    animation: Option<&MorphAnimation>,
+) -> Result<(Real, Real)> {
     let q = Quantizer::new(&base.positions, animation)?;
     let qbase: Vec<[i16; 3]> = base.positions.iter().map(|p| q.position(p)).collect();
     let qdeltas: Vec<Vec<[i16; 3]>> = match animation {
-        Some(a) => (0..a.targets()).map(|k| Ok(a.positions(k)?.iter().map(|v| q.delta(v)).collect())).collect::<Result<_>>()?,
+        Some(a) => (0..a.targets())
+            .map(|k| Ok(a.positions(k)?.iter().map(|v| q.delta(v)).collect()))
+            .collect::<Result<_>>()?,
         None => Vec::new(),
     };
     let (mut max, mut sum, mut n) = (0.0 as Real, 0.0 as Real, 0usize);
@@ -216,7 +263,10 @@ fn quantised_error(frames: &PositionFrames, base: &TriangleMesh, animation: Opti
                 }
             }
             let decoded = q.dequantise(acc);
-            let e = ((decoded[0] - p.x).powi(2) + (decoded[1] - p.y).powi(2) + (decoded[2] - p.z).powi(2)).sqrt() as Real;
+            let e = ((decoded[0] - p.x).powi(2)
+                + (decoded[1] - p.y).powi(2)
+                + (decoded[2] - p.z).powi(2))
+            .sqrt() as Real;
             max = max.max(e);
             sum += e;
             n += 1;
@@ -225,7 +275,6 @@ fn quantised_error(frames: &PositionFrames, base: &TriangleMesh, animation: Opti
     Ok((max, if n > 0 { sum / n as Real } else { 0.0 }))
 }
 
-
 /// Where a mesh far from the origin for its size (a capture in map
 /// coordinates, [`Aabb::too_far_for_f32`](crate::model::mesh::Aabb::too_far_for_f32))
 /// is written from: the centre of its bounds, as f32 (what the node's
@@ -233,7 +282,9 @@ fn quantised_error(frames: &PositionFrames, base: &TriangleMesh, animation: Opti
 /// precision; None for most captures, written as they are.
 fn far_origin(positions: &[Point3]) -> Option<[f32; 3]> {
     let bounds = crate::model::mesh::Aabb::from_points(positions);
-    bounds.too_far_for_f32().then(|| [0, 1, 2].map(|k| ((bounds.min[k] + bounds.max[k]) / 2.0) as f32))
+    bounds
+        .too_far_for_f32()
+        .then(|| [0, 1, 2].map(|k| ((bounds.min[k] + bounds.max[k]) / 2.0) as f32))
 }
 
 /// The quantisation of a compressed file (KHR_mesh_quantization): positions
@@ -260,7 +311,12 @@ const POSITION_BITS: i32 = 14;
 
 impl Quantizer {
     fn new(positions: &[Point3], animation: Option<&MorphAnimation>) -> Result<Self> {
-        let (lo, hi) = bounds_of(&positions.iter().map(|p| [p.x as f32, p.y as f32, p.z as f32]).collect::<Vec<_>>());
+        let (lo, hi) = bounds_of(
+            &positions
+                .iter()
+                .map(|p| [p.x as f32, p.y as f32, p.z as f32])
+                .collect::<Vec<_>>(),
+        );
         let center = [0, 1, 2].map(|k| ((lo[k] as f64 + hi[k] as f64) / 2.0) as f32);
         let mut extent = 0.0f64;
         for p in positions {
@@ -278,7 +334,11 @@ impl Quantizer {
         // Rounded up to f32 (what the node holds) and a hair more, so that
         // no value falls outside [-1, 1] after the f32 rounding.
         let steps = (1i32 << (POSITION_BITS - 1)) as f64 - 1.0;
-        let scale = if extent > 0.0 && extent.is_finite() { (extent * (1.0 + 1e-6) * SHORT / steps) as f32 } else { 1.0 };
+        let scale = if extent > 0.0 && extent.is_finite() {
+            (extent * (1.0 + 1e-6) * SHORT / steps) as f32
+        } else {
+            1.0
+        };
         Ok(Quantizer { center, scale })
     }
 
@@ -329,12 +389,28 @@ fn name_targets_after_frames(basis: &mut MorphBasis, names: &[String]) {
 /// LINEAR for a compact basis, whose weights vary smoothly), and the last
 /// frame's weights again at F / fps: without that key the clip ends where
 /// the last frame begins, and a looping player never shows it.
-fn morph_animation<'a>(deltas: MorphDeltas<'a>, frames: usize, basis: &MorphBasis, fps: f32) -> MorphAnimation<'a> {
+fn morph_animation<'a>(
+    deltas: MorphDeltas<'a>,
+    frames: usize,
+    basis: &MorphBasis,
+    fps: f32,
+) -> MorphAnimation<'a> {
     MorphAnimation {
         deltas,
-        weights: basis.weights.iter().chain(basis.weights.last()).map(|w| w.iter().map(|&x| x as f32).collect()).collect(),
-        times: (0..=frames).map(|f| (f as f64 / fps as f64) as f32).collect(),
-        interpolation: if basis.components.is_some() { Interpolation::Linear } else { Interpolation::Step },
+        weights: basis
+            .weights
+            .iter()
+            .chain(basis.weights.last())
+            .map(|w| w.iter().map(|&x| x as f32).collect())
+            .collect(),
+        times: (0..=frames)
+            .map(|f| (f as f64 / fps as f64) as f32)
+            .collect(),
+        interpolation: if basis.components.is_some() {
+            Interpolation::Linear
+        } else {
+            Interpolation::Step
+        },
         target_names: basis.names.clone(),
     }
 }
@@ -342,22 +418,55 @@ fn morph_animation<'a>(deltas: MorphDeltas<'a>, frames: usize, basis: &MorphBasi
 /// Every target of `basis` computed at once, one pass over the frames:
 /// position targets from the displacements, normal targets from the
 /// normals' change since frame 0.
-fn stored_deltas(frames: &PositionFrames, basis: &MorphBasis, normals: Option<&FrameNormals>, progress: Progress) -> Result<MorphDeltas<'static>> {
+fn stored_deltas(
+    frames: &PositionFrames,
+    basis: &MorphBasis,
+    normals: Option<&FrameNormals>,
+    progress: Progress,
+) -> Result<MorphDeltas<'static>> {
     let first = frames.get(0)?;
     let vertices = first.len();
-    let positions = basis.combine(frames.len(), vertices, |g| position_deltas(frames, &first, g), progress)?;
-    let normals = normals.map(|n| basis.combine(frames.len(), vertices, |g| normal_deltas(n, frames, g), progress)).transpose()?;
+    let positions = basis.combine(
+        frames.len(),
+        vertices,
+        |g| position_deltas(frames, &first, g),
+        progress,
+    )?;
+    let normals = normals
+        .map(|n| {
+            basis.combine(
+                frames.len(),
+                vertices,
+                |g| normal_deltas(n, frames, g),
+                progress,
+            )
+        })
+        .transpose()?;
     Ok(MorphDeltas::Stored { positions, normals })
 }
 
 /// Frame `g`'s moves from frame 0 (`first`), per vertex.
 fn position_deltas(frames: &PositionFrames, first: &[Point3], g: usize) -> Result<Vec<Vector3>> {
-    Ok(frames.get(g)?.iter().zip(first).map(|(p, p0)| p - p0).collect())
+    Ok(frames
+        .get(g)?
+        .iter()
+        .zip(first)
+        .map(|(p, p0)| p - p0)
+        .collect())
 }
 
 /// Frame `g`'s normals less the mesh's own, per vertex.
-fn normal_deltas(normals: &FrameNormals, frames: &PositionFrames, g: usize) -> Result<Vec<Vector3>> {
-    Ok(normals.of(&frames.get(g)?).iter().zip(&normals.base).map(|(a, b)| a - b).collect())
+fn normal_deltas(
+    normals: &FrameNormals,
+    frames: &PositionFrames,
+    g: usize,
+) -> Result<Vec<Vector3>> {
+    Ok(normals
+        .of(&frames.get(g)?)
+        .iter()
+        .zip(&normals.base)
+        .map(|(a, b)| a - b)
+        .collect())
 }
 
 /// Morph targets computed from the frames one at a time, when asked for.
@@ -373,7 +482,10 @@ pub enum MorphDeltas<'a> {
     /// In memory: POSITION deltas, one per vertex, per target (at least one
     /// target); NORMAL deltas per target, relative to the mesh's normals
     /// (which must then be present), as many as `positions` when given.
-    Stored { positions: Vec<Vec<[f32; 3]>>, normals: Option<Vec<Vec<[f32; 3]>>> },
+    Stored {
+        positions: Vec<Vec<[f32; 3]>>,
+        normals: Option<Vec<Vec<[f32; 3]>>>,
+    },
     /// Computed from a dynamic mesh's frames as they are written.
     Computed(ComputedDeltas<'a>),
 }
@@ -424,7 +536,9 @@ impl MorphAnimation<'_> {
         match &self.deltas {
             MorphDeltas::Stored { positions, .. } => Ok(Cow::Borrowed(&positions[k])),
             MorphDeltas::Computed(c) => {
-                let target = c.basis.target(k, c.first.len(), |g| position_deltas(c.frames, &c.first, g))?;
+                let target = c
+                    .basis
+                    .target(k, c.first.len(), |g| position_deltas(c.frames, &c.first, g))?;
                 Ok(Cow::Owned(target))
             }
         }
@@ -433,12 +547,21 @@ impl MorphAnimation<'_> {
     /// Target k's NORMAL deltas (an error when it has none).
     pub fn normals(&self, k: usize) -> Result<Cow<'_, [[f32; 3]]>> {
         match &self.deltas {
-            MorphDeltas::Stored { normals: Some(n), .. } => Ok(Cow::Borrowed(&n[k])),
-            MorphDeltas::Computed(ComputedDeltas { frames, basis, first, normals: Some(n) }) => {
+            MorphDeltas::Stored {
+                normals: Some(n), ..
+            } => Ok(Cow::Borrowed(&n[k])),
+            MorphDeltas::Computed(ComputedDeltas {
+                frames,
+                basis,
+                first,
+                normals: Some(n),
+            }) => {
                 let target = basis.target(k, first.len(), |g| normal_deltas(n, frames, g))?;
                 Ok(Cow::Owned(target))
             }
-            _ => Err(Error::InvalidInput("morph animation: no normal deltas".into())),
+            _ => Err(Error::InvalidInput(
+                "morph animation: no normal deltas".into(),
+            )),
         }
     }
 
@@ -454,7 +577,9 @@ impl MorphAnimation<'_> {
         }
         match &self.deltas {
             MorphDeltas::Stored { positions, normals } => {
-                let sized = |d: &[Vec<[f32; 3]>]| d.len() == targets && d.iter().all(|t| t.len() == vertices);
+                let sized = |d: &[Vec<[f32; 3]>]| {
+                    d.len() == targets && d.iter().all(|t| t.len() == vertices)
+                };
                 if !sized(positions) || normals.as_ref().is_some_and(|n| !sized(n)) {
                     return bad("a target does not have one delta per vertex");
                 }
@@ -465,13 +590,17 @@ impl MorphAnimation<'_> {
                 }
             }
         }
-        if self.weights.is_empty() || self.weights.len() != self.times.len() || self.weights.iter().any(|w| w.len() != targets) {
+        if self.weights.is_empty()
+            || self.weights.len() != self.times.len()
+            || self.weights.iter().any(|w| w.len() != targets)
+        {
             return bad("not one weight per target for every keyframe time");
         }
         if self.target_names.len() != targets {
             return bad("not one name per target");
         }
-        if !self.times.iter().all(|t| t.is_finite()) || self.times.windows(2).any(|w| w[0] >= w[1]) {
+        if !self.times.iter().all(|t| t.is_finite()) || self.times.windows(2).any(|w| w[0] >= w[1])
+        {
             return bad("keyframe times are not finite and increasing");
         }
         Ok(())
@@ -503,7 +632,13 @@ impl Builder {
     /// A view of `raw` (elements of `stride` bytes) stored encoded by
     /// meshoptimizer in the GLB buffer, and described uncompressed in the
     /// fallback buffer as EXT_meshopt_compression says.
-    fn meshopt_view(&mut self, raw: &[u8], stride: usize, mode: MeshoptMode, target: Option<json::buffer::Target>) -> Result<json::Index<json::buffer::View>> {
+    fn meshopt_view(
+        &mut self,
+        raw: &[u8],
+        stride: usize,
+        mode: MeshoptMode,
+        target: Option<json::buffer::Target>,
+    ) -> Result<json::Index<json::buffer::View>> {
         let count = raw.len() / stride;
         let encoded = match mode {
             // Version 0 of the vertex codec: EXT_meshopt_compression's (the
@@ -514,7 +649,10 @@ impl Builder {
                 _ => unreachable!("meshopt attribute stride {stride}"),
             },
             MeshoptMode::Triangles => {
-                let idx: Vec<u32> = raw.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+                let idx: Vec<u32> = raw
+                    .chunks_exact(4)
+                    .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                    .collect();
                 let vertices = idx.iter().max().map_or(0, |&m| m as usize + 1);
                 meshopt::encode_index_buffer(&idx, vertices)
             }
@@ -529,7 +667,8 @@ impl Builder {
             byte_length: USize64::from(raw.len()),
             byte_offset: Some(USize64::from(fallback_offset)),
             // glTF's byteStride is for vertex attributes only.
-            byte_stride: (target == Some(json::buffer::Target::ArrayBuffer)).then_some(json::buffer::Stride(stride)),
+            byte_stride: (target == Some(json::buffer::Target::ArrayBuffer))
+                .then_some(json::buffer::Stride(stride)),
             name: None,
             target: target.map(Valid),
             extensions: None,
@@ -582,18 +721,51 @@ impl Builder {
 
     /// A quantised VEC3 attribute: normalized SHORT padded to 8 bytes, with
     /// exact bounds (in the stored integers) when asked.
-    fn short3(&mut self, data: &[[i16; 3]], with_bounds: bool) -> Result<json::Index<json::Accessor>> {
-        let raw: Vec<u8> = data.iter().flat_map(|v| [v[0], v[1], v[2], 0]).flat_map(i16::to_le_bytes).collect();
-        let view = self.meshopt_view(&raw, 8, MeshoptMode::Attributes, Some(json::buffer::Target::ArrayBuffer))?;
-        let bounds = with_bounds.then(|| bounds_of(&data.iter().map(|v| v.map(|c| c as f32)).collect::<Vec<_>>()));
-        Ok(self.accessor_in(view, data.len(), json::accessor::ComponentType::I16, json::accessor::Type::Vec3, true, bounds))
+    fn short3(
+        &mut self,
+        data: &[[i16; 3]],
+        with_bounds: bool,
+    ) -> Result<json::Index<json::Accessor>> {
+        let raw: Vec<u8> = data
+            .iter()
+            .flat_map(|v| [v[0], v[1], v[2], 0])
+            .flat_map(i16::to_le_bytes)
+            .collect();
+        let view = self.meshopt_view(
+            &raw,
+            8,
+            MeshoptMode::Attributes,
+            Some(json::buffer::Target::ArrayBuffer),
+        )?;
+        let bounds = with_bounds
+            .then(|| bounds_of(&data.iter().map(|v| v.map(|c| c as f32)).collect::<Vec<_>>()));
+        Ok(self.accessor_in(
+            view,
+            data.len(),
+            json::accessor::ComponentType::I16,
+            json::accessor::Type::Vec3,
+            true,
+            bounds,
+        ))
     }
 
     /// A quantised VEC3 direction or direction delta: normalized BYTE padded to 4 bytes.
     fn byte3(&mut self, data: &[[f32; 3]]) -> Result<json::Index<json::Accessor>> {
         let raw: Vec<u8> = data.iter().flat_map(byte4).map(|b| b as u8).collect();
-        let view = self.meshopt_view(&raw, 4, MeshoptMode::Attributes, Some(json::buffer::Target::ArrayBuffer))?;
-        Ok(self.accessor_in(view, data.len(), json::accessor::ComponentType::I8, json::accessor::Type::Vec3, true, None))
+        let view = self.meshopt_view(
+            &raw,
+            4,
+            MeshoptMode::Attributes,
+            Some(json::buffer::Target::ArrayBuffer),
+        )?;
+        Ok(self.accessor_in(
+            view,
+            data.len(),
+            json::accessor::ComponentType::I8,
+            json::accessor::Type::Vec3,
+            true,
+            None,
+        ))
     }
 
     /// Appends `bytes` to the binary chunk at the next 4-byte boundary;
@@ -604,16 +776,35 @@ impl Builder {
 
     /// A VEC3 float accessor of target `target`'s NORMAL (or POSITION)
     /// deltas, `count` of them, whose bytes are computed when the file is written.
-    fn deferred_vec3(&mut self, target: usize, normals: bool, count: usize, bounds: Option<(Vec<f32>, Vec<f32>)>) -> json::Index<json::Accessor> {
+    fn deferred_vec3(
+        &mut self,
+        target: usize,
+        normals: bool,
+        count: usize,
+        bounds: Option<(Vec<f32>, Vec<f32>)>,
+    ) -> json::Index<json::Accessor> {
         let len = 12 * count;
         let offset = self.bin.defer(target, normals, len);
         let view = self.view_at(offset, len, Some(json::buffer::Target::ArrayBuffer));
-        self.accessor_in(view, count, json::accessor::ComponentType::F32, json::accessor::Type::Vec3, false, bounds)
+        self.accessor_in(
+            view,
+            count,
+            json::accessor::ComponentType::F32,
+            json::accessor::Type::Vec3,
+            false,
+            bounds,
+        )
     }
 
     /// A view of data stored as the file is: meshopt-encoded (elements of
     /// `stride` bytes, in `mode`) when compressing, plain otherwise.
-    fn data_view(&mut self, bytes: &[u8], stride: usize, mode: MeshoptMode, target: Option<json::buffer::Target>) -> Result<json::Index<json::buffer::View>> {
+    fn data_view(
+        &mut self,
+        bytes: &[u8],
+        stride: usize,
+        mode: MeshoptMode,
+        target: Option<json::buffer::Target>,
+    ) -> Result<json::Index<json::buffer::View>> {
         if self.compress {
             self.meshopt_view(bytes, stride, mode, target)
         } else {
@@ -621,13 +812,22 @@ impl Builder {
         }
     }
 
-    fn view(&mut self, bytes: &[u8], target: Option<json::buffer::Target>) -> json::Index<json::buffer::View> {
+    fn view(
+        &mut self,
+        bytes: &[u8],
+        target: Option<json::buffer::Target>,
+    ) -> json::Index<json::buffer::View> {
         let offset = self.append(bytes);
         self.view_at(offset, bytes.len(), target)
     }
 
     /// A view of `len` bytes of the binary chunk at `offset`.
-    fn view_at(&mut self, offset: usize, len: usize, target: Option<json::buffer::Target>) -> json::Index<json::buffer::View> {
+    fn view_at(
+        &mut self,
+        offset: usize,
+        len: usize,
+        target: Option<json::buffer::Target>,
+    ) -> json::Index<json::buffer::View> {
         self.root.push(json::buffer::View {
             buffer: json::Index::new(0),
             byte_length: USize64::from(len),
@@ -653,7 +853,12 @@ impl Builder {
         self.accessor_in(view, count, component, type_, false, bounds)
     }
 
-    fn vec3(&mut self, data: &[[f32; 3]], with_bounds: bool, target: Option<json::buffer::Target>) -> json::Index<json::Accessor> {
+    fn vec3(
+        &mut self,
+        data: &[[f32; 3]],
+        with_bounds: bool,
+        target: Option<json::buffer::Target>,
+    ) -> json::Index<json::Accessor> {
         let bounds = with_bounds.then(|| bounds_of(data));
         self.accessor(
             &f32_bytes(data.iter().flatten().copied()),
@@ -667,7 +872,9 @@ impl Builder {
 }
 
 fn chunks<const N: usize>(raw: &[u8]) -> Vec<[u8; N]> {
-    raw.chunks_exact(N).map(|c| c.try_into().expect("chunk of N bytes")).collect()
+    raw.chunks_exact(N)
+        .map(|c| c.try_into().expect("chunk of N bytes"))
+        .collect()
 }
 
 fn f32_bytes(values: impl Iterator<Item = f32>) -> Vec<u8> {
@@ -723,7 +930,11 @@ pub struct SceneInfo {
 
 impl Default for SceneInfo {
     fn default() -> Self {
-        SceneInfo { name: crate::model::DEFAULT_NAME.into(), timing: None, compress: false }
+        SceneInfo {
+            name: crate::model::DEFAULT_NAME.into(),
+            timing: None,
+            compress: false,
+        }
     }
 }
 
@@ -736,7 +947,11 @@ fn raw_json(value: &impl serde::Serialize) -> Result<Box<serde_json::value::RawV
 /// `scene` says. Without an animation the output is a plain static mesh (the
 /// committed fixtures are built this way, with the default `scene`, byte for
 /// byte).
-pub fn glb_bytes(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo) -> Result<Vec<u8>> {
+pub fn glb_bytes(
+    mesh: &TriangleMesh,
+    animation: Option<&MorphAnimation>,
+    scene: &SceneInfo,
+) -> Result<Vec<u8>> {
     glb_bytes_with(mesh, animation, scene, GlbExtras::default())
 }
 
@@ -750,14 +965,21 @@ pub(crate) struct GlbExtras<'a> {
 }
 
 /// [`glb_bytes`] with `extras` added.
-pub(crate) fn glb_bytes_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo, extras: GlbExtras) -> Result<Vec<u8>> {
+pub(crate) fn glb_bytes_with(
+    mesh: &TriangleMesh,
+    animation: Option<&MorphAnimation>,
+    scene: &SceneInfo,
+    extras: GlbExtras,
+) -> Result<Vec<u8>> {
     let glb = glb_with(mesh, animation, scene, extras, Progress::none())?;
     let mut out = Vec::with_capacity(glb.length()? as usize);
     let mut failed = None;
     let written = glb.write(&mut out, animation, Progress::none(), &mut failed);
     match failed {
         Some(e) => Err(e),
-        None => written.map(|()| out).map_err(|e| Error::InvalidInput(e.to_string())),
+        None => written
+            .map(|()| out)
+            .map_err(|e| Error::InvalidInput(e.to_string())),
     }
 }
 
@@ -772,7 +994,11 @@ impl GlbParts {
     /// The file's length in bytes; an error past the 4 GiB the format's
     /// 32-bit length field can say.
     fn length(&self) -> Result<u64> {
-        let length = 12 + 8 + self.json.len().next_multiple_of(4) as u64 + 8 + (self.bin.len as u64).next_multiple_of(4);
+        let length = 12
+            + 8
+            + self.json.len().next_multiple_of(4) as u64
+            + 8
+            + (self.bin.len as u64).next_multiple_of(4);
         if length > u32::MAX as u64 {
             return Err(Error::InvalidInput(format!(
                 "the GLB would take {:.1} GiB, beyond the 4 GiB a GLB can hold: choose a compact basis (--basis K), --compress or another format",
@@ -787,18 +1013,30 @@ impl GlbParts {
     /// `animation`, which must be the one the parts were made with. What
     /// stops it other than the writer's own error (a stop request, a frame
     /// that cannot be read) is put in `failed`.
-    fn write(&self, w: &mut impl std::io::Write, animation: Option<&MorphAnimation>, progress: Progress, failed: &mut Option<Error>) -> std::io::Result<()> {
-        self.write_or_fail(w, animation, progress).map_err(|e| match e {
-            Failure::Write(e) => e,
-            Failure::Other(e) => {
-                let io = std::io::Error::other(e.to_string());
-                *failed = Some(e);
-                io
-            }
-        })
+    fn write(
+        &self,
+        w: &mut impl std::io::Write,
+        animation: Option<&MorphAnimation>,
+        progress: Progress,
+        failed: &mut Option<Error>,
+    ) -> std::io::Result<()> {
+        self.write_or_fail(w, animation, progress)
+            .map_err(|e| match e {
+                Failure::Write(e) => e,
+                Failure::Other(e) => {
+                    let io = std::io::Error::other(e.to_string());
+                    *failed = Some(e);
+                    io
+                }
+            })
     }
 
-    fn write_or_fail(&self, w: &mut impl std::io::Write, animation: Option<&MorphAnimation>, progress: Progress) -> std::result::Result<(), Failure> {
+    fn write_or_fail(
+        &self,
+        w: &mut impl std::io::Write,
+        animation: Option<&MorphAnimation>,
+        progress: Progress,
+    ) -> std::result::Result<(), Failure> {
         let length = self.length()? as u32;
         let io = Failure::Write;
         let json_len = self.json.len().next_multiple_of(4);
@@ -811,23 +1049,42 @@ impl GlbParts {
         head.extend_from_slice(b"JSON");
         w.write_all(&head).map_err(io)?;
         w.write_all(&self.json).map_err(io)?;
-        w.write_all(&vec![b' '; json_len - self.json.len()]).map_err(io)?;
+        w.write_all(&vec![b' '; json_len - self.json.len()])
+            .map_err(io)?;
         w.write_all(&(bin_len as u32).to_le_bytes()).map_err(io)?;
         w.write_all(b"BIN\0").map_err(io)?;
-        let deferred = self.bin.parts.iter().filter(|p| matches!(p, Part::Deferred { .. })).count();
+        let deferred = self
+            .bin
+            .parts
+            .iter()
+            .filter(|p| matches!(p, Part::Deferred { .. }))
+            .count();
         let mut done = 0;
         for part in &self.bin.parts {
             match part {
                 Part::Bytes(bytes) => w.write_all(bytes).map_err(io)?,
-                Part::Deferred { target, normals, len } => {
+                Part::Deferred {
+                    target,
+                    normals,
+                    len,
+                } => {
                     if progress.cancelled() {
                         return Err(Error::Interrupted { saved: None }.into());
                     }
-                    let anim = animation.ok_or_else(|| Error::InvalidInput("morph deltas without their animation".into()))?;
-                    let deltas = if *normals { anim.normals(*target)? } else { anim.positions(*target)? };
+                    let anim = animation.ok_or_else(|| {
+                        Error::InvalidInput("morph deltas without their animation".into())
+                    })?;
+                    let deltas = if *normals {
+                        anim.normals(*target)?
+                    } else {
+                        anim.positions(*target)?
+                    };
                     let bytes = f32_bytes(deltas.iter().flatten().copied());
                     if bytes.len() != *len {
-                        return Err(Error::InvalidInput(format!("morph target {target} changed size while it was written")).into());
+                        return Err(Error::InvalidInput(format!(
+                            "morph target {target} changed size while it was written"
+                        ))
+                        .into());
                     }
                     w.write_all(&bytes).map_err(io)?;
                     done += 1;
@@ -862,7 +1119,11 @@ struct Bin {
 enum Part {
     Bytes(Vec<u8>),
     /// Target `target`'s NORMAL (or POSITION) deltas as f32, `len` bytes.
-    Deferred { target: usize, normals: bool, len: usize },
+    Deferred {
+        target: usize,
+        normals: bool,
+        len: usize,
+    },
 }
 
 impl Bin {
@@ -878,7 +1139,11 @@ impl Bin {
     fn defer(&mut self, target: usize, normals: bool, len: usize) -> usize {
         self.pad();
         let offset = self.len;
-        self.parts.push(Part::Deferred { target, normals, len });
+        self.parts.push(Part::Deferred {
+            target,
+            normals,
+            len,
+        });
         self.len += len;
         offset
     }
@@ -902,44 +1167,113 @@ impl Bin {
 /// The JSON and binary parts of [`glb_bytes_with`]'s file.
 /// Computing the targets' bounds is reported to `progress` (one step a
 /// target) and stops when it asks.
-fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &SceneInfo, extras: GlbExtras, progress: Progress) -> Result<GlbParts> {
+fn glb_with(
+    mesh: &TriangleMesh,
+    animation: Option<&MorphAnimation>,
+    scene: &SceneInfo,
+    extras: GlbExtras,
+    progress: Progress,
+) -> Result<GlbParts> {
     crate::model::check_name(&scene.name)?;
     if let Some(anim) = animation {
         anim.check(mesh)?;
     }
-    if extras.uv1.is_some_and(|uv| uv.len() != mesh.positions.len() || mesh.uvs.is_none()) {
+    if extras
+        .uv1
+        .is_some_and(|uv| uv.len() != mesh.positions.len() || mesh.uvs.is_none())
+    {
         // glTF numbers UV sets from 0, without gaps.
-        return Err(Error::InvalidInput("a second UV set needs a first, and one UV per vertex".into()));
+        return Err(Error::InvalidInput(
+            "a second UV set needs a first, and one UV per vertex".into(),
+        ));
     }
     let timing = scene.timing.as_ref().map(raw_json).transpose()?;
-    let mut b = Builder { root: json::Root::default(), bin: Bin::default(), compress: scene.compress, fallback_len: 0, meshopt: Vec::new() };
+    let mut b = Builder {
+        root: json::Root::default(),
+        bin: Bin::default(),
+        compress: scene.compress,
+        fallback_len: 0,
+        meshopt: Vec::new(),
+    };
     b.root.asset.generator = Some(format!("voltrack {}", env!("CARGO_PKG_VERSION")));
     b.root.asset.extras = extras.asset;
     let array = Some(json::buffer::Target::ArrayBuffer);
-    let quantizer = scene.compress.then(|| Quantizer::new(&mesh.positions, animation)).transpose()?;
-    let origin = if scene.compress { None } else { far_origin(&mesh.positions) };
+    let quantizer = scene
+        .compress
+        .then(|| Quantizer::new(&mesh.positions, animation))
+        .transpose()?;
+    let origin = if scene.compress {
+        None
+    } else {
+        far_origin(&mesh.positions)
+    };
     let at = origin.map_or([0.0; 3], |o| o.map(f64::from));
-    let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| [(p.x - at[0]) as f32, (p.y - at[1]) as f32, (p.z - at[2]) as f32]).collect();
+    let positions: Vec<[f32; 3]> = mesh
+        .positions
+        .iter()
+        .map(|p| {
+            [
+                (p.x - at[0]) as f32,
+                (p.y - at[1]) as f32,
+                (p.z - at[2]) as f32,
+            ]
+        })
+        .collect();
     let mut attributes = BTreeMap::new();
     let position_accessor = match &quantizer {
-        Some(q) => b.short3(&mesh.positions.iter().map(|p| q.position(p)).collect::<Vec<_>>(), true)?,
+        Some(q) => b.short3(
+            &mesh
+                .positions
+                .iter()
+                .map(|p| q.position(p))
+                .collect::<Vec<_>>(),
+            true,
+        )?,
         None => b.vec3(&positions, true, array),
     };
     attributes.insert(Valid(json::mesh::Semantic::Positions), position_accessor);
     if let Some(n) = &mesh.normals {
-        let acc = if scene.compress { b.byte3(n)? } else { b.vec3(n, false, array) };
+        let acc = if scene.compress {
+            b.byte3(n)?
+        } else {
+            b.vec3(n, false, array)
+        };
         attributes.insert(Valid(json::mesh::Semantic::Normals), acc);
     }
     for (set, uv) in [(0, mesh.uvs.as_deref()), (1, extras.uv1)] {
         let Some(uv) = uv else { continue };
         let bytes = f32_bytes(uv.iter().flatten().copied());
         let view = b.data_view(&bytes, 8, MeshoptMode::Attributes, array)?;
-        let acc = b.accessor_in(view, uv.len(), json::accessor::ComponentType::F32, json::accessor::Type::Vec2, false, None);
+        let acc = b.accessor_in(
+            view,
+            uv.len(),
+            json::accessor::ComponentType::F32,
+            json::accessor::Type::Vec2,
+            false,
+            None,
+        );
         attributes.insert(Valid(json::mesh::Semantic::TexCoords(set)), acc);
     }
-    let idx: Vec<u8> = mesh.triangles.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
-    let view = b.data_view(&idx, 4, MeshoptMode::Triangles, Some(json::buffer::Target::ElementArrayBuffer))?;
-    let indices = b.accessor_in(view, mesh.triangles.len() * 3, json::accessor::ComponentType::U32, json::accessor::Type::Scalar, false, None);
+    let idx: Vec<u8> = mesh
+        .triangles
+        .iter()
+        .flatten()
+        .flat_map(|i| i.to_le_bytes())
+        .collect();
+    let view = b.data_view(
+        &idx,
+        4,
+        MeshoptMode::Triangles,
+        Some(json::buffer::Target::ElementArrayBuffer),
+    )?;
+    let indices = b.accessor_in(
+        view,
+        mesh.triangles.len() * 3,
+        json::accessor::ComponentType::U32,
+        json::accessor::Type::Scalar,
+        false,
+        None,
+    );
     let material = match (&mesh.texture, &mesh.uvs) {
         (Some(tex), Some(_)) => Some(texture_material(&mut b, tex)?),
         _ => None,
@@ -970,15 +1304,36 @@ fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &Sce
         for k in 0..anim.targets() {
             let target = match &quantizer {
                 Some(q) => {
-                    let normals = if anim.has_normals() { Some(b.byte3(&anim.normals(k)?)?) } else { None };
-                    let positions = b.short3(&anim.positions(k)?.iter().map(|v| q.delta(v)).collect::<Vec<_>>(), true)?;
-                    json::mesh::MorphTarget { positions: Some(positions), normals, tangents: None }
+                    let normals = if anim.has_normals() {
+                        Some(b.byte3(&anim.normals(k)?)?)
+                    } else {
+                        None
+                    };
+                    let positions = b.short3(
+                        &anim
+                            .positions(k)?
+                            .iter()
+                            .map(|v| q.delta(v))
+                            .collect::<Vec<_>>(),
+                        true,
+                    )?;
+                    json::mesh::MorphTarget {
+                        positions: Some(positions),
+                        normals,
+                        tangents: None,
+                    }
                 }
                 None => {
                     let vertices = mesh.positions.len();
-                    let normals = anim.has_normals().then(|| b.deferred_vec3(k, true, vertices, None));
+                    let normals = anim
+                        .has_normals()
+                        .then(|| b.deferred_vec3(k, true, vertices, None));
                     let positions = b.deferred_vec3(k, false, vertices, Some(bounds[k].clone()));
-                    json::mesh::MorphTarget { positions: Some(positions), normals, tangents: None }
+                    json::mesh::MorphTarget {
+                        positions: Some(positions),
+                        normals,
+                        tangents: None,
+                    }
                 }
             };
             t.push(target);
@@ -1011,15 +1366,28 @@ fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &Sce
         scale: quantizer.map(|q| [q.scale; 3]),
         ..Default::default()
     });
-    let scene_index = b.root.push(json::Scene { extensions: None, extras: timing.clone(), name: None, nodes: vec![node] });
+    let scene_index = b.root.push(json::Scene {
+        extensions: None,
+        extras: timing.clone(),
+        name: None,
+        nodes: vec![node],
+    });
     b.root.scene = Some(scene_index);
     if let Some(anim) = animation {
         add_weight_animation(&mut b, anim, node, &scene.name, timing)?;
     }
     b.bin.pad();
-    b.root.push(json::Buffer { byte_length: USize64::from(b.bin.len), name: None, uri: None, extensions: None, extras: Default::default() });
+    b.root.push(json::Buffer {
+        byte_length: USize64::from(b.bin.len),
+        name: None,
+        uri: None,
+        extensions: None,
+        extras: Default::default(),
+    });
     let mut json_bytes = if scene.compress {
-        let used = ["EXT_meshopt_compression", "KHR_mesh_quantization"].map(String::from).to_vec();
+        let used = ["EXT_meshopt_compression", "KHR_mesh_quantization"]
+            .map(String::from)
+            .to_vec();
         b.root.extensions_used = used.clone();
         b.root.extensions_required = used;
         b.root.push(json::Buffer {
@@ -1030,19 +1398,27 @@ fn glb_with(mesh: &TriangleMesh, animation: Option<&MorphAnimation>, scene: &Sce
             extras: Default::default(),
         });
         // gltf-json has no types for EXT_meshopt_compression: added to the JSON.
-        let mut value = serde_json::to_value(&b.root).map_err(|e| Error::InvalidInput(e.to_string()))?;
+        let mut value =
+            serde_json::to_value(&b.root).map_err(|e| Error::InvalidInput(e.to_string()))?;
         for (view, ext) in b.meshopt.drain(..) {
-            value["bufferViews"][view]["extensions"] = serde_json::json!({ "EXT_meshopt_compression": ext });
+            value["bufferViews"][view]["extensions"] =
+                serde_json::json!({ "EXT_meshopt_compression": ext });
         }
-        value["buffers"][1]["extensions"] = serde_json::json!({ "EXT_meshopt_compression": { "fallback": true } });
+        value["buffers"][1]["extensions"] =
+            serde_json::json!({ "EXT_meshopt_compression": { "fallback": true } });
         serde_json::to_vec(&value).map_err(|e| Error::InvalidInput(e.to_string()))?
     } else {
-        b.root.to_vec().map_err(|e| Error::InvalidInput(e.to_string()))?
+        b.root
+            .to_vec()
+            .map_err(|e| Error::InvalidInput(e.to_string()))?
     };
     while json_bytes.len() % 4 != 0 {
         json_bytes.push(b' ');
     }
-    Ok(GlbParts { json: json_bytes, bin: b.bin })
+    Ok(GlbParts {
+        json: json_bytes,
+        bin: b.bin,
+    })
 }
 
 fn add_weight_animation(
@@ -1066,13 +1442,31 @@ fn add_weight_animation(
     // The weights (F + 1 keys of T each: for per-frame targets a one-hot
     // matrix, the larger part of a small mesh's file) compressed with the
     // vertex data; the few times are not.
-    let view = b.data_view(&f32_bytes(flat.iter().copied()), 4, MeshoptMode::Attributes, None)?;
-    let output = b.accessor_in(view, flat.len(), json::accessor::ComponentType::F32, json::accessor::Type::Scalar, false, None);
+    let view = b.data_view(
+        &f32_bytes(flat.iter().copied()),
+        4,
+        MeshoptMode::Attributes,
+        None,
+    )?;
+    let output = b.accessor_in(
+        view,
+        flat.len(),
+        json::accessor::ComponentType::F32,
+        json::accessor::Type::Scalar,
+        false,
+        None,
+    );
     let interpolation = match anim.interpolation {
         Interpolation::Step => json::animation::Interpolation::Step,
         Interpolation::Linear => json::animation::Interpolation::Linear,
     };
-    let sampler = json::animation::Sampler { extensions: None, extras: Default::default(), input, interpolation: Valid(interpolation), output };
+    let sampler = json::animation::Sampler {
+        extensions: None,
+        extras: Default::default(),
+        input,
+        interpolation: Valid(interpolation),
+        output,
+    };
     let channel = json::animation::Channel {
         sampler: json::Index::new(0),
         target: json::animation::Target {
@@ -1095,7 +1489,10 @@ fn add_weight_animation(
 }
 
 /// Embeds the first frame's texture image as-is (PNG or JPEG) in the GLB.
-fn texture_material(b: &mut Builder, path: &std::path::Path) -> Result<json::Index<json::Material>> {
+fn texture_material(
+    b: &mut Builder,
+    path: &std::path::Path,
+) -> Result<json::Index<json::Material>> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let Some(mime) = crate::model::mesh::image_mime(&bytes) else {
         return Err(Error::parse(path, None, "texture is neither PNG nor JPEG"));
@@ -1109,10 +1506,21 @@ fn texture_material(b: &mut Builder, path: &std::path::Path) -> Result<json::Ind
         extensions: None,
         extras: Default::default(),
     });
-    let texture = b.root.push(json::Texture { name: None, sampler: None, source: image, extensions: None, extras: Default::default() });
+    let texture = b.root.push(json::Texture {
+        name: None,
+        sampler: None,
+        source: image,
+        extensions: None,
+        extras: Default::default(),
+    });
     Ok(b.root.push(json::Material {
         pbr_metallic_roughness: json::material::PbrMetallicRoughness {
-            base_color_texture: Some(json::texture::Info { index: texture, tex_coord: 0, extensions: None, extras: Default::default() }),
+            base_color_texture: Some(json::texture::Info {
+                index: texture,
+                tex_coord: 0,
+                extensions: None,
+                extras: Default::default(),
+            }),
             metallic_factor: json::material::StrengthFactor(0.0),
             ..Default::default()
         },

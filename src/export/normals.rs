@@ -19,8 +19,22 @@ pub(crate) struct FrameNormals<'a> {
 impl<'a> FrameNormals<'a> {
     pub fn new(triangles: &'a [[u32; 3]], frame0: &[Point3]) -> Self {
         let weld = crate::model::mesh::weld_by_position(frame0);
-        let mut n = FrameNormals { triangles, weld, base: Vec::new() };
-        n.base = n.raw(frame0).into_iter().map(|v| if v == Vector3::zeros() { Vector3::z() } else { v }).collect();
+        let mut n = FrameNormals {
+            triangles,
+            weld,
+            base: Vec::new(),
+        };
+        n.base = n
+            .raw(frame0)
+            .into_iter()
+            .map(|v| {
+                if v == Vector3::zeros() {
+                    Vector3::z()
+                } else {
+                    v
+                }
+            })
+            .collect();
         n
     }
 
@@ -34,11 +48,22 @@ impl<'a> FrameNormals<'a> {
                 sum[self.weld[i as usize] as usize] += face;
             }
         }
-        self.weld.iter().map(|&w| sum[w as usize].try_normalize(0.0).unwrap_or_else(Vector3::zeros)).collect()
+        self.weld
+            .iter()
+            .map(|&w| {
+                sum[w as usize]
+                    .try_normalize(0.0)
+                    .unwrap_or_else(Vector3::zeros)
+            })
+            .collect()
     }
 
     /// Normals of a frame, frame 0's where undefined (no change there).
     pub fn of(&self, positions: &[Point3]) -> Vec<Vector3> {
-        self.raw(positions).into_iter().zip(&self.base).map(|(n, b)| if n == Vector3::zeros() { *b } else { n }).collect()
+        self.raw(positions)
+            .into_iter()
+            .zip(&self.base)
+            .map(|(n, b)| if n == Vector3::zeros() { *b } else { n })
+            .collect()
     }
 }

@@ -9,7 +9,11 @@ use std::path::{Path, PathBuf};
 
 /// Writes `positions` with the connectivity (and UVs) of `mesh`: no object
 /// name, no normals (`mesh.normals` is not written).
-pub fn write_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3]) -> std::io::Result<()> {
+pub fn write_obj(
+    out: &mut impl Write,
+    mesh: &TriangleMesh,
+    positions: &[Point3],
+) -> std::io::Result<()> {
     write_object(out, mesh, positions, None, None)
 }
 
@@ -17,11 +21,23 @@ pub fn write_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3]
 /// importer names the object), with one normal per vertex (`vn`, referenced
 /// by the vertex's own index) when `normals` is given, so importers shade it
 /// smooth. The name should pass [`check_name`](crate::model::check_name).
-pub(crate) fn write_named_obj(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3], name: &str, normals: Option<&[Vector3]>) -> std::io::Result<()> {
+pub(crate) fn write_named_obj(
+    out: &mut impl Write,
+    mesh: &TriangleMesh,
+    positions: &[Point3],
+    name: &str,
+    normals: Option<&[Vector3]>,
+) -> std::io::Result<()> {
     write_object(out, mesh, positions, Some(name), normals)
 }
 
-fn write_object(out: &mut impl Write, mesh: &TriangleMesh, positions: &[Point3], name: Option<&str>, normals: Option<&[Vector3]>) -> std::io::Result<()> {
+fn write_object(
+    out: &mut impl Write,
+    mesh: &TriangleMesh,
+    positions: &[Point3],
+    name: Option<&str>,
+    normals: Option<&[Vector3]>,
+) -> std::io::Result<()> {
     writeln!(out, "# voltrack {}", env!("CARGO_PKG_VERSION"))?;
     if let Some(name) = name {
         writeln!(out, "o {name}")?;
@@ -61,7 +77,9 @@ pub fn write_obj_sequence(dir: &Path, mesh: &DynamicMesh, name: &str) -> Result<
     crate::model::check_name(name)?;
     super::basis::check_frames(mesh)?;
     let width = (mesh.frames.len() - 1).to_string().len().max(4);
-    let names: Vec<String> = (0..mesh.frames.len()).map(|f| format!("frame_{f:0width$}.obj")).collect();
+    let names: Vec<String> = (0..mesh.frames.len())
+        .map(|f| format!("frame_{f:0width$}.obj"))
+        .collect();
     // Each frame's own normals (welded at UV seams, as the GLB's), so every
     // file is smooth-shaded where it is imported.
     let normals = super::normals::FrameNormals::new(&mesh.base.triangles, &mesh.frames.get(0)?);
@@ -73,7 +91,13 @@ pub fn write_obj_sequence(dir: &Path, mesh: &DynamicMesh, name: &str) -> Result<
             // Each frame is read as its file is written: one in memory at a time.
             let fill = move |w: &mut _| {
                 let positions = mesh.frames.get(f).map_err(std::io::Error::other)?;
-                write_named_obj(w, &mesh.base, &positions, name, Some(&normals.of(&positions)))
+                write_named_obj(
+                    w,
+                    &mesh.base,
+                    &positions,
+                    name,
+                    Some(&normals.of(&positions)),
+                )
             };
             (file, Box::new(fill) as crate::files::Fill)
         })

@@ -4,9 +4,9 @@
 use super::basis::check_frames;
 use super::normals::FrameNormals;
 use super::obj::write_named_obj;
-use crate::files::write_atomic_all;
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
+use crate::files::write_atomic_all;
 use crate::model::mesh::TriangleMesh;
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -35,28 +35,45 @@ pub const MESH_MARK: &str = "# Mesh Cache";
 /// others keep the mesh's order.
 pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32, name: &str) -> Result<()> {
     if !(fps.is_finite() && fps > 0.0) {
-        return Err(Error::InvalidParameter(format!("the frame rate must be positive, not {fps}")));
+        return Err(Error::InvalidParameter(format!(
+            "the frame rate must be positive, not {fps}"
+        )));
     }
     crate::model::check_name(name)?;
     check_frames(mesh)?;
     let obj_path = path.with_extension("obj");
     if obj_path == path {
-        return Err(Error::write(path, "the point cache would overwrite the OBJ of its mesh; name it .pc2"));
+        return Err(Error::write(
+            path,
+            "the point cache would overwrite the OBJ of its mesh; name it .pc2",
+        ));
     }
     let base = &mesh.base;
     let mut used = vec![false; base.positions.len()];
-    base.triangles.iter().flatten().for_each(|&v| used[v as usize] = true);
+    base.triangles
+        .iter()
+        .flatten()
+        .for_each(|&v| used[v as usize] = true);
     let kept: Vec<usize> = (0..used.len()).filter(|&v| used[v]).collect();
     let mut index = vec![0u32; used.len()];
-    kept.iter().enumerate().for_each(|(new, &old)| index[old] = new as u32);
+    kept.iter()
+        .enumerate()
+        .for_each(|(new, &old)| index[old] = new as u32);
     let too_many = |what| Error::InvalidInput(format!("too many {what} for a PC2 file"));
     let points = i32::try_from(kept.len()).map_err(|_| too_many("vertices"))?;
     let samples = i32::try_from(mesh.frames.len()).map_err(|_| too_many("frames"))?;
     let first = mesh.frames.get(0)?;
     let obj = TriangleMesh {
         positions: kept.iter().map(|&v| first[v]).collect(),
-        triangles: base.triangles.iter().map(|t| t.map(|v| index[v as usize])).collect(),
-        uvs: base.uvs.as_ref().map(|uv| kept.iter().map(|&v| uv[v]).collect()),
+        triangles: base
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| index[v as usize]))
+            .collect(),
+        uvs: base
+            .uvs
+            .as_ref()
+            .map(|uv| kept.iter().map(|&v| uv[v]).collect()),
         ..Default::default()
     };
     let all_normals = FrameNormals::new(&base.triangles, &first).base;
@@ -84,5 +101,8 @@ pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32, name: &str) -> Resul
         write_named_obj(w, &obj, &obj.positions, name, Some(&normals))
     };
     // Both or neither: a cache without its mesh is of no use.
-    write_atomic_all(vec![(path, Box::new(write_cache)), (&obj_path, Box::new(write_mesh))])
+    write_atomic_all(vec![
+        (path, Box::new(write_cache)),
+        (&obj_path, Box::new(write_mesh)),
+    ])
 }

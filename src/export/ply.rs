@@ -10,7 +10,11 @@ pub enum PlyEncoding {
     BinaryBigEndian,
 }
 
-pub fn write_ply(out: &mut impl Write, mesh: &TriangleMesh, encoding: PlyEncoding) -> std::io::Result<()> {
+pub fn write_ply(
+    out: &mut impl Write,
+    mesh: &TriangleMesh,
+    encoding: PlyEncoding,
+) -> std::io::Result<()> {
     let format = match encoding {
         PlyEncoding::Ascii => "ascii",
         PlyEncoding::BinaryLittleEndian => "binary_little_endian",

@@ -12,9 +12,9 @@ use super::basis::check_frames;
 use super::exr::PointImage;
 use super::gltf::{glb_bytes_with, GlbExtras, SceneInfo, Timing};
 use super::normals::FrameNormals;
-use crate::files::write_atomic_all;
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
+use crate::files::write_atomic_all;
 use crate::math::{Point3, Real};
 use crate::model::mesh::TriangleMesh;
 use std::io::Write as _;
@@ -62,17 +62,35 @@ pub struct VatOptions {
 
 impl Default for VatOptions {
     fn default() -> Self {
-        VatOptions { fps: 30.0, name: crate::model::DEFAULT_NAME.into(), max_width: 8192, max_height: 16384, power_of_two: false }
+        VatOptions {
+            fps: 30.0,
+            name: crate::model::DEFAULT_NAME.into(),
+            max_width: 8192,
+            max_height: 16384,
+            power_of_two: false,
+        }
     }
 }
 
 impl VatOptions {
     /// Checks the options before any work is done.
     pub fn validate(&self) -> Result<()> {
-        crate::params::check("the frame rate", self.fps as Real, crate::params::Span::closed(1e-3, 1e5))?;
+        crate::params::check(
+            "the frame rate",
+            self.fps as Real,
+            crate::params::Span::closed(1e-3, 1e5),
+        )?;
         crate::model::check_name(&self.name)?;
-        crate::params::check_count("the texture's largest width", self.max_width, 1..=MAX_TEXTURE_SIDE)?;
-        crate::params::check_count("the texture's largest height", self.max_height, 1..=MAX_TEXTURE_SIDE)?;
+        crate::params::check_count(
+            "the texture's largest width",
+            self.max_width,
+            1..=MAX_TEXTURE_SIDE,
+        )?;
+        crate::params::check_count(
+            "the texture's largest height",
+            self.max_height,
+            1..=MAX_TEXTURE_SIDE,
+        )?;
         Ok(())
     }
 
@@ -95,7 +113,9 @@ impl VatOptions {
     pub fn layout(&self, vertices: usize, frames: usize) -> Result<VatLayout> {
         self.validate()?;
         if vertices == 0 || frames == 0 {
-            return Err(Error::InvalidInput(format!("a vertex-animation texture of {vertices} vertices and {frames} frames is empty")));
+            return Err(Error::InvalidInput(format!(
+                "a vertex-animation texture of {vertices} vertices and {frames} frames is empty"
+            )));
         }
         let width = if self.power_of_two {
             let widest = 1usize << self.max_width.ilog2();
@@ -105,9 +125,17 @@ impl VatOptions {
         };
         let rows_per_frame = vertices.div_ceil(width);
         let rows = frames.saturating_mul(rows_per_frame);
-        let height = if self.power_of_two { rows.checked_next_power_of_two().unwrap_or(usize::MAX) } else { rows };
+        let height = if self.power_of_two {
+            rows.checked_next_power_of_two().unwrap_or(usize::MAX)
+        } else {
+            rows
+        };
         if height > self.max_height {
-            let padded = if self.power_of_two && height != rows { format!(", {height} as a power of two") } else { String::new() };
+            let padded = if self.power_of_two && height != rows {
+                format!(", {height} as a power of two")
+            } else {
+                String::new()
+            };
             return Err(Error::InvalidParameter(format!(
                 "{vertices} vertices in rows of {width} take {rows_per_frame} rows per frame, {rows} rows for {frames} frames{padded}: \
                  more than the largest vertex-animation texture height allowed, {}; allow wider rows (--vat-max-width) or a higher \
@@ -115,7 +143,13 @@ impl VatOptions {
                 self.max_height
             )));
         }
-        Ok(VatLayout { vertices, frames, width, height, rows_per_frame })
+        Ok(VatLayout {
+            vertices,
+            frames,
+            width,
+            height,
+            rows_per_frame,
+        })
     }
 }
 
@@ -141,7 +175,10 @@ impl VatLayout {
 
     /// The vertex and frame a texel holds, if any.
     pub fn vertex_at(&self, column: usize, row: usize) -> Option<(usize, usize)> {
-        let (f, v) = (row / self.rows_per_frame, (row % self.rows_per_frame) * self.width + column);
+        let (f, v) = (
+            row / self.rows_per_frame,
+            (row % self.rows_per_frame) * self.width + column,
+        );
         (column < self.width && f < self.frames && v < self.vertices).then_some((v, f))
     }
 
@@ -149,7 +186,10 @@ impl VatLayout {
     /// at the image's top-left corner, as glTF's UVs.
     pub fn uv(&self, v: usize) -> [f32; 2] {
         let (column, row) = self.texel(v, 0);
-        [((column as f64 + 0.5) / self.width as f64) as f32, ((row as f64 + 0.5) / self.height as f64) as f32]
+        [
+            ((column as f64 + 0.5) / self.width as f64) as f32,
+            ((row as f64 + 0.5) / self.height as f64) as f32,
+        ]
     }
 
     /// How far UV v moves from one frame to the next.
@@ -213,10 +253,18 @@ pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Resul
     let sidecar = path.with_extension("json");
     let mesh_path = path.with_extension("glb");
     if sidecar == path || mesh_path == path {
-        return Err(Error::write(path, "the texture would overwrite its JSON sidecar or its mesh; name it .exr"));
+        return Err(Error::write(
+            path,
+            "the texture would overwrite its JSON sidecar or its mesh; name it .exr",
+        ));
     }
     let layout = options.layout(mesh.base.positions.len(), mesh.frames.len())?;
-    let file_name = |p: &Path| p.file_name().unwrap_or_default().to_string_lossy().into_owned();
+    let file_name = |p: &Path| {
+        p.file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned()
+    };
     let bounds = mesh.frames.bounds()?;
     let info = VatInfo {
         software: concat!("voltrack ", env!("CARGO_PKG_VERSION")).into(),
@@ -244,14 +292,24 @@ pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Resul
         bounds_max: [bounds.max.x, bounds.max.y, bounds.max.z],
     };
     let mut attrs = serde_json::Map::new();
-    attrs.insert("vat".into(), serde_json::to_value(&info).map_err(|e| Error::write(&sidecar, e))?);
+    attrs.insert(
+        "vat".into(),
+        serde_json::to_value(&info).map_err(|e| Error::write(&sidecar, e))?,
+    );
     let glb = mesh_bytes(mesh, &layout, options, &info.texture, &file_name(&sidecar))?;
     let text = serde_json::to_string_pretty(&info).map_err(|e| Error::write(&sidecar, e))?;
     // The texture is encoded into its file as the rows are asked for, frame
     // after frame, each read once: no frame but the current one is held.
-    let current = Mutex::new(Frame { index: usize::MAX, positions: Vec::new(), failed: None });
+    let current = Mutex::new(Frame {
+        index: usize::MAX,
+        positions: Vec::new(),
+        failed: None,
+    });
     let pixel = |x: usize, y: usize| match layout.vertex_at(x, y) {
-        Some((v, f)) => current.lock().unwrap_or_else(|e| e.into_inner()).position(mesh, f, v),
+        Some((v, f)) => current
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .position(mesh, f, v),
         None => Point3::origin(),
     };
     let mut texture_bytes = 0;
@@ -261,9 +319,20 @@ pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Resul
         (
             path,
             Box::new(|w: &mut _| {
-                let image = PointImage { path, name: "vertex animation", width: layout.width, height: layout.height, pixel, meta: attrs };
+                let image = PointImage {
+                    path,
+                    name: "vertex animation",
+                    width: layout.width,
+                    height: layout.height,
+                    pixel,
+                    meta: attrs,
+                };
                 let streamed = image.stream(w);
-                let unread = current.lock().unwrap_or_else(|e| e.into_inner()).failed.take();
+                let unread = current
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .failed
+                    .take();
                 let outcome = match unread {
                     Some(e) => Err(e),
                     None => streamed.map(|n| texture_bytes = n),
@@ -283,7 +352,10 @@ pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Resul
         return Err(e);
     }
     written?;
-    Ok(VatReport { layout, bytes: [texture_bytes, glb.len() as u64, text.len() as u64] })
+    Ok(VatReport {
+        layout,
+        bytes: [texture_bytes, glb.len() as u64, text.len() as u64],
+    })
 }
 
 /// The frame whose texels are being written, read when its first is asked for.
@@ -308,14 +380,23 @@ impl Frame {
             }
             self.index = f;
         }
-        self.positions.get(v).copied().unwrap_or_else(Point3::origin)
+        self.positions
+            .get(v)
+            .copied()
+            .unwrap_or_else(Point3::origin)
     }
 }
 
 /// The static GLB beside the texture: frame 0 with its normals, UVs and
 /// texture, TEXCOORD_1 addressing the texels, and [`MESH_MARK`] with the
 /// companion files' names in the asset's `extras`.
-fn mesh_bytes(mesh: &DynamicMesh, layout: &VatLayout, options: &VatOptions, texture: &str, sidecar: &str) -> Result<Vec<u8>> {
+fn mesh_bytes(
+    mesh: &DynamicMesh,
+    layout: &VatLayout,
+    options: &VatOptions,
+    texture: &str,
+    sidecar: &str,
+) -> Result<Vec<u8>> {
     let frame0 = mesh.frames.get(0)?;
     let normals = FrameNormals::new(&mesh.base.triangles, &frame0).base;
     let uv1: Vec<[f32; 2]> = (0..layout.vertices).map(|v| layout.uv(v)).collect();
@@ -325,13 +406,38 @@ fn mesh_bytes(mesh: &DynamicMesh, layout: &VatLayout, options: &VatOptions, text
     let base = TriangleMesh {
         positions: frame0.into_owned(),
         triangles: mesh.base.triangles.clone(),
-        normals: Some(normals.iter().map(|n| [n.x as f32, n.y as f32, n.z as f32]).collect()),
+        normals: Some(
+            normals
+                .iter()
+                .map(|n| [n.x as f32, n.y as f32, n.z as f32])
+                .collect(),
+        ),
         texture: mesh.base.uvs.as_ref().and(mesh.base.texture.clone()),
         uvs: Some(uvs),
     };
     // Written by hand, not through serde_json, so its text is MESH_MARK's.
-    let asset = format!("{{{MESH_MARK},\"texture\":{},\"sidecar\":{}}}", serde_json::Value::from(texture), serde_json::Value::from(sidecar));
-    let asset = serde_json::value::RawValue::from_string(asset).map_err(|e| Error::InvalidInput(e.to_string()))?;
-    let scene = SceneInfo { name: options.name.clone(), timing: Some(Timing { fps: options.fps, frames: layout.frames }), compress: false };
-    glb_bytes_with(&base, None, &scene, GlbExtras { uv1: Some(&uv1), asset: Some(asset) })
+    let asset = format!(
+        "{{{MESH_MARK},\"texture\":{},\"sidecar\":{}}}",
+        serde_json::Value::from(texture),
+        serde_json::Value::from(sidecar)
+    );
+    let asset = serde_json::value::RawValue::from_string(asset)
+        .map_err(|e| Error::InvalidInput(e.to_string()))?;
+    let scene = SceneInfo {
+        name: options.name.clone(),
+        timing: Some(Timing {
+            fps: options.fps,
+            frames: layout.frames,
+        }),
+        compress: false,
+    };
+    glb_bytes_with(
+        &base,
+        None,
+        &scene,
+        GlbExtras {
+            uv1: Some(&uv1),
+            asset: Some(asset),
+        },
+    )
 }

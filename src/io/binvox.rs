@@ -17,14 +17,20 @@ pub fn read_binvox(path: &Path, bytes: &[u8]) -> Result<(GridSpec, Occupancy)> {
             .position(|&b| b == b'\n')
             .map(|e| *pos + e)
             .ok_or_else(|| Error::parse(path, None, "the header does not end with 'data'"))?;
-        let text = String::from_utf8_lossy(&bytes[*pos..end]).trim().to_string();
+        let text = String::from_utf8_lossy(&bytes[*pos..end])
+            .trim()
+            .to_string();
         *pos = end + 1;
         line_no += 1;
         Ok((line_no, text))
     };
     let (_, magic) = next_line(&mut pos)?;
     if !magic.starts_with("#binvox") {
-        return Err(Error::parse(path, Some(1), "not a binvox file (no '#binvox' line)"));
+        return Err(Error::parse(
+            path,
+            Some(1),
+            "not a binvox file (no '#binvox' line)",
+        ));
     }
     let (mut dims, mut translate, mut scale) = (None, None, None);
     loop {
@@ -33,7 +39,11 @@ pub fn read_binvox(path: &Path, bytes: &[u8]) -> Result<(GridSpec, Occupancy)> {
         let nums = |k: usize| -> Result<Vec<f64>> {
             let v: Vec<f64> = words[1..].iter().filter_map(|w| w.parse().ok()).collect();
             if v.len() != k || words.len() != k + 1 || !v.iter().all(|x| x.is_finite()) {
-                return Err(Error::parse(path, Some(n), format!("'{}' needs {k} numbers", words[0])));
+                return Err(Error::parse(
+                    path,
+                    Some(n),
+                    format!("'{}' needs {k} numbers", words[0]),
+                ));
             }
             Ok(v)
         };
@@ -41,7 +51,11 @@ pub fn read_binvox(path: &Path, bytes: &[u8]) -> Result<(GridSpec, Occupancy)> {
             Some("dim") => {
                 let d = nums(3)?;
                 if d.iter().any(|&x| x < 1.0 || x > 4096.0 || x.fract() != 0.0) {
-                    return Err(Error::parse(path, Some(n), "dimensions must be whole numbers in 1..=4096"));
+                    return Err(Error::parse(
+                        path,
+                        Some(n),
+                        "dimensions must be whole numbers in 1..=4096",
+                    ));
                 }
                 // "dim depth height width": x, z, y sizes.
                 dims = Some([d[0] as usize, d[2] as usize, d[1] as usize]);
@@ -49,7 +63,13 @@ pub fn read_binvox(path: &Path, bytes: &[u8]) -> Result<(GridSpec, Occupancy)> {
             Some("translate") => translate = Some(nums(3)?),
             Some("scale") => scale = Some(nums(1)?[0]),
             Some("data") => break,
-            Some(_) | None => return Err(Error::parse(path, Some(n), format!("unexpected header line '{line}'"))),
+            Some(_) | None => {
+                return Err(Error::parse(
+                    path,
+                    Some(n),
+                    format!("unexpected header line '{line}'"),
+                ))
+            }
         }
     }
     let dims = dims.ok_or_else(|| Error::parse(path, None, "no 'dim' line"))?;
@@ -59,7 +79,11 @@ pub fn read_binvox(path: &Path, bytes: &[u8]) -> Result<(GridSpec, Occupancy)> {
         return Err(Error::parse(path, None, "scale must be positive"));
     }
     let longest = *dims.iter().max().unwrap();
-    let grid = GridSpec { origin: Point3::new(t[0], t[1], t[2]), voxel_size: scale / longest as Real, dims };
+    let grid = GridSpec {
+        origin: Point3::new(t[0], t[1], t[2]),
+        voxel_size: scale / longest as Real,
+        dims,
+    };
     let total = grid.len();
     if total as u64 > u32::MAX as u64 {
         return Err(Error::parse(path, None, "grid too large"));
@@ -82,11 +106,19 @@ pub fn read_binvox(path: &Path, bytes: &[u8]) -> Result<(GridSpec, Occupancy)> {
             break;
         }
         let [value, count] = pair else {
-            return Err(Error::parse(path, None, "run-length data ends in the middle of a pair"));
+            return Err(Error::parse(
+                path,
+                None,
+                "run-length data ends in the middle of a pair",
+            ));
         };
         let count = *count as usize;
         if count == 0 || file_index + count > total {
-            return Err(Error::parse(path, None, format!("bad run of {count} at voxel {file_index} of {total}")));
+            return Err(Error::parse(
+                path,
+                None,
+                format!("bad run of {count} at voxel {file_index} of {total}"),
+            ));
         }
         if *value != 0 {
             for f in file_index..file_index + count {
@@ -99,9 +131,14 @@ pub fn read_binvox(path: &Path, bytes: &[u8]) -> Result<(GridSpec, Occupancy)> {
         file_index += count;
     }
     if file_index < total {
-        return Err(Error::parse(path, None, format!("data covers {file_index} of {total} voxels")));
+        return Err(Error::parse(
+            path,
+            None,
+            format!("data covers {file_index} of {total} voxels"),
+        ));
     }
-    let indices = (0..total as u32).filter(|&i| occupied[i as usize]).collect();
+    let indices = (0..total as u32)
+        .filter(|&i| occupied[i as usize])
+        .collect();
     Ok((grid, Occupancy { indices }))
 }
-

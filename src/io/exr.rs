@@ -20,7 +20,12 @@ pub fn read_trajectories_exr(path: &Path) -> Result<(Trajectories, TrajectoryMet
         .required("G")
         .required("B")
         .collect_pixels(
-            |size: Vec2<usize>, _| (size.width(), vec![Point3::origin(); size.width() * size.height()]),
+            |size: Vec2<usize>, _| {
+                (
+                    size.width(),
+                    vec![Point3::origin(); size.width() * size.height()],
+                )
+            },
             |(w, px): &mut (usize, Vec<Point3>), p: Vec2<usize>, (r, g, b): (f32, f32, f32)| {
                 px[p.y() * *w + p.x()] = Point3::new(r as f64, g as f64, b as f64);
             },
@@ -32,19 +37,37 @@ pub fn read_trajectories_exr(path: &Path) -> Result<(Trajectories, TrajectoryMet
     let layer = &image.layer_data;
     let (width, height) = (layer.size.width(), layer.size.height());
     let (_, positions) = &layer.channel_data.pixels;
-    if let Some(i) = positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-        return Err(Error::parse(path, None, format!("center {} of frame {} is not finite", i % width, i / width)));
+    if let Some(i) = positions
+        .iter()
+        .position(|p| !p.iter().all(|c| c.is_finite()))
+    {
+        return Err(Error::parse(
+            path,
+            None,
+            format!("center {} of frame {} is not finite", i % width, i / width),
+        ));
     }
-    let traj = Trajectories { frames: height, centers: width, positions: positions.clone() };
+    let traj = Trajectories {
+        frames: height,
+        centers: width,
+        positions: positions.clone(),
+    };
     let mut metadata = TrajectoryMetadata::default();
     let meta = layer.attributes.other.iter().chain(&image.attributes.other);
     for (name, value) in meta {
         if name.to_string() != METADATA_ATTRIBUTE {
             continue;
         }
-        let AttributeValue::Text(text) = value else { continue };
-        metadata = serde_json::from_str(&text.to_string())
-            .map_err(|e| Error::parse(path, None, format!("the voltrack attribute is not voltrack's metadata: {e}")))?;
+        let AttributeValue::Text(text) = value else {
+            continue;
+        };
+        metadata = serde_json::from_str(&text.to_string()).map_err(|e| {
+            Error::parse(
+                path,
+                None,
+                format!("the voltrack attribute is not voltrack's metadata: {e}"),
+            )
+        })?;
     }
     Ok((traj, metadata))
 }

@@ -19,23 +19,43 @@ const MAX_BUFFER_BYTES: u64 = 1 << 32;
 pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     let invalid = |e: &dyn std::fmt::Display| {
         let text = e.to_string();
-        Error::parse(path, None, if text.starts_with("invalid glTF") { text } else { format!("invalid glTF: {text}") })
+        Error::parse(
+            path,
+            None,
+            if text.starts_with("invalid glTF") {
+                text
+            } else {
+                format!("invalid glTF: {text}")
+            },
+        )
     };
     // serde_json refuses a byte-order mark before the JSON; the crate reads
     // the binary header after one too.
     let bytes = super::strip_bom(bytes);
     // A .glb that does not start with the binary header would be taken for
     // JSON and fail as "expected value at line 1 column 1".
-    let named_glb = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb"));
+    let named_glb = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb"));
     if named_glb && !bytes.starts_with(b"glTF") {
-        let head: String = bytes.iter().take(4).map(|&b| if b.is_ascii_graphic() { b as char } else { '.' }).collect();
-        return Err(Error::parse(path, None, format!("not a binary glTF: a .glb starts with 'glTF', this file with '{head}'")));
+        let head: String = bytes
+            .iter()
+            .take(4)
+            .map(|&b| if b.is_ascii_graphic() { b as char } else { '.' })
+            .collect();
+        return Err(Error::parse(
+            path,
+            None,
+            format!("not a binary glTF: a .glb starts with 'glTF', this file with '{head}'"),
+        ));
     }
     // The crate subtracts the header's size from the declared length unchecked.
     if let Some(declared) = bytes.strip_prefix(b"glTF").and_then(|b| b.get(4..8)) {
         let declared = u32::from_le_bytes(declared.try_into().expect("4 bytes"));
         if declared < 12 {
-            return Err(invalid(&format!("the GLB header declares a length of {declared} bytes, less than the header itself")));
+            return Err(invalid(&format!(
+                "the GLB header declares a length of {declared} bytes, less than the header itself"
+            )));
         }
     }
     let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| invalid(&e))?;
@@ -60,16 +80,25 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for buffer in doc.buffers() {
         let data = match buffer.source() {
-            gltf::buffer::Source::Bin => blob
-                .clone()
-                .ok_or_else(|| Error::parse(path, None, "the GLB has no binary chunk but a buffer refers to it"))?,
+            gltf::buffer::Source::Bin => blob.clone().ok_or_else(|| {
+                Error::parse(
+                    path,
+                    None,
+                    "the GLB has no binary chunk but a buffer refers to it",
+                )
+            })?,
             gltf::buffer::Source::Uri(uri) => load_uri(path, uri)?,
         };
         if data.len() < buffer.length() {
             return Err(Error::parse(
                 path,
                 None,
-                format!("buffer {} holds {} bytes, declares {}", buffer.index(), data.len(), buffer.length()),
+                format!(
+                    "buffer {} holds {} bytes, declares {}",
+                    buffer.index(),
+                    data.len(),
+                    buffer.length()
+                ),
             ));
         }
         buffers.push(data);
@@ -82,7 +111,8 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     // needs: the bound on what instancing one mesh in many nodes may make.
     let budget = (bytes.len() + buffers.iter().map(Vec::len).sum::<usize>()).max(1 << 20);
     let mut mesh = TriangleMesh::default();
-    let mut stack: Vec<(gltf::Node, Matrix4<Real>)> = scene.nodes().map(|n| (n, Matrix4::identity())).collect();
+    let mut stack: Vec<(gltf::Node, Matrix4<Real>)> =
+        scene.nodes().map(|n| (n, Matrix4::identity())).collect();
     // glTF node hierarchies are trees: a node reached twice has two parents
     // or is in a cycle, and would be drawn again (2^k times down k layers).
     let mut seen = vec![false; doc.nodes().len()];
@@ -100,8 +130,15 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         let world = parent * local;
         if let Some(m) = node.mesh() {
             for prim in m.primitives() {
-                if !matches!(prim.mode(), Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
-                    log::warn!("{}: skipping a primitive of mode {:?}", path.display(), prim.mode());
+                if !matches!(
+                    prim.mode(),
+                    Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+                ) {
+                    log::warn!(
+                        "{}: skipping a primitive of mode {:?}",
+                        path.display(),
+                        prim.mode()
+                    );
                     skipped.push(prim.mode());
                     continue;
                 }
@@ -136,64 +173,132 @@ fn append_primitive(
     mesh: &mut TriangleMesh,
 ) -> Result<()> {
     use gltf::accessor::{DataType, Dimensions};
-    let position = prim.get(&gltf::Semantic::Positions).ok_or_else(|| Error::mesh(path, "a triangle primitive has no POSITION"))?;
+    let position = prim
+        .get(&gltf::Semantic::Positions)
+        .ok_or_else(|| Error::mesh(path, "a triangle primitive has no POSITION"))?;
     check_accessor(path, &position, "POSITION", buffers)?;
     if (position.dimensions(), position.data_type()) != (Dimensions::Vec3, DataType::F32) {
-        return Err(accessor_error(path, &position, "POSITION", "not VEC3 of float"));
+        return Err(accessor_error(
+            path,
+            &position,
+            "POSITION",
+            "not VEC3 of float",
+        ));
     }
     if let Some(indices) = prim.indices() {
         check_accessor(path, &indices, "indices", buffers)?;
-        if indices.dimensions() != Dimensions::Scalar || !matches!(indices.data_type(), DataType::U8 | DataType::U16 | DataType::U32) {
-            return Err(accessor_error(path, &indices, "indices", "not SCALAR of unsigned byte, short or int"));
+        if indices.dimensions() != Dimensions::Scalar
+            || !matches!(
+                indices.data_type(),
+                DataType::U8 | DataType::U16 | DataType::U32
+            )
+        {
+            return Err(accessor_error(
+                path,
+                &indices,
+                "indices",
+                "not SCALAR of unsigned byte, short or int",
+            ));
         }
     }
     let reader = prim.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
     let base = mesh.positions.len() as u32;
     let positions: Vec<[f32; 3]> = reader
         .read_positions()
-        .ok_or_else(|| accessor_error(path, &position, "POSITION", "its data lies outside its buffer"))?
+        .ok_or_else(|| {
+            accessor_error(
+                path,
+                &position,
+                "POSITION",
+                "its data lies outside its buffer",
+            )
+        })?
         .collect();
     if mesh.positions.len() + positions.len() > u32::MAX as usize {
         return Err(Error::mesh(path, "more than 2^32 vertices"));
     }
     let n = positions.len() as u32;
-    mesh.positions.extend(positions.iter().map(|p| {
-        world.transform_point(&Point3::new(p[0] as Real, p[1] as Real, p[2] as Real))
-    }));
+    mesh.positions.extend(
+        positions
+            .iter()
+            .map(|p| world.transform_point(&Point3::new(p[0] as Real, p[1] as Real, p[2] as Real))),
+    );
     let indices: Vec<u32> = match (prim.indices(), reader.read_indices()) {
         (None, _) => (0..n).collect(),
         (Some(_), Some(ix)) => ix.into_u32().collect(),
-        (Some(a), None) => return Err(accessor_error(path, &a, "indices", "its data lies outside its buffer")),
+        (Some(a), None) => {
+            return Err(accessor_error(
+                path,
+                &a,
+                "indices",
+                "its data lies outside its buffer",
+            ))
+        }
     };
     if let Some(&bad) = indices.iter().find(|&&i| i >= n) {
-        return Err(Error::mesh(path, format!("index {bad} is beyond the primitive's {n} vertices")));
+        return Err(Error::mesh(
+            path,
+            format!("index {bad} is beyond the primitive's {n} vertices"),
+        ));
     }
     let triangles: Vec<[u32; 3]> = match prim.mode() {
         // Every other triangle of a strip is wound the other way round, so
         // its corners are swapped back; triangles that repeat a corner only
         // join strips together and are left out.
         Mode::TriangleStrip => (2..indices.len())
-            .map(|k| if k % 2 == 0 { [indices[k - 2], indices[k - 1], indices[k]] } else { [indices[k - 1], indices[k - 2], indices[k]] })
+            .map(|k| {
+                if k % 2 == 0 {
+                    [indices[k - 2], indices[k - 1], indices[k]]
+                } else {
+                    [indices[k - 1], indices[k - 2], indices[k]]
+                }
+            })
             .filter(|[a, b, c]| a != b && b != c && a != c)
             .collect(),
-        Mode::TriangleFan => (2..indices.len()).map(|k| [indices[0], indices[k - 1], indices[k]]).collect(),
-        _ => indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+        Mode::TriangleFan => (2..indices.len())
+            .map(|k| [indices[0], indices[k - 1], indices[k]])
+            .collect(),
+        _ => indices
+            .chunks_exact(3)
+            .map(|t| [t[0], t[1], t[2]])
+            .collect(),
     };
     // A mirroring node transform flips the winding.
     let flip = world.fixed_view::<3, 3>(0, 0).determinant() < 0.0;
-    mesh.triangles.extend(triangles.into_iter().map(|[a, b, c]| if flip { [a + base, c + base, b + base] } else { [a + base, b + base, c + base] }));
+    mesh.triangles
+        .extend(triangles.into_iter().map(|[a, b, c]| {
+            if flip {
+                [a + base, c + base, b + base]
+            } else {
+                [a + base, b + base, c + base]
+            }
+        }));
     Ok(())
 }
 
-fn accessor_error(path: &Path, accessor: &gltf::Accessor, what: &str, problem: impl std::fmt::Display) -> Error {
-    Error::parse(path, None, format!("accessor {} ({what}): {problem}", accessor.index()))
+fn accessor_error(
+    path: &Path,
+    accessor: &gltf::Accessor,
+    what: &str,
+    problem: impl std::fmt::Display,
+) -> Error {
+    Error::parse(
+        path,
+        None,
+        format!("accessor {} ({what}): {problem}", accessor.index()),
+    )
 }
 
 /// What the gltf crate's accessor iterators assume: 1 ..= 2^32 - 1 elements,
 /// strides no smaller than an element, and every element inside its buffer
 /// view and every view inside its buffer; a sparse accessor without a view
 /// (zeros, then the sparse values) no longer than the buffers are in bytes.
-fn check_accessor(path: &Path, accessor: &gltf::Accessor, what: &str, buffers: &[Vec<u8>]) -> Result<()> {
+fn check_accessor(
+    path: &Path,
+    accessor: &gltf::Accessor,
+    what: &str,
+    buffers: &[Vec<u8>],
+) -> Result<()> {
     let bad = |problem: String| accessor_error(path, accessor, what, problem);
     let count = accessor.count();
     if count == 0 || count > u32::MAX as usize {
@@ -202,15 +307,32 @@ fn check_accessor(path: &Path, accessor: &gltf::Accessor, what: &str, buffers: &
     let fits = |view: gltf::buffer::View, offset: usize, count: usize, size: usize| -> Result<()> {
         let stride = view.stride().unwrap_or(size);
         if stride < size {
-            return Err(bad(format!("buffer view {} has a stride of {stride} bytes, less than an element's {size}", view.index())));
+            return Err(bad(format!(
+                "buffer view {} has a stride of {stride} bytes, less than an element's {size}",
+                view.index()
+            )));
         }
-        let end = stride.checked_mul(count - 1).and_then(|b| b.checked_add(size)).and_then(|b| b.checked_add(offset));
+        let end = stride
+            .checked_mul(count - 1)
+            .and_then(|b| b.checked_add(size))
+            .and_then(|b| b.checked_add(offset));
         if !end.is_some_and(|end| end <= view.length()) {
-            return Err(bad(format!("{count} elements from byte {offset} do not fit in buffer view {} of {} bytes", view.index(), view.length())));
+            return Err(bad(format!(
+                "{count} elements from byte {offset} do not fit in buffer view {} of {} bytes",
+                view.index(),
+                view.length()
+            )));
         }
         let held = buffers.get(view.buffer().index()).map_or(0, Vec::len);
-        if !view.offset().checked_add(view.length()).is_some_and(|end| end <= held) {
-            return Err(bad(format!("buffer view {} reaches beyond its buffer of {held} bytes", view.index())));
+        if !view
+            .offset()
+            .checked_add(view.length())
+            .is_some_and(|end| end <= held)
+        {
+            return Err(bad(format!(
+                "buffer view {} reaches beyond its buffer of {held} bytes",
+                view.index()
+            )));
         }
         Ok(())
     };
@@ -222,11 +344,23 @@ fn check_accessor(path: &Path, accessor: &gltf::Accessor, what: &str, buffers: &
         if n == 0 || n > count {
             return Err(bad(format!("{n} sparse elements of {count}")));
         }
-        fits(sparse.indices().view(), sparse.indices().offset(), n, sparse.indices().index_type().size())?;
-        fits(sparse.values().view(), sparse.values().offset(), n, accessor.size())?;
+        fits(
+            sparse.indices().view(),
+            sparse.indices().offset(),
+            n,
+            sparse.indices().index_type().size(),
+        )?;
+        fits(
+            sparse.values().view(),
+            sparse.values().offset(),
+            n,
+            accessor.size(),
+        )?;
         let held: usize = buffers.iter().map(Vec::len).sum();
         if accessor.view().is_none() && count > held {
-            return Err(bad(format!("{count} elements, more than the {held} bytes of the file's buffers")));
+            return Err(bad(format!(
+                "{count} elements, more than the {held} bytes of the file's buffers"
+            )));
         }
     }
     Ok(())
@@ -237,13 +371,18 @@ fn load_uri(path: &Path, uri: &str) -> Result<Vec<u8>> {
         let (_, payload) = rest
             .split_once(";base64,")
             .ok_or_else(|| Error::parse(path, None, "only base64 data URIs are supported"))?;
-        return decode_base64(payload).ok_or_else(|| Error::parse(path, None, "invalid base64 in a data URI"));
+        return decode_base64(payload)
+            .ok_or_else(|| Error::parse(path, None, "invalid base64 in a data URI"));
     }
     let file = path.parent().unwrap_or(Path::new("")).join(uri);
     // Only a regular file: a URI naming /dev/zero or a FIFO must not hang.
     let meta = std::fs::metadata(&file).map_err(|e| Error::io(&file, e))?;
     if !meta.is_file() || meta.len() > MAX_BUFFER_BYTES {
-        return Err(Error::parse(path, None, format!("buffer URI {uri}: not a regular file of at most {MAX_BUFFER_BYTES} bytes")));
+        return Err(Error::parse(
+            path,
+            None,
+            format!("buffer URI {uri}: not a regular file of at most {MAX_BUFFER_BYTES} bytes"),
+        ));
     }
     std::fs::read(&file).map_err(|e| Error::io(&file, e))
 }

@@ -36,18 +36,27 @@ pub(crate) fn lone_cr_to_lf(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
     if !(0..bytes.len()).any(lone) {
         return std::borrow::Cow::Borrowed(bytes);
     }
-    std::borrow::Cow::Owned((0..bytes.len()).map(|i| if lone(i) { b'\n' } else { bytes[i] }).collect())
+    std::borrow::Cow::Owned(
+        (0..bytes.len())
+            .map(|i| if lone(i) { b'\n' } else { bytes[i] })
+            .collect(),
+    )
 }
 
 fn extension(path: &Path) -> String {
-    path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
+    path.extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase()
 }
 
 /// Reads one frame, choosing the format by extension.
 pub fn read_frame(path: &Path) -> Result<Frame> {
     let ext = extension(path);
     if !is_supported(path) {
-        return Err(Error::UnsupportedFormat { path: path.to_path_buf() });
+        return Err(Error::UnsupportedFormat {
+            path: path.to_path_buf(),
+        });
     }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if bytes.is_empty() {
@@ -61,7 +70,13 @@ pub fn read_frame(path: &Path) -> Result<Frame> {
         "gltf" | "glb" => read_gltf(path, &bytes).map(Frame::Mesh),
         _ => read_binvox(path, &bytes).map(|(g, o)| Frame::Voxels(g, o)),
     });
-    parsed.unwrap_or_else(|_| Err(Error::parse(path, None, "the reader failed on malformed content")))
+    parsed.unwrap_or_else(|_| {
+        Err(Error::parse(
+            path,
+            None,
+            "the reader failed on malformed content",
+        ))
+    })
 }
 
 /// Reads one mesh frame; a voxel file is an error here.
@@ -99,7 +114,11 @@ impl Stamp {
         let inode = std::os::unix::fs::MetadataExt::ino(&meta);
         #[cfg(not(unix))]
         let inode = 0;
-        Ok(Stamp { len: meta.len(), modified: meta.modified().ok(), inode })
+        Ok(Stamp {
+            len: meta.len(),
+            modified: meta.modified().ok(),
+            inode,
+        })
     }
 }
 

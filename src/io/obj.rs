@@ -3,10 +3,10 @@
 //! face line is checked first (naming its line), and on any other failure the
 //! text is scanned once more for the offending line.
 
+use super::triangulate_polygon;
 use crate::error::{Error, Result};
 use crate::math::Point3;
 use crate::model::mesh::TriangleMesh;
-use super::triangulate_polygon;
 use std::path::Path;
 
 /// Material libraries larger than this are skipped (they are optional).
@@ -46,17 +46,25 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     // capture gives the same result in every format) unless f32 would blur
     // a capture far from the origin.
     let mut bounds = crate::model::mesh::Aabb::empty();
-    models.iter().flat_map(|m| m.mesh.positions.chunks_exact(3)).for_each(|p| bounds.grow(&Point3::new(p[0], p[1], p[2])));
+    models
+        .iter()
+        .flat_map(|m| m.mesh.positions.chunks_exact(3))
+        .for_each(|p| bounds.grow(&Point3::new(p[0], p[1], p[2])));
     let far = bounds.too_far_for_f32();
     let kept = |c: f64| if far { c } else { c as f32 as f64 };
     for model in &models {
         let m = &model.mesh;
         let base = mesh.positions.len() as u32;
-        mesh.positions.extend(m.positions.chunks_exact(3).map(|p| Point3::new(kept(p[0]), kept(p[1]), kept(p[2]))));
+        mesh.positions.extend(
+            m.positions
+                .chunks_exact(3)
+                .map(|p| Point3::new(kept(p[0]), kept(p[1]), kept(p[2]))),
+        );
         let indices: Vec<u32> = m.indices.iter().map(|&i| i + base).collect();
         if m.face_arities.is_empty() {
             // All triangles.
-            mesh.triangles.extend(indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]));
+            mesh.triangles
+                .extend(indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]));
         } else {
             let mut at = 0;
             for &arity in &m.face_arities {
@@ -67,10 +75,18 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         }
         if with_uvs {
             // OBJ's v points up, glTF's down.
-            uvs.extend(m.texcoords.chunks_exact(2).map(|t| [t[0] as f32, 1.0 - t[1] as f32]));
+            uvs.extend(
+                m.texcoords
+                    .chunks_exact(2)
+                    .map(|t| [t[0] as f32, 1.0 - t[1] as f32]),
+            );
         }
         if with_normals {
-            normals.extend(m.normals.chunks_exact(3).map(|n| [n[0] as f32, n[1] as f32, n[2] as f32]));
+            normals.extend(
+                m.normals
+                    .chunks_exact(3)
+                    .map(|n| [n[0] as f32, n[1] as f32, n[2] as f32]),
+            );
         }
     }
     if with_uvs && uvs.len() == mesh.positions.len() {
@@ -81,10 +97,17 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     }
     if let Ok(materials) = materials {
         let first_used = models.iter().find_map(|m| m.mesh.material_id).unwrap_or(0);
-        if let Some(tex) = materials.get(first_used).and_then(|m| m.diffuse_texture.as_ref()) {
+        if let Some(tex) = materials
+            .get(first_used)
+            .and_then(|m| m.diffuse_texture.as_ref())
+        {
             let tex = path.parent().unwrap_or(Path::new("")).join(tex.trim());
             if !tex.is_file() {
-                log::warn!("{}: texture {} not found; exporting without it", path.display(), tex.display());
+                log::warn!(
+                    "{}: texture {} not found; exporting without it",
+                    path.display(),
+                    tex.display()
+                );
             } else if crate::model::mesh::embeddable_image(&tex).is_none() {
                 // glTF carries PNG and JPEG; finding out at export would come
                 // after the whole conversion.
@@ -115,7 +138,11 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
 ///   or a line and drop it, and checks some indices only with arithmetic that
 ///   can overflow.
 fn check_lines(path: &Path, bytes: &[u8]) -> Result<()> {
-    const KINDS: [(&str, &str); 3] = [("vertex", "vertices"), ("texture coordinate", "texture coordinates"), ("normal", "normals")];
+    const KINDS: [(&str, &str); 3] = [
+        ("vertex", "vertices"),
+        ("texture coordinate", "texture coordinates"),
+        ("normal", "normals"),
+    ];
     let mut counts = [0u64; 3]; // v, vt, vn so far
     for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
         let err = |m: String| Error::parse(path, Some(n + 1), m);
@@ -125,7 +152,10 @@ fn check_lines(path: &Path, bytes: &[u8]) -> Result<()> {
             Some("v") => {
                 counts[0] += 1;
                 let values: Vec<&str> = words.collect();
-                let number = |t: &str| t.parse::<f64>().map_err(|_| err(format!("vertex {}: '{t}' is not a number", counts[0])));
+                let number = |t: &str| {
+                    t.parse::<f64>()
+                        .map_err(|_| err(format!("vertex {}: '{t}' is not a number", counts[0])))
+                };
                 match values.len() {
                     0..=2 => return Err(err("a vertex ('v') needs three numbers".into())),
                     3 | 4 | 6 => {}
@@ -136,13 +166,22 @@ fn check_lines(path: &Path, bytes: &[u8]) -> Result<()> {
                         )))
                     }
                 }
-                let numbers = values.iter().map(|t| number(t)).collect::<Result<Vec<f64>>>()?;
+                let numbers = values
+                    .iter()
+                    .map(|t| number(t))
+                    .collect::<Result<Vec<f64>>>()?;
                 let w = if values.len() == 4 { numbers[3] } else { 1.0 };
                 if !w.is_finite() || w == 0.0 {
-                    return Err(err(format!("vertex {}: its weight w = {w} is not a finite number other than 0", counts[0])));
+                    return Err(err(format!(
+                        "vertex {}: its weight w = {w} is not a finite number other than 0",
+                        counts[0]
+                    )));
                 }
                 if numbers[..3].iter().any(|&c| !(c / w).is_finite()) {
-                    return Err(err(format!("vertex {} has a non-finite coordinate", counts[0])));
+                    return Err(err(format!(
+                        "vertex {} has a non-finite coordinate",
+                        counts[0]
+                    )));
                 }
             }
             Some("vt") => counts[1] += 1,
@@ -157,18 +196,26 @@ fn check_lines(path: &Path, bytes: &[u8]) -> Result<()> {
                     _ => (1, "a point ('p')"),
                 };
                 if corners.len() < least {
-                    return Err(err(format!("{what} needs at least {least} corners, this one has {}", corners.len())));
+                    return Err(err(format!(
+                        "{what} needs at least {least} corners, this one has {}",
+                        corners.len()
+                    )));
                 }
                 for corner in corners {
                     let fields: Vec<&str> = corner.split('/').collect();
                     if fields.len() > 3 || fields[0].is_empty() {
-                        return Err(err(format!("'{corner}' is not a face corner (v, v/vt, v//vn or v/vt/vn)")));
+                        return Err(err(format!(
+                            "'{corner}' is not a face corner (v, v/vt, v//vn or v/vt/vn)"
+                        )));
                     }
                     for (slot, field) in fields.iter().enumerate().filter(|(_, f)| !f.is_empty()) {
                         let ((one, many), count) = (KINDS[slot], counts[slot]);
                         let index = field.parse::<i64>().map_err(|e| {
                             let why = match e.kind() {
-                                std::num::IntErrorKind::PosOverflow | std::num::IntErrorKind::NegOverflow => "is too large for an index",
+                                std::num::IntErrorKind::PosOverflow
+                                | std::num::IntErrorKind::NegOverflow => {
+                                    "is too large for an index"
+                                }
                                 _ => "is not a whole number",
                             };
                             err(format!("{one} index '{field}' {why}"))
@@ -182,7 +229,9 @@ fn check_lines(path: &Path, bytes: &[u8]) -> Result<()> {
                             _ => None,
                         };
                         if let Some(problem) = problem {
-                            return Err(err(format!("{one} index {index} in '{corner}': {problem}")));
+                            return Err(err(format!(
+                                "{one} index {index} in '{corner}': {problem}"
+                            )));
                         }
                     }
                 }
@@ -200,13 +249,18 @@ fn describe(err: tobj::LoadError) -> String {
         E::PositionParseError => "a vertex ('v') needs three numbers".into(),
         E::NormalParseError => "a normal ('vn') needs three numbers".into(),
         E::TexcoordParseError => "a texture coordinate ('vt') needs two numbers".into(),
-        E::FaceColorOutOfBounds => "vertex colors ('v x y z r g b') are given for some vertices but not for all".into(),
+        E::FaceColorOutOfBounds => {
+            "vertex colors ('v x y z r g b') are given for some vertices but not for all".into()
+        }
         other => other.to_string(),
     }
 }
 
 fn lines(bytes: &[u8]) -> impl Iterator<Item = (usize, &str)> {
-    bytes.split(|&b| b == b'\n').enumerate().map(|(i, l)| (i + 1, std::str::from_utf8(l).unwrap_or("\u{fffd}")))
+    bytes
+        .split(|&b| b == b'\n')
+        .enumerate()
+        .map(|(i, l)| (i + 1, std::str::from_utf8(l).unwrap_or("\u{fffd}")))
 }
 
 fn first_word(line: &str) -> &str {

@@ -2,10 +2,10 @@
 //! than a crate: the maintained ones report neither line nor element on bad
 //! input, and we only need positions, optional normals/UVs and faces.
 
+use super::triangulate_polygon;
 use crate::error::{Error, Result};
 use crate::math::Point3;
 use crate::model::mesh::TriangleMesh;
-use super::triangulate_polygon;
 use std::path::Path;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -74,7 +74,11 @@ impl Element {
     fn min_bytes(&self, encoding: Encoding) -> usize {
         match encoding {
             Encoding::Ascii => 2,
-            _ => self.properties.iter().map(|p| p.list.unwrap_or(p.scalar).size()).sum(),
+            _ => self
+                .properties
+                .iter()
+                .map(|p| p.list.unwrap_or(p.scalar).size())
+                .sum(),
         }
     }
 }
@@ -117,7 +121,11 @@ impl<'a> Body<'a> {
                 let line = self.line + rest[..at].iter().filter(|&&b| b == b'\n').count() + 1;
                 Error::parse(self.path, Some(line), msg)
             }
-            _ => Error::parse(self.path, None, format!("{} more bytes: {msg} (at byte {})", rest.len(), self.pos)),
+            _ => Error::parse(
+                self.path,
+                None,
+                format!("{} more bytes: {msg} (at byte {})", rest.len(), self.pos),
+            ),
         })
     }
 
@@ -130,8 +138,12 @@ impl<'a> Body<'a> {
             if self.pos >= self.bytes.len() {
                 return Err(self.err("file ends before all elements were read"));
             }
-            let end = self.bytes[self.pos..].iter().position(|&b| b == b'\n').map_or(self.bytes.len(), |e| self.pos + e);
-            let text = std::str::from_utf8(&self.bytes[self.pos..end]).map_err(|_| self.err("not UTF-8 text"))?;
+            let end = self.bytes[self.pos..]
+                .iter()
+                .position(|&b| b == b'\n')
+                .map_or(self.bytes.len(), |e| self.pos + e);
+            let text = std::str::from_utf8(&self.bytes[self.pos..end])
+                .map_err(|_| self.err("not UTF-8 text"))?;
             self.pos = end + 1;
             self.line += 1;
             let tokens: Vec<&'a str> = text.split_whitespace().collect();
@@ -168,7 +180,10 @@ impl<'a> Body<'a> {
             }
             enc => {
                 let n = s.size();
-                let b = self.bytes.get(self.pos..self.pos + n).ok_or_else(|| self.err("file ends before all elements were read"))?;
+                let b = self
+                    .bytes
+                    .get(self.pos..self.pos + n)
+                    .ok_or_else(|| self.err("file ends before all elements were read"))?;
                 let mut a = [0u8; 8];
                 a[..n].copy_from_slice(b);
                 if enc == Encoding::BinaryBe {
@@ -196,7 +211,11 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     // they are (the conversion keeps offsets).
     let text = super::lone_cr_to_lf(raw);
     let (encoding, elements, body_start, header_lines) = read_header(path, &text)?;
-    let bytes = if encoding == Encoding::Ascii { &*text } else { raw };
+    let bytes = if encoding == Encoding::Ascii {
+        &*text
+    } else {
+        raw
+    };
     let mut body = Body {
         path,
         bytes,
@@ -221,7 +240,10 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         // A count the rest of the file cannot hold fails here, before a
         // loop of billions.
         let left = bytes.len().saturating_sub(body.pos);
-        let fits = el.count.checked_mul(el.min_bytes(encoding)).is_some_and(|need| need <= left + 1);
+        let fits = el
+            .count
+            .checked_mul(el.min_bytes(encoding))
+            .is_some_and(|need| need <= left + 1);
         if !fits {
             return Err(Error::parse(
                 path,
@@ -236,21 +258,38 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         }
         let is_vertex = el.name == "vertex";
         let is_face = el.name == "face";
-        let find = |names: &[&str]| el.properties.iter().position(|p| names.contains(&p.name.as_str()) && p.list.is_none());
+        let find = |names: &[&str]| {
+            el.properties
+                .iter()
+                .position(|p| names.contains(&p.name.as_str()) && p.list.is_none())
+        };
         let xyz = [find(&["x"]), find(&["y"]), find(&["z"])];
         let nxyz = [find(&["nx"]), find(&["ny"]), find(&["nz"])];
-        let uv = [find(&["u", "s", "texture_u", "texture_s"]), find(&["v", "t", "texture_v", "texture_t"])];
+        let uv = [
+            find(&["u", "s", "texture_u", "texture_s"]),
+            find(&["v", "t", "texture_v", "texture_t"]),
+        ];
         if is_vertex {
             if xyz.iter().any(Option::is_none) {
-                return Err(Error::parse(path, Some(el.line), "the vertex element lacks one of the properties x, y, z"));
+                return Err(Error::parse(
+                    path,
+                    Some(el.line),
+                    "the vertex element lacks one of the properties x, y, z",
+                ));
             }
             saw_vertices = true;
         }
         let has_normals = nxyz.iter().all(Option::is_some);
         let has_uvs = uv.iter().all(Option::is_some);
-        let face_list = el.properties.iter().position(|p| p.list.is_some() && (p.name == "vertex_indices" || p.name == "vertex_index"));
+        let face_list = el.properties.iter().position(|p| {
+            p.list.is_some() && (p.name == "vertex_indices" || p.name == "vertex_index")
+        });
         if is_face && face_list.is_none() {
-            return Err(Error::parse(path, Some(el.line), "the face element has no vertex_indices list"));
+            return Err(Error::parse(
+                path,
+                Some(el.line),
+                "the face element has no vertex_indices list",
+            ));
         }
         let mut values = vec![0.0f64; el.properties.len()];
         let mut corners: Vec<u32> = Vec::new();
@@ -261,7 +300,10 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
                 if let Some(count_type) = p.list {
                     let n = body.value(count_type)?;
                     if !(0.0..=1e6).contains(&n) || n.fract() != 0.0 {
-                        return Err(body.err(format!("list length {n} of property '{}' is not a valid count", p.name)));
+                        return Err(body.err(format!(
+                            "list length {n} of property '{}' is not a valid count",
+                            p.name
+                        )));
                     }
                     let keep = is_face && Some(k) == face_list;
                     corners.clear();
@@ -272,13 +314,17 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
                                 return Err(body.err(format!("vertex index {v} is not valid")));
                             }
                             if let Some(n) = vertices.filter(|&n| v >= n as f64) {
-                                return Err(body.err(format!("vertex index {v} is beyond the {n} vertices")));
+                                return Err(body
+                                    .err(format!("vertex index {v} is beyond the {n} vertices")));
                             }
                             corners.push(v as u32);
                         }
                     }
                     if keep && corners.len() < 3 {
-                        return Err(body.err(format!("a face needs at least 3 corners, this one has {}", corners.len())));
+                        return Err(body.err(format!(
+                            "a face needs at least 3 corners, this one has {}",
+                            corners.len()
+                        )));
                     }
                     if keep && vertices.is_some() {
                         triangulate_polygon(&mesh.positions, &corners, &mut mesh.triangles);
@@ -302,7 +348,10 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
                 }
                 if has_uvs {
                     // PLY follows OBJ: v up.
-                    uvs.push([values[uv[0].unwrap()] as f32, 1.0 - values[uv[1].unwrap()] as f32]);
+                    uvs.push([
+                        values[uv[0].unwrap()] as f32,
+                        1.0 - values[uv[1].unwrap()] as f32,
+                    ]);
                 }
             }
         }
@@ -317,7 +366,11 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     let n = mesh.positions.len();
     for corners in &polygons {
         if let Some(&bad) = corners.iter().find(|&&c| c as usize >= n) {
-            return Err(Error::parse(path, None, format!("a face's vertex index {bad} is beyond the {n} vertices")));
+            return Err(Error::parse(
+                path,
+                None,
+                format!("a face's vertex index {bad} is beyond the {n} vertices"),
+            ));
         }
         triangulate_polygon(&mesh.positions, corners, &mut mesh.triangles);
     }
@@ -338,11 +391,20 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<(Encoding, Vec<Element>, usi
     let mut encoding = None;
     let mut elements: Vec<Element> = Vec::new();
     loop {
-        let end = bytes[pos..].iter().position(|&b| b == b'\n').map(|e| pos + e).ok_or_else(|| {
-            Error::parse(path, Some(line_no + 1), "the header does not end with 'end_header'")
-        })?;
+        let end = bytes[pos..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map(|e| pos + e)
+            .ok_or_else(|| {
+                Error::parse(
+                    path,
+                    Some(line_no + 1),
+                    "the header does not end with 'end_header'",
+                )
+            })?;
         line_no += 1;
-        let line = std::str::from_utf8(&bytes[pos..end]).map_err(|_| Error::parse(path, Some(line_no), "header is not text"))?;
+        let line = std::str::from_utf8(&bytes[pos..end])
+            .map_err(|_| Error::parse(path, Some(line_no), "header is not text"))?;
         pos = end + 1;
         let err = |m: String| Error::parse(path, Some(line_no), m);
         let words: Vec<&str> = line.split_whitespace().collect();
@@ -364,27 +426,48 @@ fn read_header(path: &Path, bytes: &[u8]) -> Result<(Encoding, Vec<Element>, usi
                 })
             }
             ["element", name, count] => {
-                let count = count.parse::<usize>().map_err(|_| err(format!("element count '{count}' is not a number")))?;
-                elements.push(Element { name: name.to_string(), count, properties: Vec::new(), line: line_no });
+                let count = count
+                    .parse::<usize>()
+                    .map_err(|_| err(format!("element count '{count}' is not a number")))?;
+                elements.push(Element {
+                    name: name.to_string(),
+                    count,
+                    properties: Vec::new(),
+                    line: line_no,
+                });
             }
             ["property", "list", ct, it, name] => {
-                let el = elements.last_mut().ok_or_else(|| err("property before any element".into()))?;
+                let el = elements
+                    .last_mut()
+                    .ok_or_else(|| err("property before any element".into()))?;
                 let ct = Scalar::parse(ct).filter(|s| !matches!(s, Scalar::F32 | Scalar::F64));
                 let it = Scalar::parse(it);
                 match (ct, it) {
-                    (Some(ct), Some(it)) => el.properties.push(Property { name: name.to_string(), list: Some(ct), scalar: it }),
+                    (Some(ct), Some(it)) => el.properties.push(Property {
+                        name: name.to_string(),
+                        list: Some(ct),
+                        scalar: it,
+                    }),
                     _ => return Err(err("unknown type in list property".into())),
                 }
             }
             ["property", ty, name] => {
-                let el = elements.last_mut().ok_or_else(|| err("property before any element".into()))?;
-                let scalar = Scalar::parse(ty).ok_or_else(|| err(format!("unknown property type '{ty}'")))?;
-                el.properties.push(Property { name: name.to_string(), list: None, scalar });
+                let el = elements
+                    .last_mut()
+                    .ok_or_else(|| err("property before any element".into()))?;
+                let scalar = Scalar::parse(ty)
+                    .ok_or_else(|| err(format!("unknown property type '{ty}'")))?;
+                el.properties.push(Property {
+                    name: name.to_string(),
+                    list: None,
+                    scalar,
+                });
             }
             ["end_header"] => break,
             _ => return Err(err(format!("unexpected header line '{}'", line.trim()))),
         }
     }
-    let encoding = encoding.ok_or_else(|| Error::parse(path, None, "the header has no 'format' line"))?;
+    let encoding =
+        encoding.ok_or_else(|| Error::parse(path, None, "the header has no 'format' line"))?;
     Ok((encoding, elements, pos, line_no))
 }

@@ -22,13 +22,18 @@ pub(crate) fn triangulate_polygon(positions: &[Point3], corners: &[u32], out: &m
     if n < 3 {
         return;
     }
-    let fan = |out: &mut Vec<[u32; 3]>| out.extend((1..n - 1).map(|i| [corners[0], corners[i], corners[i + 1]]));
+    let fan = |out: &mut Vec<[u32; 3]>| {
+        out.extend((1..n - 1).map(|i| [corners[0], corners[i], corners[i + 1]]))
+    };
     if n == 3 {
         return fan(out);
     }
     // About the first corner, so coordinates far from the origin keep their digits.
     let origin = positions[corners[0] as usize];
-    let local: Vec<Vector3> = corners.iter().map(|&c| positions[c as usize] - origin).collect();
+    let local: Vec<Vector3> = corners
+        .iter()
+        .map(|&c| positions[c as usize] - origin)
+        .collect();
     let normal: Vector3 = (0..n).map(|i| local[i].cross(&local[(i + 1) % n])).sum();
     let size = local.iter().map(|p| p.norm()).fold(0.0, Real::max);
     // Twice the area against the size squared: zero up to rounding.
@@ -49,7 +54,9 @@ pub(crate) fn triangulate_polygon(positions: &[Point3], corners: &[u32], out: &m
     let u = (axis - z * z.dot(&axis)).normalize();
     let v = z.cross(&u);
     let q: Vec<[Real; 2]> = local.iter().map(|p| [p.dot(&u), p.dot(&v)]).collect();
-    clip_ears(&q, tiny, &mut |[a, b, c]| out.push([corners[a], corners[b], corners[c]]));
+    clip_ears(&q, tiny, &mut |[a, b, c]| {
+        out.push([corners[a], corners[b], corners[c]])
+    });
 }
 
 /// Twice the signed area of the triangle a b c: positive if counter-clockwise.
@@ -65,7 +72,8 @@ fn clip_ears(q: &[[Real; 2]], tiny: Real, emit: &mut impl FnMut([usize; 3])) {
     let mut next: Vec<usize> = (1..=n).map(|i| i % n).collect();
     let mut prev: Vec<usize> = (0..n).map(|i| (i + n - 1) % n).collect();
     let mut alive = vec![true; n];
-    let convex_at = |prev: &[usize], next: &[usize], i: usize| orient(q[prev[i]], q[i], q[next[i]]) > tiny;
+    let convex_at =
+        |prev: &[usize], next: &[usize], i: usize| orient(q[prev[i]], q[i], q[next[i]]) > tiny;
     let mut convex: Vec<bool> = (0..n).map(|i| convex_at(&prev, &next, i)).collect();
     // Only a corner that is not convex can lie inside an ear of a simple polygon.
     let mut reflex: Vec<usize> = (0..n).filter(|&i| !convex[i]).collect();
@@ -81,7 +89,14 @@ fn clip_ears(q: &[[Real; 2]], tiny: Real, emit: &mut impl FnMut([usize; 3])) {
             let (pa, pb, pc) = (q[a], q[i], q[c]);
             reflex.iter().all(|&r| {
                 let p = q[r];
-                r == a || r == c || p == pa || p == pb || p == pc || orient(pa, pb, p) < -tiny || orient(pb, pc, p) < -tiny || orient(pc, pa, p) < -tiny
+                r == a
+                    || r == c
+                    || p == pa
+                    || p == pb
+                    || p == pc
+                    || orient(pa, pb, p) < -tiny
+                    || orient(pb, pc, p) < -tiny
+                    || orient(pc, pa, p) < -tiny
             })
         };
         let clip = if is_ear {
@@ -155,7 +170,10 @@ mod tests {
     }
 
     fn shoelace(p: &[[Real; 2]]) -> Real {
-        (0..p.len()).map(|i| orient([0.0, 0.0], p[i], p[(i + 1) % p.len()])).sum::<Real>() / 2.0
+        (0..p.len())
+            .map(|i| orient([0.0, 0.0], p[i], p[(i + 1) % p.len()]))
+            .sum::<Real>()
+            / 2.0
     }
 
     /// Crossing number: strictly inside the polygon.
@@ -163,7 +181,9 @@ mod tests {
         let mut odd = false;
         for i in 0..poly.len() {
             let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
-            if (a[1] > p[1]) != (b[1] > p[1]) && p[0] < a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]) {
+            if (a[1] > p[1]) != (b[1] > p[1])
+                && p[0] < a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0])
+            {
                 odd = !odd;
             }
         }
@@ -175,10 +195,13 @@ mod tests {
     fn random_polygon(rng: &mut Rng, n: usize) -> Vec<[Real; 2]> {
         let mut angles: Vec<Real> = (0..n).map(|_| rng.unit() * std::f64::consts::TAU).collect();
         angles.sort_by(Real::total_cmp);
-        angles.iter().map(|&t| {
-            let r = 0.1 + rng.unit();
-            [r * t.cos(), r * t.sin()]
-        }).collect()
+        angles
+            .iter()
+            .map(|&t| {
+                let r = 0.1 + rng.unit();
+                [r * t.cos(), r * t.sin()]
+            })
+            .collect()
     }
 
     #[test]
@@ -189,9 +212,16 @@ mod tests {
             let poly = random_polygon(&mut rng, n);
             let area = shoelace(&poly);
             // Placed in space on a tilted plane far from the origin.
-            let rot = crate::math::Rotation3::new(Vector3::new(rng.unit() * 3.0, rng.unit() * 3.0, rng.unit() * 3.0));
+            let rot = crate::math::Rotation3::new(Vector3::new(
+                rng.unit() * 3.0,
+                rng.unit() * 3.0,
+                rng.unit() * 3.0,
+            ));
             let offset = Vector3::new(100.0, -50.0, 7.0);
-            let positions: Vec<Point3> = poly.iter().map(|p| rot * Point3::new(p[0], p[1], 0.0) + offset).collect();
+            let positions: Vec<Point3> = poly
+                .iter()
+                .map(|p| rot * Point3::new(p[0], p[1], 0.0) + offset)
+                .collect();
             let normal = rot * Vector3::z();
             // Both windings, and not starting at corner 0.
             for reversed in [false, true] {
@@ -207,13 +237,25 @@ mod tests {
                     let [a, b, c] = t.map(|k| positions[k as usize]);
                     let cross = (b - a).cross(&(c - a));
                     let facing = if reversed { -normal } else { normal };
-                    assert!(cross.dot(&facing) > 0.0, "case {case}: triangle {t:?} inverted or flat");
+                    assert!(
+                        cross.dot(&facing) > 0.0,
+                        "case {case}: triangle {t:?} inverted or flat"
+                    );
                     sum += cross.norm() / 2.0;
                     let centroid = [t[0], t[1], t[2]].map(|k| poly[k as usize]);
-                    let centroid = [(centroid[0][0] + centroid[1][0] + centroid[2][0]) / 3.0, (centroid[0][1] + centroid[1][1] + centroid[2][1]) / 3.0];
-                    assert!(inside(centroid, &poly), "case {case}: triangle {t:?} outside the polygon");
+                    let centroid = [
+                        (centroid[0][0] + centroid[1][0] + centroid[2][0]) / 3.0,
+                        (centroid[0][1] + centroid[1][1] + centroid[2][1]) / 3.0,
+                    ];
+                    assert!(
+                        inside(centroid, &poly),
+                        "case {case}: triangle {t:?} outside the polygon"
+                    );
                 }
-                assert!((sum - area).abs() < 1e-9 * area, "case {case}: {sum} vs {area}");
+                assert!(
+                    (sum - area).abs() < 1e-9 * area,
+                    "case {case}: {sum} vs {area}"
+                );
             }
         }
     }
@@ -223,31 +265,54 @@ mod tests {
         // Corners at random: not simple, nearly half of them reflex.
         let mut rng = Rng(7);
         let n = 300_000;
-        let positions: Vec<Point3> = (0..n).map(|_| Point3::new(rng.unit(), rng.unit(), 0.01 * rng.unit())).collect();
+        let positions: Vec<Point3> = (0..n)
+            .map(|_| Point3::new(rng.unit(), rng.unit(), 0.01 * rng.unit()))
+            .collect();
         let mut triangles = Vec::new();
-        triangulate_polygon(&positions, &(0..n as u32).collect::<Vec<u32>>(), &mut triangles);
+        triangulate_polygon(
+            &positions,
+            &(0..n as u32).collect::<Vec<u32>>(),
+            &mut triangles,
+        );
         assert_eq!(triangles.len(), n - 2);
     }
 
     #[test]
     fn collinear_corners_and_degenerate_polygons() {
         // A square with a corner halfway along each side.
-        let square = [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [2.0, 1.0], [2.0, 2.0], [1.0, 2.0], [0.0, 2.0], [0.0, 1.0]];
-        let positions: Vec<Point3> = square.iter().map(|p| Point3::new(p[0], p[1], 0.0)).collect();
+        let square = [
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [2.0, 0.0],
+            [2.0, 1.0],
+            [2.0, 2.0],
+            [1.0, 2.0],
+            [0.0, 2.0],
+            [0.0, 1.0],
+        ];
+        let positions: Vec<Point3> = square
+            .iter()
+            .map(|p| Point3::new(p[0], p[1], 0.0))
+            .collect();
         let mut triangles = Vec::new();
         triangulate_polygon(&positions, &(0..8).collect::<Vec<u32>>(), &mut triangles);
         assert_eq!(triangles.len(), 6);
-        let area: Real = triangles.iter().map(|t| {
-            let [a, b, c] = t.map(|k| positions[k as usize]);
-            (b - a).cross(&(c - a)).z / 2.0
-        }).sum();
+        let area: Real = triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|k| positions[k as usize]);
+                (b - a).cross(&(c - a)).z / 2.0
+            })
+            .sum();
         assert!((area - 4.0).abs() < 1e-12, "{area}");
         assert!(triangles.iter().all(|t| {
             let [a, b, c] = t.map(|k| positions[k as usize]);
             (b - a).cross(&(c - a)).z >= 0.0
         }));
         // All corners on one line: a fan, still n - 2 triangles.
-        let line: Vec<Point3> = (0..5).map(|i| Point3::new(i as Real, 2.0 * i as Real, 0.0)).collect();
+        let line: Vec<Point3> = (0..5)
+            .map(|i| Point3::new(i as Real, 2.0 * i as Real, 0.0))
+            .collect();
         let mut triangles = Vec::new();
         triangulate_polygon(&line, &[0, 1, 2, 3, 4], &mut triangles);
         assert_eq!(triangles, [[0, 1, 2], [0, 2, 3], [0, 3, 4]]);

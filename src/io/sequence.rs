@@ -27,7 +27,9 @@ pub fn discover_frames(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     let mut frames = Vec::new();
     for input in inputs {
         if input.is_dir() {
-            let mut found = list_dir(input, true, |name| !is_hidden(name) && is_supported(Path::new(name)))?;
+            let mut found = list_dir(input, true, |name| {
+                !is_hidden(name) && is_supported(Path::new(name))
+            })?;
             if found.is_empty() {
                 return Err(Error::InvalidInput(format!(
                     "{}: no mesh or voxel files (.obj, .ply, .gltf, .glb, .binvox) in this directory",
@@ -40,7 +42,10 @@ pub fn discover_frames(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
         } else if is_pattern(input) {
             let mut found = expand_pattern(input)?;
             if found.is_empty() {
-                return Err(Error::InvalidInput(format!("{}: no file matches this pattern", input.display())));
+                return Err(Error::InvalidInput(format!(
+                    "{}: no file matches this pattern",
+                    input.display()
+                )));
             }
             sort_natural(&mut found);
             check_numbering(input, &pattern_base(input), &found)?;
@@ -48,7 +53,10 @@ pub fn discover_frames(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
         } else if input.exists() {
             frames.push(input.clone());
         } else {
-            return Err(Error::io(input, std::io::Error::new(std::io::ErrorKind::NotFound, "no such file or directory")));
+            return Err(Error::io(
+                input,
+                std::io::Error::new(std::io::ErrorKind::NotFound, "no such file or directory"),
+            ));
         }
     }
     Ok(frames)
@@ -58,7 +66,8 @@ pub fn discover_frames(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
 /// take `file` (a resolved path, existing or not) as a frame: so that an
 /// output is never written where the next run on the same input reads it.
 pub(crate) fn would_discover(input: &Path, file: &Path) -> bool {
-    let (Some(parent), Some(name)) = (file.parent(), file.file_name().and_then(|n| n.to_str())) else {
+    let (Some(parent), Some(name)) = (file.parent(), file.file_name().and_then(|n| n.to_str()))
+    else {
         return false;
     };
     if !is_supported(file) {
@@ -71,15 +80,29 @@ pub(crate) fn would_discover(input: &Path, file: &Path) -> bool {
         return false;
     }
     let components: Vec<std::path::Component> = input.components().collect();
-    let first_wild = components.iter().position(|c| has_wildcard(&c.as_os_str().to_string_lossy())).expect("a pattern has a wildcard");
+    let first_wild = components
+        .iter()
+        .position(|c| has_wildcard(&c.as_os_str().to_string_lossy()))
+        .expect("a pattern has a wildcard");
     let base: PathBuf = components[..first_wild].iter().collect();
-    let base = if base.as_os_str().is_empty() { PathBuf::from(".") } else { base };
-    let Ok(base) = std::fs::canonicalize(base) else { return false };
-    let Ok(rest) = file.strip_prefix(&base) else { return false };
+    let base = if base.as_os_str().is_empty() {
+        PathBuf::from(".")
+    } else {
+        base
+    };
+    let Ok(base) = std::fs::canonicalize(base) else {
+        return false;
+    };
+    let Ok(rest) = file.strip_prefix(&base) else {
+        return false;
+    };
     let rest: Vec<_> = rest.components().collect();
     rest.len() == components.len() - first_wild
         && components[first_wild..].iter().zip(&rest).all(|(p, c)| {
-            let (part, name) = (p.as_os_str().to_string_lossy(), c.as_os_str().to_string_lossy());
+            let (part, name) = (
+                p.as_os_str().to_string_lossy(),
+                c.as_os_str().to_string_lossy(),
+            );
             if has_wildcard(&part) {
                 (!is_hidden(&name) || part.starts_with('.')) && glob_match(&part, &name)
             } else {
@@ -91,8 +114,15 @@ pub(crate) fn would_discover(input: &Path, file: &Path) -> bool {
 /// The runs of digits in `path` below `base`, as numbers (None when one is
 /// too long for a number).
 fn digit_runs(base: &Path, path: &Path) -> Option<Vec<u64>> {
-    let rel = path.strip_prefix(base).unwrap_or(path).to_string_lossy().into_owned();
-    rel.split(|c: char| !c.is_ascii_digit()).filter(|r| !r.is_empty()).map(|r| r.parse().ok()).collect()
+    let rel = path
+        .strip_prefix(base)
+        .unwrap_or(path)
+        .to_string_lossy()
+        .into_owned();
+    rel.split(|c: char| !c.is_ascii_digit())
+        .filter(|r| !r.is_empty())
+        .map(|r| r.parse().ok())
+        .collect()
 }
 
 /// Frames found in a folder or by a pattern (`input`, below `base`), in
@@ -104,13 +134,28 @@ fn digit_runs(base: &Path, path: &Path) -> Option<Vec<u64>> {
 /// (`take_2/frame_0007_lod0.obj`: 7), checked only when every file has as
 /// many runs.
 fn check_numbering(input: &Path, base: &Path, frames: &[PathBuf]) -> Result<()> {
-    let Some(runs) = frames.iter().map(|f| digit_runs(base, f)).collect::<Option<Vec<_>>>() else { return Ok(()) };
+    let Some(runs) = frames
+        .iter()
+        .map(|f| digit_runs(base, f))
+        .collect::<Option<Vec<_>>>()
+    else {
+        return Ok(());
+    };
     let count = runs.first().map_or(0, Vec::len);
     if count == 0 || runs.iter().any(|r| r.len() != count) {
         return Ok(());
     }
-    let Some(varying) = (0..count).rev().find(|&k| runs.iter().any(|r| r[k] != runs[0][k])) else { return Ok(()) };
-    let mut by_number: Vec<(u64, usize)> = runs.iter().enumerate().map(|(k, r)| (r[varying], k)).collect();
+    let Some(varying) = (0..count)
+        .rev()
+        .find(|&k| runs.iter().any(|r| r[k] != runs[0][k]))
+    else {
+        return Ok(());
+    };
+    let mut by_number: Vec<(u64, usize)> = runs
+        .iter()
+        .enumerate()
+        .map(|(k, r)| (r[varying], k))
+        .collect();
     by_number.sort();
     if let Some(w) = by_number.windows(2).find(|w| w[0].0 == w[1].0) {
         return Err(Error::InvalidInput(format!(
@@ -126,15 +171,39 @@ fn check_numbering(input: &Path, base: &Path, frames: &[PathBuf]) -> Result<()> 
     let mut steps: Vec<u64> = by_number.windows(2).map(|w| w[1].0 - w[0].0).collect();
     steps.sort_unstable();
     // The most frequent step, the smallest of equally frequent ones.
-    let Some((step, _)) = steps.chunk_by(|a, b| a == b).map(|run| (run[0], run.len())).max_by_key(|&(s, n)| (n, std::cmp::Reverse(s))) else { return Ok(()) };
+    let Some((step, _)) = steps
+        .chunk_by(|a, b| a == b)
+        .map(|run| (run[0], run.len()))
+        .max_by_key(|&(s, n)| (n, std::cmp::Reverse(s)))
+    else {
+        return Ok(());
+    };
     let gaps: Vec<String> = by_number
         .windows(2)
         .filter(|w| w[1].0 - w[0].0 > step)
-        .map(|w| format!("{} to {} (after {})", w[0].0, w[1].0, frames[w[0].1].file_name().unwrap_or_default().to_string_lossy()))
+        .map(|w| {
+            format!(
+                "{} to {} (after {})",
+                w[0].0,
+                w[1].0,
+                frames[w[0].1]
+                    .file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+            )
+        })
         .collect();
     if !gaps.is_empty() {
-        let more = if gaps.len() > 3 { format!(" and {} more", gaps.len() - 3) } else { String::new() };
-        log::warn!("{}: frames missing: the numbers jump from {}{more}; the missing frames are not read", input.display(), gaps[..gaps.len().min(3)].join(", "));
+        let more = if gaps.len() > 3 {
+            format!(" and {} more", gaps.len() - 3)
+        } else {
+            String::new()
+        };
+        log::warn!(
+            "{}: frames missing: the numbers jump from {}{more}; the missing frames are not read",
+            input.display(),
+            gaps[..gaps.len().min(3)].join(", ")
+        );
     }
     Ok(())
 }
@@ -142,7 +211,10 @@ fn check_numbering(input: &Path, base: &Path, frames: &[PathBuf]) -> Result<()> 
 /// The literal folder a pattern starts from (before its first wildcard).
 fn pattern_base(pattern: &Path) -> PathBuf {
     let components: Vec<std::path::Component> = pattern.components().collect();
-    let first_wild = components.iter().position(|c| has_wildcard(&c.as_os_str().to_string_lossy())).unwrap_or(components.len());
+    let first_wild = components
+        .iter()
+        .position(|c| has_wildcard(&c.as_os_str().to_string_lossy()))
+        .unwrap_or(components.len());
     components[..first_wild].iter().collect()
 }
 
@@ -151,7 +223,9 @@ fn has_wildcard(s: &str) -> bool {
 }
 
 fn is_pattern(input: &Path) -> bool {
-    input.components().any(|c| has_wildcard(&c.as_os_str().to_string_lossy()))
+    input
+        .components()
+        .any(|c| has_wildcard(&c.as_os_str().to_string_lossy()))
 }
 
 /// voltrack's own temporary files (`.<name>.<pid>.partial`) are hidden too.
@@ -171,7 +245,11 @@ fn expand_pattern(pattern: &Path) -> Result<Vec<PathBuf>> {
         .expect("a pattern has a wildcard");
     let base: PathBuf = components[..first_wild].iter().collect();
     // A relative pattern starts in the current directory.
-    let mut candidates = vec![if base.as_os_str().is_empty() { PathBuf::from(".") } else { base }];
+    let mut candidates = vec![if base.as_os_str().is_empty() {
+        PathBuf::from(".")
+    } else {
+        base
+    }];
     let last = components.len() - 1;
     for (k, component) in components.iter().enumerate().skip(first_wild) {
         let part = component.as_os_str().to_string_lossy();
@@ -181,7 +259,9 @@ fn expand_pattern(pattern: &Path) -> Result<Vec<PathBuf>> {
             if has_wildcard(&part) {
                 // Every candidate but the literal base is a directory found
                 // here; a base that is missing fails naming it.
-                next.extend(list_dir(dir, want_file, |name| (!is_hidden(name) || part.starts_with('.')) && glob_match(&part, name))?);
+                next.extend(list_dir(dir, want_file, |name| {
+                    (!is_hidden(name) || part.starts_with('.')) && glob_match(&part, name)
+                })?);
             } else {
                 // `take_*/mesh.obj` skips a take without the file.
                 let p = dir.join(component);
@@ -204,28 +284,64 @@ fn expand_pattern(pattern: &Path) -> Result<Vec<PathBuf>> {
 /// characters become `_`, so the name always passes
 /// [`check_name`](crate::model::check_name).
 pub fn sequence_name(inputs: &[PathBuf], frames: &[PathBuf]) -> String {
-    let clean = |s: &str| s.trim().chars().map(|c| if c.is_control() { '_' } else { c }).collect::<String>();
+    let clean = |s: &str| {
+        s.trim()
+            .chars()
+            .map(|c| if c.is_control() { '_' } else { c })
+            .collect::<String>()
+    };
     let dir_name = match inputs {
         // "." or "..": the name of the directory it stands for.
-        [dir] if dir.is_dir() => dir.file_name().map(|n| n.to_os_string()).or_else(|| std::fs::canonicalize(dir).ok()?.file_name().map(|n| n.to_os_string())),
+        [dir] if dir.is_dir() => dir.file_name().map(|n| n.to_os_string()).or_else(|| {
+            std::fs::canonicalize(dir)
+                .ok()?
+                .file_name()
+                .map(|n| n.to_os_string())
+        }),
         _ => None,
     };
-    let stems: Vec<String> = frames.iter().map(|f| f.file_stem().unwrap_or_default().to_string_lossy().into_owned()).collect();
-    let candidates = [dir_name.map(|n| n.to_string_lossy().into_owned()), Some(common_stem(&stems)), stems.first().cloned()];
-    candidates.into_iter().flatten().map(|n| clean(&n)).find(|n| !n.is_empty()).unwrap_or_else(|| crate::model::DEFAULT_NAME.into())
+    let stems: Vec<String> = frames
+        .iter()
+        .map(|f| {
+            f.file_stem()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect();
+    let candidates = [
+        dir_name.map(|n| n.to_string_lossy().into_owned()),
+        Some(common_stem(&stems)),
+        stems.first().cloned(),
+    ];
+    candidates
+        .into_iter()
+        .flatten()
+        .map(|n| clean(&n))
+        .find(|n| !n.is_empty())
+        .unwrap_or_else(|| crate::model::DEFAULT_NAME.into())
 }
 
 /// The common prefix of `stems`, less a trailing run of digits that
 /// continues differently in some stem (the start of a frame number), less
 /// trailing separators.
 fn common_stem(stems: &[String]) -> String {
-    let Some(first) = stems.first() else { return String::new() };
+    let Some(first) = stems.first() else {
+        return String::new();
+    };
     let mut len = first.len();
     for s in &stems[1..] {
-        len = first.char_indices().zip(s.chars()).find(|((_, a), b)| a != b).map_or(len.min(s.len()), |((i, _), _)| i).min(len);
+        len = first
+            .char_indices()
+            .zip(s.chars())
+            .find(|((_, a), b)| a != b)
+            .map_or(len.min(s.len()), |((i, _), _)| i)
+            .min(len);
     }
     let mut prefix = &first[..len];
-    let differs_at_digit = stems.iter().any(|s| s[len..].starts_with(|c: char| c.is_ascii_digit()));
+    let differs_at_digit = stems
+        .iter()
+        .any(|s| s[len..].starts_with(|c: char| c.is_ascii_digit()));
     if differs_at_digit && stems.len() > 1 {
         prefix = prefix.trim_end_matches(|c: char| c.is_ascii_digit());
     }
@@ -255,10 +371,22 @@ fn list_dir(dir: &Path, files: bool, keep: impl Fn(&str) -> bool) -> Result<Vec<
             // A pattern's `*` may match other things beside the frames.
             _ if !is_supported(&p) => {}
             Ok(meta) => {
-                let what = if meta.is_dir() { "a folder" } else { "not a regular file (a FIFO, socket or device)" };
-                return Err(Error::InvalidInput(format!("{}: named like a frame but {what}; move it out of the folder", p.display())));
+                let what = if meta.is_dir() {
+                    "a folder"
+                } else {
+                    "not a regular file (a FIFO, socket or device)"
+                };
+                return Err(Error::InvalidInput(format!(
+                    "{}: named like a frame but {what}; move it out of the folder",
+                    p.display()
+                )));
             }
-            Err(_) => return Err(Error::InvalidInput(format!("{}: named like a frame but a link to nothing; fix or remove the link", p.display()))),
+            Err(_) => {
+                return Err(Error::InvalidInput(format!(
+                    "{}: named like a frame but a link to nothing; fix or remove the link",
+                    p.display()
+                )))
+            }
         }
     }
     Ok(out)
@@ -290,7 +418,11 @@ pub(crate) fn glob_match(pattern: &str, name: &str) -> bool {
 /// Sorts by path, component by component, with digit runs compared as
 /// numbers (of any length).
 pub(crate) fn sort_natural(paths: &mut [PathBuf]) {
-    paths.sort_by_cached_key(|p| p.components().map(|c| natural_key(&c.as_os_str().to_string_lossy())).collect::<Vec<_>>());
+    paths.sort_by_cached_key(|p| {
+        p.components()
+            .map(|c| natural_key(&c.as_os_str().to_string_lossy()))
+            .collect::<Vec<_>>()
+    });
 }
 
 /// A run of digits, ordered by value without parsing it (so any length
@@ -324,7 +456,11 @@ fn natural_key(s: &str) -> Vec<Chunk> {
         }
         out.push(if digit {
             let value = run.trim_start_matches('0');
-            Chunk::Number(Digits { significant: value.len(), value: value.to_string(), leading_zeros: run.len() - value.len() })
+            Chunk::Number(Digits {
+                significant: value.len(),
+                value: value.to_string(),
+                leading_zeros: run.len() - value.len(),
+            })
         } else {
             Chunk::Text(run)
         });
@@ -340,11 +476,37 @@ mod tests {
     #[test]
     fn frame_numbers_are_the_digits_that_vary() {
         let paths = |v: &[&str]| v.iter().map(PathBuf::from).collect::<Vec<_>>();
-        let check = |base: &str, v: &[&str]| check_numbering(Path::new(base), Path::new(base), &paths(v));
-        assert!(check("d", &["d/f_0001_lod0.obj", "d/f_0002_lod0.obj", "d/f_0003_lod0.obj"]).is_ok());
-        let e = check("t", &["t/take_1/f_0.obj", "t/take_1/f_1.obj", "t/take_2/f_0.obj", "t/take_2/f_1.obj"]).unwrap_err().to_string();
-        assert!(e.contains("take_1/f_0.obj") && e.contains("take_2/f_0.obj"), "{e}");
-        assert!(check("t", &["t/a/f_0.obj", "t/a/f_1.obj", "t/b/f_2.obj", "t/b/f_3.obj"]).is_ok());
+        let check =
+            |base: &str, v: &[&str]| check_numbering(Path::new(base), Path::new(base), &paths(v));
+        assert!(check(
+            "d",
+            &[
+                "d/f_0001_lod0.obj",
+                "d/f_0002_lod0.obj",
+                "d/f_0003_lod0.obj"
+            ]
+        )
+        .is_ok());
+        let e = check(
+            "t",
+            &[
+                "t/take_1/f_0.obj",
+                "t/take_1/f_1.obj",
+                "t/take_2/f_0.obj",
+                "t/take_2/f_1.obj",
+            ],
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("take_1/f_0.obj") && e.contains("take_2/f_0.obj"),
+            "{e}"
+        );
+        assert!(check(
+            "t",
+            &["t/a/f_0.obj", "t/a/f_1.obj", "t/b/f_2.obj", "t/b/f_3.obj"]
+        )
+        .is_ok());
         assert!(check("d", &["d/walk.obj", "d/run.obj"]).is_ok());
     }
 
@@ -353,7 +515,10 @@ mod tests {
     fn sorted(names: &[&str]) -> Vec<String> {
         let mut paths: Vec<PathBuf> = names.iter().map(PathBuf::from).collect();
         sort_natural(&mut paths);
-        paths.iter().map(|p| p.to_string_lossy().into_owned()).collect()
+        paths
+            .iter()
+            .map(|p| p.to_string_lossy().into_owned())
+            .collect()
     }
 
     #[test]
@@ -361,18 +526,44 @@ mod tests {
         let big = "1".repeat(40);
         let bigger = format!("{}2", "1".repeat(39));
         let longer = format!("2{}", "0".repeat(40));
-        let names = [format!("f_{longer}.obj"), format!("f_{bigger}.obj"), format!("f_{big}.obj"), "f_9.obj".into()];
+        let names = [
+            format!("f_{longer}.obj"),
+            format!("f_{bigger}.obj"),
+            format!("f_{big}.obj"),
+            "f_9.obj".into(),
+        ];
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
-        assert_eq!(sorted(&names), [format!("f_9.obj"), format!("f_{big}.obj"), format!("f_{bigger}.obj"), format!("f_{longer}.obj")]);
+        assert_eq!(
+            sorted(&names),
+            [
+                format!("f_9.obj"),
+                format!("f_{big}.obj"),
+                format!("f_{bigger}.obj"),
+                format!("f_{longer}.obj")
+            ]
+        );
         // Leading zeros: by value first, then fewer zeros first.
-        assert_eq!(sorted(&["f_010.obj", "f_2.obj", "f_01.obj", "f_1.obj", "f_0010.obj"]), ["f_1.obj", "f_01.obj", "f_2.obj", "f_010.obj", "f_0010.obj"]);
+        assert_eq!(
+            sorted(&["f_010.obj", "f_2.obj", "f_01.obj", "f_1.obj", "f_0010.obj"]),
+            ["f_1.obj", "f_01.obj", "f_2.obj", "f_010.obj", "f_0010.obj"]
+        );
     }
 
     #[test]
     fn paths_sort_component_by_component() {
         assert_eq!(
-            sorted(&["take_10/frame_1.obj", "take_2/frame_10.obj", "take_2/frame_9.obj", "take_1/frame_3.obj"]),
-            ["take_1/frame_3.obj", "take_2/frame_9.obj", "take_2/frame_10.obj", "take_10/frame_1.obj"]
+            sorted(&[
+                "take_10/frame_1.obj",
+                "take_2/frame_10.obj",
+                "take_2/frame_9.obj",
+                "take_1/frame_3.obj"
+            ]),
+            [
+                "take_1/frame_3.obj",
+                "take_2/frame_9.obj",
+                "take_2/frame_10.obj",
+                "take_10/frame_1.obj"
+            ]
         );
     }
 

@@ -26,10 +26,10 @@
 
 use crate::math::Real;
 use crate::metrics::SequenceFit;
+use crate::model::GridSpec;
+use crate::model::Trajectories;
 use crate::params::CoverageParams;
 use crate::spatial::cells::{assign, carry_owners, CenterIndex, NO_OWNER};
-use crate::model::Trajectories;
-use crate::model::GridSpec;
 use crate::voxel::VoxelSequence;
 use rayon::prelude::*;
 
@@ -73,7 +73,11 @@ impl Coverage {
     /// The largest lost share of any frame, and that frame (the first of
     /// equals); None without frames.
     pub fn worst(&self) -> Option<(usize, Real)> {
-        self.frames.iter().enumerate().map(|(f, c)| (f, c.lost_share)).reduce(|a, b| if b.1 > a.1 { b } else { a })
+        self.frames
+            .iter()
+            .enumerate()
+            .map(|(f, c)| (f, c.lost_share))
+            .reduce(|a, b| if b.1 > a.1 { b } else { a })
     }
 }
 
@@ -93,10 +97,18 @@ pub fn runs(frames: &[usize]) -> Vec<(usize, usize)> {
 /// the centers `traj` (tracked on `seq`, at least one center) do not reach.
 /// The result does not depend on the thread count: ties between centers go to
 /// the lower index, and regions are grown in voxel order.
-pub fn coverage(traj: &Trajectories, seq: &VoxelSequence, params: &CoverageParams) -> crate::Result<Coverage> {
+pub fn coverage(
+    traj: &Trajectories,
+    seq: &VoxelSequence,
+    params: &CoverageParams,
+) -> crate::Result<Coverage> {
     params.validate()?;
     if traj.frames != seq.frames.len() {
-        return Err(crate::Error::InvalidInput(format!("{} frames of centers for {} frames of input", traj.frames, seq.frames.len())));
+        return Err(crate::Error::InvalidInput(format!(
+            "{} frames of centers for {} frames of input",
+            traj.frames,
+            seq.frames.len()
+        )));
     }
     let grid = &seq.grid;
     let n = traj.centers;
@@ -113,7 +125,11 @@ pub fn coverage(traj: &Trajectories, seq: &VoxelSequence, params: &CoverageParam
     // At least half a voxel: a one-voxel cell's reach is 0.
     let floor = 0.5 * grid.voxel_size;
     for r in &mut reach {
-        *r = if *r > 0.0 { r.max(floor) } else { typical.max(floor) };
+        *r = if *r > 0.0 {
+            r.max(floor)
+        } else {
+            typical.max(floor)
+        };
     }
     let min_region = params.min_region * cell_voxels;
     let frames: Vec<FrameCoverage> = (0..traj.frames)
@@ -121,24 +137,67 @@ pub fn coverage(traj: &Trajectories, seq: &VoxelSequence, params: &CoverageParam
         .map(|f| {
             let voxels = &seq.frames[f].indices();
             // Frame 0's owners are a good start for any frame's search.
-            let hints = if f == 0 { owners0.clone() } else { carry_owners(first, &owners0, voxels) };
-            let (owners, dist) = if f == 0 { (owners0.clone(), dist0.clone()) } else { nearest(grid, voxels, traj.frame(f), hints) };
-            frame_coverage(grid, voxels, &owners, &dist, &reach, params.reach, min_region)
+            let hints = if f == 0 {
+                owners0.clone()
+            } else {
+                carry_owners(first, &owners0, voxels)
+            };
+            let (owners, dist) = if f == 0 {
+                (owners0.clone(), dist0.clone())
+            } else {
+                nearest(grid, voxels, traj.frame(f), hints)
+            };
+            frame_coverage(
+                grid,
+                voxels,
+                &owners,
+                &dist,
+                &reach,
+                params.reach,
+                min_region,
+            )
         })
         .collect();
-    let flagged = frames.iter().enumerate().filter(|(_, c)| c.lost > 0 && c.lost_share >= params.min_share).map(|(f, _)| f).collect();
-    Ok(Coverage { frames, flagged, cell_voxels, params: params.clone() })
+    let flagged = frames
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.lost > 0 && c.lost_share >= params.min_share)
+        .map(|(f, _)| f)
+        .collect();
+    Ok(Coverage {
+        frames,
+        flagged,
+        cell_voxels,
+        params: params.clone(),
+    })
 }
 
 /// Every voxel's nearest center and its distance to it.
-fn nearest(grid: &GridSpec, voxels: &[u32], centers: &[crate::math::Point3], hints: Vec<u32>) -> (Vec<u32>, Vec<Real>) {
+fn nearest(
+    grid: &GridSpec,
+    voxels: &[u32],
+    centers: &[crate::math::Point3],
+    hints: Vec<u32>,
+) -> (Vec<u32>, Vec<Real>) {
     let mut owners = hints;
     assign(grid, voxels, &CenterIndex::new(centers), &mut owners, false);
-    let dist = voxels.par_iter().zip(&owners).map(|(&v, &o)| (grid.voxel_center(v as usize) - centers[o as usize]).norm()).collect();
+    let dist = voxels
+        .par_iter()
+        .zip(&owners)
+        .map(|(&v, &o)| (grid.voxel_center(v as usize) - centers[o as usize]).norm())
+        .collect();
     (owners, dist)
 }
 
-fn frame_coverage(grid: &GridSpec, voxels: &[u32], owners: &[u32], dist: &[Real], reach: &[Real], factor: Real, min_region: Real) -> FrameCoverage {
+fn frame_coverage(
+    grid: &GridSpec,
+    voxels: &[u32],
+    owners: &[u32],
+    dist: &[Real],
+    reach: &[Real],
+    factor: Real,
+    min_region: Real,
+) -> FrameCoverage {
     let mut farthest: Real = 0.0;
     // Sorted, as `voxels` is.
     let mut unreached = Vec::new();
@@ -155,7 +214,11 @@ fn frame_coverage(grid: &GridSpec, voxels: &[u32], owners: &[u32], dist: &[Real]
         occupied: voxels.len(),
         unreached: unreached.len(),
         lost,
-        lost_share: if voxels.is_empty() { 0.0 } else { lost as Real / voxels.len() as Real },
+        lost_share: if voxels.is_empty() {
+            0.0
+        } else {
+            lost as Real / voxels.len() as Real
+        },
         largest_region: regions.iter().copied().max().unwrap_or(0),
         farthest,
     }
@@ -182,7 +245,14 @@ fn regions(grid: &GridSpec, voxels: &[u32]) -> Vec<usize> {
                 for dy in -1..=1 {
                     for dx in -1..=1 {
                         let (a, b, c) = (x + dx, y + dy, z + dz);
-                        if (dx, dy, dz) == (0, 0, 0) || a < 0 || b < 0 || c < 0 || a >= nx || b >= ny || c >= nz {
+                        if (dx, dy, dz) == (0, 0, 0)
+                            || a < 0
+                            || b < 0
+                            || c < 0
+                            || a >= nx
+                            || b >= ny
+                            || c >= nz
+                        {
                             continue;
                         }
                         let index = grid.linear_index([a as usize, b as usize, c as usize]) as u32;
@@ -221,12 +291,32 @@ pub struct FitOutliers {
 pub fn fit_outliers(fit: &SequenceFit, params: &CoverageParams) -> crate::Result<FitOutliers> {
     params.validate()?;
     let p95: Vec<Real> = fit.frames.iter().map(|f| f.two_sided.p95).collect();
-    let mut later: Vec<Real> = p95.iter().skip(1).copied().filter(|v| v.is_finite()).collect();
+    let mut later: Vec<Real> = p95
+        .iter()
+        .skip(1)
+        .copied()
+        .filter(|v| v.is_finite())
+        .collect();
     later.sort_by(Real::total_cmp);
-    let usual = if later.is_empty() { 0.0 } else { later[(later.len() - 1) / 4] };
+    let usual = if later.is_empty() {
+        0.0
+    } else {
+        later[(later.len() - 1) / 4]
+    };
     let limit = (params.fit_ratio * usual).max(params.fit_floor);
-    let flagged = p95.iter().enumerate().skip(1).filter(|(_, &v)| v > limit).map(|(f, _)| f).collect();
-    Ok(FitOutliers { p95, usual, limit, flagged })
+    let flagged = p95
+        .iter()
+        .enumerate()
+        .skip(1)
+        .filter(|(_, &v)| v > limit)
+        .map(|(f, _)| f)
+        .collect();
+    Ok(FitOutliers {
+        p95,
+        usual,
+        limit,
+        flagged,
+    })
 }
 
 #[cfg(test)]
@@ -235,13 +325,20 @@ mod tests {
     use crate::math::Point3;
 
     fn grid(n: usize) -> GridSpec {
-        GridSpec { origin: Point3::origin(), voxel_size: 1.0, dims: [n, n, n] }
+        GridSpec {
+            origin: Point3::origin(),
+            voxel_size: 1.0,
+            dims: [n, n, n],
+        }
     }
 
     #[test]
     fn regions_join_diagonal_neighbours_only() {
         let g = grid(10);
-        let mut v: Vec<u32> = [[1, 1, 1], [2, 2, 2], [3, 3, 2], [7, 7, 7], [7, 7, 9]].iter().map(|&c| g.linear_index(c) as u32).collect();
+        let mut v: Vec<u32> = [[1, 1, 1], [2, 2, 2], [3, 3, 2], [7, 7, 7], [7, 7, 9]]
+            .iter()
+            .map(|&c| g.linear_index(c) as u32)
+            .collect();
         v.sort();
         let mut sizes = regions(&g, &v);
         sizes.sort();

@@ -60,7 +60,11 @@ impl DistanceSummary {
                 break;
             }
         }
-        DistanceSummary { mean, p95, max: sorted[sorted.len() - 1].0 }
+        DistanceSummary {
+            mean,
+            p95,
+            max: sorted[sorted.len() - 1].0,
+        }
     }
 }
 
@@ -116,7 +120,10 @@ pub struct Surface<'a> {
 
 impl<'a> From<&'a TriangleMesh> for Surface<'a> {
     fn from(m: &'a TriangleMesh) -> Self {
-        Surface { positions: &m.positions, triangles: &m.triangles }
+        Surface {
+            positions: &m.positions,
+            triangles: &m.triangles,
+        }
     }
 }
 
@@ -139,14 +146,27 @@ impl Surface<'_> {
     /// (None off it), distances scaled by `scale`.
     fn distances_to(&self, to: &SurfaceIndex, scale: Real) -> Vec<Option<(Real, Real)>> {
         let weights = self.vertex_weights();
-        weights.par_iter().enumerate().map(|(i, w)| w.map(|w| (scale * to.distance(&self.positions[i]), w))).collect()
+        weights
+            .par_iter()
+            .enumerate()
+            .map(|(i, w)| w.map(|w| (scale * to.distance(&self.positions[i]), w)))
+            .collect()
     }
 
     /// The largest connected region of the vertices whose distance in
     /// `distances` ([`Surface::distances_to`]) is above `threshold`, but
     /// for those `hidden` holds of: by area, the first found of equals.
-    fn largest_far_region(&self, distances: &[Option<(Real, Real)>], threshold: Real, hidden: &(dyn Fn(&Point3) -> bool + Sync)) -> FarRegion {
-        let far_now: Vec<bool> = distances.par_iter().enumerate().map(|(i, d)| d.is_some_and(|(d, _)| d > threshold) && !hidden(&self.positions[i])).collect();
+    fn largest_far_region(
+        &self,
+        distances: &[Option<(Real, Real)>],
+        threshold: Real,
+        hidden: &(dyn Fn(&Point3) -> bool + Sync),
+    ) -> FarRegion {
+        let far_now: Vec<bool> = distances
+            .par_iter()
+            .enumerate()
+            .map(|(i, d)| d.is_some_and(|(d, _)| d > threshold) && !hidden(&self.positions[i]))
+            .collect();
         let far = |i: u32| far_now[i as usize];
         let mut parent: Vec<u32> = (0..distances.len() as u32).collect();
         fn root(parent: &mut [u32], mut i: u32) -> u32 {
@@ -177,7 +197,11 @@ impl Surface<'_> {
                 r.farthest = r.farthest.max(d);
             }
         }
-        let mut largest = regions.into_values().fold(FarRegion::default(), |a, b| if b.share > a.share { b } else { a });
+        let mut largest =
+            regions.into_values().fold(
+                FarRegion::default(),
+                |a, b| if b.share > a.share { b } else { a },
+            );
         largest.share *= if total > 0.0 { 100.0 / total } else { 0.0 };
         largest
     }
@@ -196,7 +220,10 @@ fn distances_both_ways(result: Surface, input: Surface, diagonal: Real) -> (Dist
         || SurfaceIndex::new(input.positions, input.triangles),
         || SurfaceIndex::new(result.positions, result.triangles),
     );
-    (result.distances_to(&to_input, scale), input.distances_to(&to_result, scale))
+    (
+        result.distances_to(&to_input, scale),
+        input.distances_to(&to_result, scale),
+    )
 }
 
 /// Whether a point lies inside the input's volume, when known.
@@ -208,7 +235,13 @@ pub type InsideInput<'a> = &'a (dyn Fn(&Point3) -> bool + Sync);
 /// result's outside the input's volume (`inside`; None
 /// counts every far point). Both surfaces need triangles. The result does
 /// not depend on the thread count.
-pub fn surface_fit(result: Surface, input: Surface, diagonal: Real, far: FarDistances, inside: Option<InsideInput>) -> FrameFit {
+pub fn surface_fit(
+    result: Surface,
+    input: Surface,
+    diagonal: Real,
+    far: FarDistances,
+    inside: Option<InsideInput>,
+) -> FrameFit {
     let (forward_all, backward_all) = distances_both_ways(result, input, diagonal);
     let forward: Vec<(Real, Real)> = forward_all.iter().flatten().copied().collect();
     let backward: Vec<(Real, Real)> = backward_all.iter().flatten().copied().collect();
@@ -217,22 +250,48 @@ pub fn surface_fit(result: Surface, input: Surface, diagonal: Real, far: FarDist
         input_to_result: DistanceSummary::of_weighted(&backward),
         two_sided: DistanceSummary::of_weighted(&pool_halves(&forward, &backward)),
         far_input: input.largest_far_region(&backward_all, far.input, &|_| false),
-        far_result: result.largest_far_region(&forward_all, far.result, inside.unwrap_or(&|_| false)),
+        far_result: result.largest_far_region(
+            &forward_all,
+            far.result,
+            inside.unwrap_or(&|_| false),
+        ),
     }
 }
 
 /// Whether a point lies inside frame `f`'s occupied voxels of `volume`.
-pub fn inside_volume(volume: &crate::voxel::VoxelSequence, f: usize) -> impl Fn(&Point3) -> bool + Sync + '_ {
+pub fn inside_volume(
+    volume: &crate::voxel::VoxelSequence,
+    f: usize,
+) -> impl Fn(&Point3) -> bool + Sync + '_ {
     let occupied = volume.frames[f].expand();
-    move |p: &Point3| volume.grid.voxel_at(p).is_some_and(|v| occupied.contains(v as u32))
+    move |p: &Point3| {
+        volume
+            .grid
+            .voxel_at(p)
+            .is_some_and(|v| occupied.contains(v as u32))
+    }
 }
 
 /// The largest far regions of the input (first) and of the result (second)
 /// at each of `thresholds` (percent of `diagonal`), as [`surface_fit`]
 /// finds them at one: for choosing the threshold.
-pub fn far_profile(result: Surface, input: Surface, diagonal: Real, thresholds: &[Real], inside: Option<InsideInput>) -> Vec<(FarRegion, FarRegion)> {
+pub fn far_profile(
+    result: Surface,
+    input: Surface,
+    diagonal: Real,
+    thresholds: &[Real],
+    inside: Option<InsideInput>,
+) -> Vec<(FarRegion, FarRegion)> {
     let (forward, backward) = distances_both_ways(result, input, diagonal);
-    thresholds.iter().map(|&t| (input.largest_far_region(&backward, t, &|_| false), result.largest_far_region(&forward, t, inside.unwrap_or(&|_| false)))).collect()
+    thresholds
+        .iter()
+        .map(|&t| {
+            (
+                input.largest_far_region(&backward, t, &|_| false),
+                result.largest_far_region(&forward, t, inside.unwrap_or(&|_| false)),
+            )
+        })
+        .collect()
 }
 
 /// Both sample sets with their weights rescaled to sum to ½ each, as
@@ -241,7 +300,9 @@ fn pool_halves(a: &[(Real, Real)], b: &[(Real, Real)]) -> Vec<(Real, Real)> {
     let half = |s: &[(Real, Real)]| {
         let total = total_weight(s);
         let n = s.len() as Real;
-        s.iter().map(move |&(d, w)| (d, total.map_or(0.5 / n, |t| 0.5 * w / t))).collect::<Vec<_>>()
+        s.iter()
+            .map(move |&(d, w)| (d, total.map_or(0.5 / n, |t| 0.5 * w / t)))
+            .collect::<Vec<_>>()
     };
     let mut pooled = half(a);
     pooled.extend(half(b));
@@ -271,14 +332,24 @@ impl SequenceFit {
         DistanceSummary {
             mean: self.frames.iter().map(|f| f.two_sided.mean).sum::<Real>() / n,
             p95: self.frames.iter().map(|f| f.two_sided.p95).sum::<Real>() / n,
-            max: self.frames.iter().map(|f| f.two_sided.max).fold(0.0, Real::max),
+            max: self
+                .frames
+                .iter()
+                .map(|f| f.two_sided.max)
+                .fold(0.0, Real::max),
         }
     }
 
     /// The frame with the largest two-sided mean (evaluate.py's worst frame);
     /// the first of equals.
     pub fn worst_frame(&self) -> usize {
-        (0..self.frames.len()).fold(0, |w, f| if self.frames[f].two_sided.mean > self.frames[w].two_sided.mean { f } else { w })
+        (0..self.frames.len()).fold(0, |w, f| {
+            if self.frames[f].two_sided.mean > self.frames[w].two_sided.mean {
+                f
+            } else {
+                w
+            }
+        })
     }
 }
 
@@ -294,7 +365,14 @@ impl SequenceFit {
 /// not counted).
 ///
 /// Reports `(Stage::Fit, frames measured, frames)` to `progress`.
-pub fn fit_to_input(mesh: &DynamicMesh, source: &dyn FrameSource, diagonal: Real, far: FarDistances, volume: Option<&crate::voxel::VoxelSequence>, progress: Progress) -> Result<SequenceFit> {
+pub fn fit_to_input(
+    mesh: &DynamicMesh,
+    source: &dyn FrameSource,
+    diagonal: Real,
+    far: FarDistances,
+    volume: Option<&crate::voxel::VoxelSequence>,
+    progress: Progress,
+) -> Result<SequenceFit> {
     if mesh.frames.len() != source.len() {
         return Err(Error::InvalidInput(format!(
             "the dynamic mesh has {} frames but the input has {}",
@@ -303,7 +381,9 @@ pub fn fit_to_input(mesh: &DynamicMesh, source: &dyn FrameSource, diagonal: Real
         )));
     }
     if !(diagonal > 0.0 && diagonal.is_finite()) {
-        return Err(Error::InvalidInput(format!("cannot measure relative to a bounding-box diagonal of {diagonal}")));
+        return Err(Error::InvalidInput(format!(
+            "cannot measure relative to a bounding-box diagonal of {diagonal}"
+        )));
     }
     let start = Instant::now();
     let read = |f: usize| source.mesh(f);
@@ -317,13 +397,24 @@ pub fn fit_to_input(mesh: &DynamicMesh, source: &dyn FrameSource, diagonal: Real
         }
         let input = next.take().expect("read ahead")?;
         let positions = mesh.frames.get(f)?;
-        let result = Surface { positions: &positions, triangles: &mesh.base.triangles };
+        let result = Surface {
+            positions: &positions,
+            triangles: &mesh.base.triangles,
+        };
         let inside = volume.map(|v| inside_volume(v, f));
         let inside = inside.as_ref().map(|i| i as InsideInput);
-        let (fit, following) = rayon::join(|| surface_fit(result, Surface::from(&input), diagonal, far, inside), || (f + 1 < total).then(|| read(f + 1)));
+        let (fit, following) = rayon::join(
+            || surface_fit(result, Surface::from(&input), diagonal, far, inside),
+            || (f + 1 < total).then(|| read(f + 1)),
+        );
         next = following;
         frames.push(fit);
         progress.report(Stage::Fit, f + 1, total);
     }
-    Ok(SequenceFit { frames, diagonal, far, seconds: start.elapsed().as_secs_f64() })
+    Ok(SequenceFit {
+        frames,
+        diagonal,
+        far,
+        seconds: start.elapsed().as_secs_f64(),
+    })
 }

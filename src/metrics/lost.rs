@@ -70,14 +70,32 @@ pub fn lost_parts(coverage: &Coverage, fit: Option<(&SequenceFit, &FitOutliers)>
     let far: Vec<usize> = frames
         .iter()
         .enumerate()
-        .filter(|(_, x)| [x.far_input, x.far_result].iter().any(|r| counts(*r, params)))
+        .filter(|(_, x)| {
+            [x.far_input, x.far_result]
+                .iter()
+                .any(|r| counts(*r, params))
+        })
         .map(|(f, _)| f)
         .collect();
     let fit_outliers: Vec<usize> = fit.map(|(_, o)| o.flagged.clone()).unwrap_or_default();
-    let mut flagged: Vec<usize> = coverage.flagged.iter().chain(&far).chain(&fit_outliers).copied().collect();
+    let mut flagged: Vec<usize> = coverage
+        .flagged
+        .iter()
+        .chain(&far)
+        .chain(&fit_outliers)
+        .copied()
+        .collect();
     flagged.sort_unstable();
     flagged.dedup();
-    LostParts { frames, unreached: coverage.flagged.clone(), far, fit_outliers, flagged, far_distances: fit.map(|(s, _)| s.far), params: params.clone() }
+    LostParts {
+        frames,
+        unreached: coverage.flagged.clone(),
+        far,
+        fit_outliers,
+        flagged,
+        far_distances: fit.map(|(s, _)| s.far),
+        params: params.clone(),
+    }
 }
 
 /// Whether `region` is large enough to warn of (`params.far_share`).
@@ -95,7 +113,17 @@ pub struct LostPartWarning {
 
 /// Frame numbers as runs: "3, 7-9".
 pub fn frame_runs(frames: &[usize]) -> String {
-    runs(frames).iter().map(|&(a, b)| if a == b { a.to_string() } else { format!("{a}-{b}") }).collect::<Vec<_>>().join(", ")
+    runs(frames)
+        .iter()
+        .map(|&(a, b)| {
+            if a == b {
+                a.to_string()
+            } else {
+                format!("{a}-{b}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 impl LostParts {
@@ -103,10 +131,19 @@ impl LostParts {
     /// figure among them.
     pub fn warnings(&self) -> Vec<LostPartWarning> {
         let mut out = Vec::new();
-        let largest = |frames: &[usize], of: &dyn Fn(&FrameLoss) -> Option<FarRegion>| {
-            frames.iter().filter_map(|&f| of(&self.frames[f])).fold(FarRegion::default(), |a, b| if b.share > a.share { b } else { a })
-        };
-        let far_input: Vec<usize> = self.far.iter().copied().filter(|&f| counts(self.frames[f].far_input, &self.params)).collect();
+        let largest =
+            |frames: &[usize], of: &dyn Fn(&FrameLoss) -> Option<FarRegion>| {
+                frames.iter().filter_map(|&f| of(&self.frames[f])).fold(
+                    FarRegion::default(),
+                    |a, b| if b.share > a.share { b } else { a },
+                )
+            };
+        let far_input: Vec<usize> = self
+            .far
+            .iter()
+            .copied()
+            .filter(|&f| counts(self.frames[f].far_input, &self.params))
+            .collect();
         if !far_input.is_empty() {
             let r = largest(&far_input, &|x| x.far_input);
             out.push(LostPartWarning {
@@ -120,7 +157,12 @@ impl LostParts {
                 frames: far_input,
             });
         }
-        let far_result: Vec<usize> = self.far.iter().copied().filter(|&f| counts(self.frames[f].far_result, &self.params)).collect();
+        let far_result: Vec<usize> = self
+            .far
+            .iter()
+            .copied()
+            .filter(|&f| counts(self.frames[f].far_result, &self.params))
+            .collect();
         if !far_result.is_empty() {
             let r = largest(&far_result, &|x| x.far_result);
             out.push(LostPartWarning {
@@ -135,7 +177,11 @@ impl LostParts {
             });
         }
         if !self.unreached.is_empty() {
-            let worst = self.unreached.iter().map(|&f| self.frames[f].unreached).fold(0.0, Real::max);
+            let worst = self
+                .unreached
+                .iter()
+                .map(|&f| self.frames[f].unreached)
+                .fold(0.0, Real::max);
             out.push(LostPartWarning {
                 message: format!(
                     "warning: frames {}: up to {:.2} % of the input volume is not reached by any tracked cell: \

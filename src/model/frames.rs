@@ -40,7 +40,10 @@ pub trait FrameSource: Sync {
                 m.validate(Path::new(&name))?;
                 Ok(m)
             }
-            Frame::Voxels(..) => Err(Error::mesh(Path::new(&name), "a voxel grid where a mesh is needed")),
+            Frame::Voxels(..) => Err(Error::mesh(
+                Path::new(&name),
+                "a voxel grid where a mesh is needed",
+            )),
         }
     }
 }

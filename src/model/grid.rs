@@ -33,7 +33,9 @@ impl GridSpec {
         }
         let longest = bbox.longest_side();
         if bbox.is_empty() || !(longest > 0.0) || !longest.is_finite() {
-            return Err(Error::InvalidInput("the sequence's bounding box is empty or degenerate".into()));
+            return Err(Error::InvalidInput(
+                "the sequence's bounding box is empty or degenerate".into(),
+            ));
         }
         let voxel_size = longest / resolution as Real;
         let extent = bbox.extent();
@@ -41,7 +43,11 @@ impl GridSpec {
             ((extent[k] / voxel_size).ceil() as usize).clamp(1, resolution) + 2 * GRID_MARGIN
         });
         let origin = bbox.min - Vector3::repeat(GRID_MARGIN as Real * voxel_size);
-        Ok(GridSpec { origin, voxel_size, dims })
+        Ok(GridSpec {
+            origin,
+            voxel_size,
+            dims,
+        })
     }
 
     pub fn len(&self) -> usize {
@@ -73,14 +79,19 @@ impl GridSpec {
     /// World position of the center of the voxel at grid coordinates `c`.
     #[inline]
     pub fn center_at(&self, c: [usize; 3]) -> Point3 {
-        self.origin + Vector3::new(c[0] as Real + 0.5, c[1] as Real + 0.5, c[2] as Real + 0.5) * self.voxel_size
+        self.origin
+            + Vector3::new(c[0] as Real + 0.5, c[1] as Real + 0.5, c[2] as Real + 0.5)
+                * self.voxel_size
     }
 
     /// The linear index of the voxel holding `p`; None outside the grid.
     pub fn voxel_at(&self, p: &Point3) -> Option<usize> {
         let g = self.to_grid(p);
         let c: [Real; 3] = [g.x, g.y, g.z];
-        if c.iter().zip(self.dims).any(|(&x, d)| !(x >= 0.0 && x < d as Real)) {
+        if c.iter()
+            .zip(self.dims)
+            .any(|(&x, d)| !(x >= 0.0 && x < d as Real))
+        {
             return None;
         }
         Some(self.linear_index(c.map(|x| x as usize)))
@@ -94,8 +105,15 @@ impl GridSpec {
 
     /// The world box the grid covers.
     pub fn bounds(&self) -> Aabb {
-        let ext = Vector3::new(self.dims[0] as Real, self.dims[1] as Real, self.dims[2] as Real) * self.voxel_size;
-        Aabb { min: self.origin, max: self.origin + ext }
+        let ext = Vector3::new(
+            self.dims[0] as Real,
+            self.dims[1] as Real,
+            self.dims[2] as Real,
+        ) * self.voxel_size;
+        Aabb {
+            min: self.origin,
+            max: self.origin + ext,
+        }
     }
 }
 
@@ -122,7 +140,9 @@ impl Occupancy {
     }
     /// World positions of the occupied voxels' centers.
     pub fn centers<'a>(&'a self, grid: &'a GridSpec) -> impl Iterator<Item = Point3> + 'a {
-        self.indices.iter().map(move |&i| grid.voxel_center(i as usize))
+        self.indices
+            .iter()
+            .map(move |&i| grid.voxel_center(i as usize))
     }
 }
 
@@ -191,7 +211,9 @@ impl OccupancyRuns {
     }
     /// The frame as an [`Occupancy`].
     pub fn expand(&self) -> Occupancy {
-        Occupancy { indices: self.indices() }
+        Occupancy {
+            indices: self.indices(),
+        }
     }
 }
 
@@ -221,7 +243,11 @@ impl From<&Occupancy> for OccupancyRuns {
             end = first + len;
         }
         encoded.shrink_to_fit();
-        OccupancyRuns { encoded, runs: runs.len(), count: occ.indices.len() }
+        OccupancyRuns {
+            encoded,
+            runs: runs.len(),
+            count: occ.indices.len(),
+        }
     }
 }
 

@@ -30,7 +30,10 @@ pub struct Aabb {
 
 impl Aabb {
     pub fn empty() -> Self {
-        Aabb { min: Point3::from([Real::INFINITY; 3]), max: Point3::from([Real::NEG_INFINITY; 3]) }
+        Aabb {
+            min: Point3::from([Real::INFINITY; 3]),
+            max: Point3::from([Real::NEG_INFINITY; 3]),
+        }
     }
     pub fn from_points<'a>(points: impl IntoIterator<Item = &'a Point3>) -> Self {
         let mut b = Aabb::empty();
@@ -44,7 +47,10 @@ impl Aabb {
         self.max = self.max.sup(p);
     }
     pub fn union(&self, other: &Aabb) -> Aabb {
-        Aabb { min: self.min.inf(&other.min), max: self.max.sup(&other.max) }
+        Aabb {
+            min: self.min.inf(&other.min),
+            max: self.max.sup(&other.max),
+        }
     }
     pub fn is_empty(&self) -> bool {
         (0..3).any(|k| self.min[k] > self.max[k])
@@ -60,7 +66,9 @@ impl Aabb {
     /// farther than 16 times its size from the origin (f32 keeps 24 bits),
     /// as a capture in map coordinates does.
     pub fn too_far_for_f32(&self) -> bool {
-        let far = (0..3).map(|k| self.min[k].abs().max(self.max[k].abs())).fold(0.0, Real::max);
+        let far = (0..3)
+            .map(|k| self.min[k].abs().max(self.max[k].abs()))
+            .fold(0.0, Real::max);
         !self.is_empty() && self.longest_side() > 0.0 && far > 16.0 * self.longest_side()
     }
     pub fn diagonal(&self) -> Real {
@@ -74,7 +82,13 @@ impl Aabb {
 pub(crate) fn weld_by_position(positions: &[Point3]) -> Vec<u32> {
     let mut first = std::collections::HashMap::new();
     // `+ 0.0` turns −0 into +0, so both weld.
-    (0..positions.len() as u32).map(|v| *first.entry(positions[v as usize].coords.map(|c| (c + 0.0).to_bits())).or_insert(v)).collect()
+    (0..positions.len() as u32)
+        .map(|v| {
+            *first
+                .entry(positions[v as usize].coords.map(|c| (c + 0.0).to_bits()))
+                .or_insert(v)
+        })
+        .collect()
 }
 
 impl TriangleMesh {
@@ -86,7 +100,11 @@ impl TriangleMesh {
     /// welded indices (copies then keep no triangle of their own).
     pub fn welded(&self) -> (Vec<u32>, Vec<[u32; 3]>) {
         let weld = weld_by_position(&self.positions);
-        let triangles = self.triangles.iter().map(|t| t.map(|v| weld[v as usize])).collect();
+        let triangles = self
+            .triangles
+            .iter()
+            .map(|t| t.map(|v| weld[v as usize]))
+            .collect();
         (weld, triangles)
     }
 
@@ -97,14 +115,28 @@ impl TriangleMesh {
         if self.triangles.is_empty() {
             return Err(Error::mesh(path, "the mesh has no triangles"));
         }
-        if let Some(i) = self.positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-            return Err(Error::mesh(path, format!("vertex {} has a non-finite coordinate", i + 1)));
-        }
-        let n = self.positions.len();
-        if let Some(t) = self.triangles.iter().position(|t| t.iter().any(|&i| i as usize >= n)) {
+        if let Some(i) = self
+            .positions
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite()))
+        {
             return Err(Error::mesh(
                 path,
-                format!("triangle {} refers to a vertex beyond the {n} defined", t + 1),
+                format!("vertex {} has a non-finite coordinate", i + 1),
+            ));
+        }
+        let n = self.positions.len();
+        if let Some(t) = self
+            .triangles
+            .iter()
+            .position(|t| t.iter().any(|&i| i as usize >= n))
+        {
+            return Err(Error::mesh(
+                path,
+                format!(
+                    "triangle {} refers to a vertex beyond the {n} defined",
+                    t + 1
+                ),
             ));
         }
         // A few degenerate triangles are normal in captures; only degenerate
@@ -112,13 +144,19 @@ impl TriangleMesh {
         // points rounded onto a common line count as collinear.
         let diagonal = self.bounding_box().diagonal();
         if !diagonal.is_finite() {
-            return Err(Error::mesh(path, "the coordinates are too large: the bounding box's diagonal overflows"));
+            return Err(Error::mesh(
+                path,
+                "the coordinates are too large: the bounding box's diagonal overflows",
+            ));
         }
         let tiny = 1e-12 * diagonal.powi(2);
         if !self.triangles.iter().any(|t| self.doubled_area(t) > tiny) {
             return Err(Error::mesh(
                 path,
-                format!("all {} triangles are degenerate (zero area): the mesh has no surface", self.triangles.len()),
+                format!(
+                    "all {} triangles are degenerate (zero area): the mesh has no surface",
+                    self.triangles.len()
+                ),
             ));
         }
         Ok(())

@@ -24,7 +24,11 @@ pub struct GridRecord {
 
 impl From<&GridSpec> for GridRecord {
     fn from(g: &GridSpec) -> Self {
-        GridRecord { dims: g.dims, origin: [g.origin.x, g.origin.y, g.origin.z], voxel_size: g.voxel_size }
+        GridRecord {
+            dims: g.dims,
+            origin: [g.origin.x, g.origin.y, g.origin.z],
+            voxel_size: g.voxel_size,
+        }
     }
 }
 
@@ -33,28 +37,63 @@ impl From<&GridSpec> for GridRecord {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct TrajectoryMetadata {
     /// Voxels along the longest side of the input's bounding box.
-    #[serde(rename = "voltrack.resolution", with = "text", default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        rename = "voltrack.resolution",
+        with = "text",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
     pub resolution: Option<usize>,
     /// The grid's voxel size, in the input's units.
-    #[serde(rename = "voltrack.voxel_size", with = "scientific", default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        rename = "voltrack.voxel_size",
+        with = "scientific",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
     pub voxel_size: Option<Real>,
-    #[serde(rename = "voltrack.grid", default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        rename = "voltrack.grid",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
     pub grid: Option<GridRecord>,
     /// Frames tracked.
-    #[serde(rename = "voltrack.frames", with = "text", default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        rename = "voltrack.frames",
+        with = "text",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
     pub frames: Option<usize>,
     /// The tracking parameters (`params::TrackParams` as serialised).
-    #[serde(rename = "voltrack.track", default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        rename = "voltrack.track",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
     pub track: Option<serde_json::Value>,
     /// The first input frame, as messages named it.
-    #[serde(rename = "voltrack.first_input", default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        rename = "voltrack.first_input",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
     pub first_input: Option<String>,
     /// The refinement parameters (`params::RefineParams` as serialised),
     /// when the trajectories were refined.
-    #[serde(rename = "voltrack.refine", default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        rename = "voltrack.refine",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
     pub refine: Option<serde_json::Value>,
     /// Original indices of the centers refinement removed, in removal order.
-    #[serde(rename = "voltrack.removed", default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        rename = "voltrack.removed",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
     pub removed: Option<Vec<usize>>,
     /// The version of voltrack that wrote the file (set by the writer).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -69,7 +108,10 @@ impl TrajectoryMetadata {
     /// units (`TrackParams::absolute_units`; false when not recorded):
     /// refining them later takes its lengths the same way.
     pub fn absolute_units(&self) -> bool {
-        self.track.as_ref().and_then(|t| t.get("absolute_units")?.as_bool()).unwrap_or(false)
+        self.track
+            .as_ref()
+            .and_then(|t| t.get("absolute_units")?.as_bool())
+            .unwrap_or(false)
     }
 }
 
@@ -87,7 +129,10 @@ mod text {
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<usize>, D::Error> {
         match serde_json::Value::deserialize(d)? {
             serde_json::Value::String(t) => t.trim().parse().map(Some).map_err(D::Error::custom),
-            serde_json::Value::Number(n) => n.as_u64().map(|n| Some(n as usize)).ok_or_else(|| D::Error::custom("not a count")),
+            serde_json::Value::Number(n) => n
+                .as_u64()
+                .map(|n| Some(n as usize))
+                .ok_or_else(|| D::Error::custom("not a count")),
             serde_json::Value::Null => Ok(None),
             other => Err(D::Error::custom(format!("not a count: {other}"))),
         }

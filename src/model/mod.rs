@@ -4,8 +4,8 @@
 
 pub mod frames;
 pub mod grid;
-pub mod metadata;
 pub mod mesh;
+pub mod metadata;
 pub mod positions;
 pub mod rigid;
 pub(crate) mod rng;
@@ -21,8 +21,6 @@ pub use trajectories::Trajectories;
 
 use crate::error::{Error, Result};
 
-
-
 /// What the writers call the animated object (glTF node, mesh and animation,
 /// OBJ object) when no name is given.
 pub const DEFAULT_NAME: &str = "voltrack";
@@ -35,7 +33,9 @@ pub fn check_name(name: &str) -> Result<()> {
         return Err(Error::InvalidParameter("the name must not be empty".into()));
     }
     if name.chars().any(char::is_control) {
-        return Err(Error::InvalidParameter(format!("the name {name:?} holds a control character")));
+        return Err(Error::InvalidParameter(format!(
+            "the name {name:?} holds a control character"
+        )));
     }
     Ok(())
 }

@@ -117,7 +117,11 @@ impl Scratch {
 
     /// Seeks to `offset` and runs `op`, one caller at a time.
     #[cfg(not(unix))]
-    fn at(&self, offset: u64, op: impl FnOnce(&File) -> std::io::Result<()>) -> std::io::Result<()> {
+    fn at(
+        &self,
+        offset: u64,
+        op: impl FnOnce(&File) -> std::io::Result<()>,
+    ) -> std::io::Result<()> {
         let _one = self.lock.lock().unwrap_or_else(|e| e.into_inner());
         std::io::Seek::seek(&mut &self.file, std::io::SeekFrom::Start(offset))?;
         op(&self.file)
@@ -136,12 +140,20 @@ impl<T: Triple> FrameStore<T> {
     /// vectors), kept in memory when they take at most `memory` bytes
     /// ([`POSITION_BYTES`] per vertex and frame), in a temporary file otherwise.
     pub fn new(vertices: usize, frames: usize, memory: usize) -> Result<Self> {
-        let bytes = vertices.saturating_mul(frames).saturating_mul(POSITION_BYTES);
+        let bytes = vertices
+            .saturating_mul(frames)
+            .saturating_mul(POSITION_BYTES);
         let storage = if bytes <= memory {
             Storage::Memory(Vec::with_capacity(frames))
         } else {
-            log::debug!("{frames} frames of {vertices} ({:.0} MiB) are kept in a temporary file", bytes as f64 / (1 << 20) as f64);
-            Storage::File { scratch: Scratch::create()?, vertices }
+            log::debug!(
+                "{frames} frames of {vertices} ({:.0} MiB) are kept in a temporary file",
+                bytes as f64 / (1 << 20) as f64
+            );
+            Storage::File {
+                scratch: Scratch::create()?,
+                vertices,
+            }
         };
         Ok(FrameStore { storage, len: 0 })
     }
@@ -150,7 +162,9 @@ impl<T: Triple> FrameStore<T> {
     /// temporary folder that takes none fails before any work, not when a
     /// long sequence's mesh needs it.
     pub fn check_temporary_folder() -> Result<()> {
-        Scratch::create().map(drop).map_err(|e| Error::InvalidParameter(e.to_string()))
+        Scratch::create()
+            .map(drop)
+            .map_err(|e| Error::InvalidParameter(e.to_string()))
     }
 
     pub fn len(&self) -> usize {
@@ -244,7 +258,10 @@ impl PositionFrames {
 impl<T: Triple> From<Vec<Vec<T>>> for FrameStore<T> {
     /// Frames already in memory, kept there.
     fn from(frames: Vec<Vec<T>>) -> Self {
-        FrameStore { len: frames.len(), storage: Storage::Memory(frames) }
+        FrameStore {
+            len: frames.len(),
+            storage: Storage::Memory(frames),
+        }
     }
 }
 
@@ -257,7 +274,10 @@ impl<T: Triple> FromIterator<Vec<T>> for FrameStore<T> {
 
 fn check_length<T>(vertices: usize, frame: &[T], f: usize) -> Result<()> {
     if frame.len() != vertices {
-        return Err(Error::InvalidInput(format!("frame {f} has {} vertices, the mesh {vertices}", frame.len())));
+        return Err(Error::InvalidInput(format!(
+            "frame {f} has {} vertices, the mesh {vertices}",
+            frame.len()
+        )));
     }
     Ok(())
 }
@@ -267,7 +287,11 @@ fn offset(vertices: usize, f: usize, first: usize) -> u64 {
 }
 
 fn encode<T: Triple>(frame: &[T]) -> Vec<u8> {
-    frame.iter().flat_map(|p| p.to_array()).flat_map(f64::to_le_bytes).collect()
+    frame
+        .iter()
+        .flat_map(|p| p.to_array())
+        .flat_map(f64::to_le_bytes)
+        .collect()
 }
 
 fn decode<T: Triple>(bytes: &[u8]) -> Vec<T> {
@@ -285,7 +309,9 @@ mod tests {
     use super::*;
 
     fn frame(f: usize, n: usize) -> Vec<Point3> {
-        (0..n).map(|v| Point3::new(f as f64 + 0.1, v as f64 * 1e-3, -(v as f64).sqrt() / 7.0)).collect()
+        (0..n)
+            .map(|v| Point3::new(f as f64 + 0.1, v as f64 * 1e-3, -(v as f64).sqrt() / 7.0))
+            .collect()
     }
 
     #[test]

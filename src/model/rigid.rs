@@ -13,7 +13,10 @@ pub struct Rigid {
 
 impl Rigid {
     pub fn identity() -> Self {
-        Rigid { rotation: Matrix3::identity(), translation: Vector3::zeros() }
+        Rigid {
+            rotation: Matrix3::identity(),
+            translation: Vector3::zeros(),
+        }
     }
 
     #[inline]
@@ -23,12 +26,18 @@ impl Rigid {
 
     pub fn inverse(&self) -> Rigid {
         let rt = self.rotation.transpose();
-        Rigid { rotation: rt, translation: -(rt * self.translation) }
+        Rigid {
+            rotation: rt,
+            translation: -(rt * self.translation),
+        }
     }
 
     /// `self ∘ other`: first `other`, then `self`.
     pub fn compose(&self, other: &Rigid) -> Rigid {
-        Rigid { rotation: self.rotation * other.rotation, translation: self.rotation * other.translation + self.translation }
+        Rigid {
+            rotation: self.rotation * other.rotation,
+            translation: self.rotation * other.translation + self.translation,
+        }
     }
 }
 
@@ -39,11 +48,17 @@ impl Rigid {
 ///
 /// With too few or collinear points the rotation is under-determined; a small
 /// pull towards the identity then picks the smallest rotation.
-pub fn fit_rigid(src: &[Point3], dst: &[Point3], pairs: impl Iterator<Item = (usize, Real)> + Clone) -> Rigid {
+pub fn fit_rigid(
+    src: &[Point3],
+    dst: &[Point3],
+    pairs: impl Iterator<Item = (usize, Real)> + Clone,
+) -> Rigid {
     // One pass over the pairs (this is the tracker's inner loop): weighted
     // sums of p, q and p qᵀ, taken relative to the first pair so that the
     // covariance H = Σ w p qᵀ - W p̄ q̄ᵀ does not cancel digits away.
-    let Some((j0, _)) = pairs.clone().next() else { return Rigid::identity() };
+    let Some((j0, _)) = pairs.clone().next() else {
+        return Rigid::identity();
+    };
     let (p0, q0) = (src[j0].coords, dst[j0].coords);
     let mut wsum = 0.0;
     let mut ps = Vector3::zeros();
@@ -68,7 +83,10 @@ pub fn fit_rigid(src: &[Point3], dst: &[Point3], pairs: impl Iterator<Item = (us
 /// best aligns the weighted cross-covariance H = Σ w (p - pm)(q - qm)ᵀ.
 fn rigid_from_covariance(h: &Matrix3, pm: &Vector3, qm: &Vector3) -> Rigid {
     let rotation = rotation_from_covariance(h);
-    Rigid { rotation, translation: qm - rotation * pm }
+    Rigid {
+        rotation,
+        translation: qm - rotation * pm,
+    }
 }
 
 /// The proper rotation R that best carries the p's onto the q's, given their
@@ -141,7 +159,11 @@ fn quaternion_rotation(h: &Matrix3) -> Option<Matrix3> {
         return None;
     }
     let q = nalgebra::Quaternion::new(best[0], best[1], best[2], best[3]);
-    Some(*UnitQuaternion::from_quaternion(q).to_rotation_matrix().matrix())
+    Some(
+        *UnitQuaternion::from_quaternion(q)
+            .to_rotation_matrix()
+            .matrix(),
+    )
 }
 
 /// The determinant of the 3 × 3 matrix `a` without row `r` and column `c`,
@@ -150,9 +172,14 @@ fn cofactor(a: &[[Real; 4]; 4], r: usize, c: usize) -> Real {
     let rows: [usize; 3] = std::array::from_fn(|k| k + usize::from(k >= r));
     let cols: [usize; 3] = std::array::from_fn(|k| k + usize::from(k >= c));
     let m = |i: usize, j: usize| a[rows[i]][cols[j]];
-    let det = m(0, 0) * (m(1, 1) * m(2, 2) - m(1, 2) * m(2, 1)) - m(0, 1) * (m(1, 0) * m(2, 2) - m(1, 2) * m(2, 0))
+    let det = m(0, 0) * (m(1, 1) * m(2, 2) - m(1, 2) * m(2, 1))
+        - m(0, 1) * (m(1, 0) * m(2, 2) - m(1, 2) * m(2, 0))
         + m(0, 2) * (m(1, 0) * m(2, 1) - m(1, 1) * m(2, 0));
-    if (r + c) % 2 == 0 { det } else { -det }
+    if (r + c) % 2 == 0 {
+        det
+    } else {
+        -det
+    }
 }
 
 /// The determinant of `a`, by its first row's cofactors.
@@ -201,7 +228,11 @@ pub struct RigidFits {
 
 impl RigidFits {
     /// `lists(i)`: the weighted points of fit i, for i in 0..`fits`.
-    pub fn new<I: Iterator<Item = (usize, Real)>>(src: &[Point3], fits: usize, lists: impl Fn(usize) -> I) -> Self {
+    pub fn new<I: Iterator<Item = (usize, Real)>>(
+        src: &[Point3],
+        fits: usize,
+        lists: impl Fn(usize) -> I,
+    ) -> Self {
         let src_shift = mean(src);
         let src: Vec<Vector3> = src.iter().map(|p| p.coords - src_shift).collect();
         let mut start = Vec::with_capacity(fits + 1);
@@ -220,7 +251,15 @@ impl RigidFits {
             wsum.push(w_i);
             psum.push(p_i);
         }
-        RigidFits { start, points, weights, src, src_shift, wsum, psum }
+        RigidFits {
+            start,
+            points,
+            weights,
+            src,
+            src_shift,
+            wsum,
+            psum,
+        }
     }
 
     /// Every fit's rigid motion from the sources to `dst`.
@@ -244,19 +283,26 @@ impl RigidFits {
         // Fits are summed two at a time: each sum is a chain of dependent
         // additions, and two independent chains keep the adder busy.
         let mut motions = vec![Rigid::identity(); self.wsum.len()];
-        motions.par_chunks_mut(2).enumerate().for_each(|(pair, out)| {
-            let i = 2 * pair;
-            let list = |i: usize| {
-                let range = self.start[i]..self.start[i + 1];
-                (&self.points[range.clone()], &self.weights[range])
-            };
-            // The last fit of an odd count is paired with an empty list.
-            let second = if out.len() == 2 { list(i + 1) } else { (&[][..], &[][..]) };
-            let sums = weighted_sums(list(i), second, &table);
-            for (k, motion) in out.iter_mut().enumerate() {
-                *motion = self.motion(i + k, &sums[k], &dst_shift);
-            }
-        });
+        motions
+            .par_chunks_mut(2)
+            .enumerate()
+            .for_each(|(pair, out)| {
+                let i = 2 * pair;
+                let list = |i: usize| {
+                    let range = self.start[i]..self.start[i + 1];
+                    (&self.points[range.clone()], &self.weights[range])
+                };
+                // The last fit of an odd count is paired with an empty list.
+                let second = if out.len() == 2 {
+                    list(i + 1)
+                } else {
+                    (&[][..], &[][..])
+                };
+                let sums = weighted_sums(list(i), second, &table);
+                for (k, motion) in out.iter_mut().enumerate() {
+                    *motion = self.motion(i + k, &sums[k], &dst_shift);
+                }
+            });
         motions
     }
 
@@ -308,7 +354,11 @@ impl PairTable {
                 row
             })
             .collect();
-        PairTable { rows, src_shift, dst_shift }
+        PairTable {
+            rows,
+            src_shift,
+            dst_shift,
+        }
     }
 
     /// The rigid motion over `pairs` (point index, weight), as
@@ -322,7 +372,11 @@ impl PairTable {
         let ps = Vector3::new(acc[1], acc[2], acc[3]);
         let qs = Vector3::new(acc[4], acc[5], acc[6]);
         let h = Matrix3::from_column_slice(&acc[7..]) - ps * (qs / wsum).transpose();
-        rigid_from_covariance(&h, &(self.src_shift + ps / wsum), &(self.dst_shift + qs / wsum))
+        rigid_from_covariance(
+            &h,
+            &(self.src_shift + ps / wsum),
+            &(self.dst_shift + qs / wsum),
+        )
     }
 }
 
@@ -377,12 +431,20 @@ fn weighted_sums(a: WeightedList, b: WeightedList, table: &[[Real; 12]]) -> [[Re
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
-unsafe fn weighted_sums_avx(a: WeightedList, b: WeightedList, table: &[[Real; 12]]) -> [[Real; 12]; 2] {
+unsafe fn weighted_sums_avx(
+    a: WeightedList,
+    b: WeightedList,
+    table: &[[Real; 12]],
+) -> [[Real; 12]; 2] {
     weighted_sums_portable(a, b, table)
 }
 
 #[inline(always)]
-fn weighted_sums_portable(a: WeightedList, b: WeightedList, table: &[[Real; 12]]) -> [[Real; 12]; 2] {
+fn weighted_sums_portable(
+    a: WeightedList,
+    b: WeightedList,
+    table: &[[Real; 12]],
+) -> [[Real; 12]; 2] {
     #[inline(always)]
     fn add(acc: &mut [Real; 12], w: Real, row: &[Real; 12]) {
         for (s, r) in acc.iter_mut().zip(row) {
@@ -426,13 +488,23 @@ mod tests {
             match case % 5 {
                 // A rotation's covariance with noise: the tracker's case.
                 0 | 1 => {
-                    let r = *crate::math::Rotation3::from_scaled_axis(Vector3::new(value(), value(), value()) * 3.0).matrix();
-                    let spread = Matrix3::from_diagonal(&Vector3::new(1.0 + value().abs(), 1.0 + value().abs(), 0.2 + value().abs()));
+                    let r = *crate::math::Rotation3::from_scaled_axis(
+                        Vector3::new(value(), value(), value()) * 3.0,
+                    )
+                    .matrix();
+                    let spread = Matrix3::from_diagonal(&Vector3::new(
+                        1.0 + value().abs(),
+                        1.0 + value().abs(),
+                        0.2 + value().abs(),
+                    ));
                     h = spread * r.transpose() + h * 0.05;
                 }
                 // Rank one or two, or nearly.
                 2 => {
-                    let (u, v) = (Vector3::new(value(), value(), value()), Vector3::new(value(), value(), value()));
+                    let (u, v) = (
+                        Vector3::new(value(), value(), value()),
+                        Vector3::new(value(), value(), value()),
+                    );
                     h = u * v.transpose() + h * 1e-9 * (case % 3) as Real;
                 }
                 _ => {}
@@ -441,12 +513,21 @@ mod tests {
             let svd = svd_rotation(&h);
             if let Some(q) = quaternion_rotation(&h) {
                 answered += 1;
-                assert!((q - svd).norm() < 1e-8, "case {case}: {q} against {svd} for {h}");
+                assert!(
+                    (q - svd).norm() < 1e-8,
+                    "case {case}: {q} against {svd} for {h}"
+                );
                 assert!((q.determinant() - 1.0).abs() < 1e-12);
             }
-            assert!((rotation_from_covariance(&h) - svd).norm() < 1e-8, "case {case}");
+            assert!(
+                (rotation_from_covariance(&h) - svd).norm() < 1e-8,
+                "case {case}"
+            );
         }
-        assert!(answered > 15_000, "only {answered} answered by the quaternion");
+        assert!(
+            answered > 15_000,
+            "only {answered} answered by the quaternion"
+        );
     }
 
     /// The AVX copy of the inner loop (taken on CPUs that have AVX) gives
@@ -460,16 +541,36 @@ mod tests {
         let mut rng = SplitMix64::new(8);
         let lists: Vec<(Vec<u32>, Vec<Real>)> = [0, 1, 3, 17, 427, 430]
             .iter()
-            .map(|&len| ((0..len).map(|_| rng.below(table.len()) as u32).collect(), (0..len).map(|_| rng.unit()).collect()))
+            .map(|&len| {
+                (
+                    (0..len).map(|_| rng.below(table.len()) as u32).collect(),
+                    (0..len).map(|_| rng.unit()).collect(),
+                )
+            })
             .collect();
         let bits = |s: [[Real; 12]; 2]| s.map(|s| s.map(Real::to_bits));
         for a in &lists {
             let alone = weighted_sums_portable((&a.0, &a.1), (&[], &[]), &table)[0];
             for b in &lists {
                 let pair = ((&a.0[..], &a.1[..]), (&b.0[..], &b.1[..]));
-                let (dispatched, portable) = (weighted_sums(pair.0, pair.1, &table), weighted_sums_portable(pair.0, pair.1, &table));
-                assert_eq!(bits(dispatched), bits(portable), "{} and {} terms", a.0.len(), b.0.len());
-                assert_eq!(alone.map(Real::to_bits), dispatched[0].map(Real::to_bits), "{} terms paired with {}", a.0.len(), b.0.len());
+                let (dispatched, portable) = (
+                    weighted_sums(pair.0, pair.1, &table),
+                    weighted_sums_portable(pair.0, pair.1, &table),
+                );
+                assert_eq!(
+                    bits(dispatched),
+                    bits(portable),
+                    "{} and {} terms",
+                    a.0.len(),
+                    b.0.len()
+                );
+                assert_eq!(
+                    alone.map(Real::to_bits),
+                    dispatched[0].map(Real::to_bits),
+                    "{} terms paired with {}",
+                    a.0.len(),
+                    b.0.len()
+                );
             }
         }
     }

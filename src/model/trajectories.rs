@@ -13,14 +13,25 @@ pub struct Trajectories {
 
 impl Trajectories {
     pub fn new(frames: usize, centers: usize) -> Self {
-        Trajectories { frames, centers, positions: vec![Point3::origin(); frames * centers] }
+        Trajectories {
+            frames,
+            centers,
+            positions: vec![Point3::origin(); frames * centers],
+        }
     }
 
     /// Builds from one `Vec` of center positions per frame (all the same length).
     pub fn from_frames(frames: Vec<Vec<Point3>>) -> Self {
         let centers = frames.first().map_or(0, Vec::len);
-        assert!(frames.iter().all(|f| f.len() == centers), "every frame needs the same number of centers");
-        Trajectories { frames: frames.len(), centers, positions: frames.into_iter().flatten().collect() }
+        assert!(
+            frames.iter().all(|f| f.len() == centers),
+            "every frame needs the same number of centers"
+        );
+        Trajectories {
+            frames: frames.len(),
+            centers,
+            positions: frames.into_iter().flatten().collect(),
+        }
     }
 
     #[inline]
@@ -85,7 +96,10 @@ mod tests {
         assert_eq!(t.centers, 3);
         for f in 0..frames {
             for (k, &i) in kept.iter().enumerate() {
-                assert_eq!(t.get(f, k), Point3::new(f as Real, i as Real, (10 * f + i) as Real));
+                assert_eq!(
+                    t.get(f, k),
+                    Point3::new(f as Real, i as Real, (10 * f + i) as Real)
+                );
             }
         }
     }

@@ -22,7 +22,10 @@ enum Kind {
     /// A directory the run writes `files` into, one at a time (checkpoints),
     /// leaving everything else there alone: an existing file of one of
     /// those names is replaced only if it starts with `mark`.
-    FilesIn { files: Vec<PathBuf>, mark: &'static [u8] },
+    FilesIn {
+        files: Vec<PathBuf>,
+        mark: &'static [u8],
+    },
 }
 
 #[derive(Clone, Debug)]
@@ -52,7 +55,12 @@ impl OutputPlan {
 
     /// A file the run writes; `what` names it in messages.
     pub fn file(mut self, path: &Path, what: &str) -> Self {
-        self.outputs.push(Planned { path: path.to_path_buf(), kind: Kind::File, beside: None, what: what.into() });
+        self.outputs.push(Planned {
+            path: path.to_path_buf(),
+            kind: Kind::File,
+            beside: None,
+            what: what.into(),
+        });
         self
     }
 
@@ -61,15 +69,28 @@ impl OutputPlan {
     /// there is replaced only if its first bytes hold `mark`, as voltrack
     /// writes it. It belongs to the last [`file`](Self::file) planned.
     pub fn sidecar(mut self, path: &Path, what: &str, mark: &'static str) -> Self {
-        let beside = self.outputs.iter().rposition(|o| matches!(o.kind, Kind::File));
-        self.outputs.push(Planned { path: path.to_path_buf(), kind: Kind::Sidecar { mark }, beside, what: what.into() });
+        let beside = self
+            .outputs
+            .iter()
+            .rposition(|o| matches!(o.kind, Kind::File));
+        self.outputs.push(Planned {
+            path: path.to_path_buf(),
+            kind: Kind::Sidecar { mark },
+            beside,
+            what: what.into(),
+        });
         self
     }
 
     /// A directory the run fills with files (created if missing) and
     /// replaces as a whole: it may hold only what voltrack wrote there.
     pub fn dir(mut self, path: &Path, what: &str) -> Self {
-        self.outputs.push(Planned { path: path.to_path_buf(), kind: Kind::Dir, beside: None, what: what.into() });
+        self.outputs.push(Planned {
+            path: path.to_path_buf(),
+            kind: Kind::Dir,
+            beside: None,
+            what: what.into(),
+        });
         self
     }
 
@@ -77,8 +98,16 @@ impl OutputPlan {
     /// files may replace only earlier checkpoints, or links.
     pub fn checkpoints(mut self, checkpointing: &crate::checkpoint::Checkpointing) -> Self {
         let files = vec![checkpointing.path(), checkpointing.refine_path()];
-        let kind = Kind::FilesIn { files, mark: crate::checkpoint::MARK };
-        self.outputs.push(Planned { path: checkpointing.dir.clone(), kind, beside: None, what: "the checkpoint folder".into() });
+        let kind = Kind::FilesIn {
+            files,
+            mark: crate::checkpoint::MARK,
+        };
+        self.outputs.push(Planned {
+            path: checkpointing.dir.clone(),
+            kind,
+            beside: None,
+            what: "the checkpoint folder".into(),
+        });
         self
     }
 
@@ -98,17 +127,29 @@ impl OutputPlan {
 
     /// Checks the plan; the first problem found is the error.
     pub fn check(&self) -> Result<()> {
-        let inputs: Vec<(PathBuf, &PathBuf)> = self.inputs.iter().filter_map(|p| Some((std::fs::canonicalize(p).ok()?, p))).collect();
+        let inputs: Vec<(PathBuf, &PathBuf)> = self
+            .inputs
+            .iter()
+            .filter_map(|p| Some((std::fs::canonicalize(p).ok()?, p)))
+            .collect();
         // Another name of an input (a hard link) is the input too.
-        let input_files: Vec<(FileId, &PathBuf)> = self.inputs.iter().filter_map(|p| Some((FileId::of(p)?, p))).collect();
+        let input_files: Vec<(FileId, &PathBuf)> = self
+            .inputs
+            .iter()
+            .filter_map(|p| Some((FileId::of(p)?, p)))
+            .collect();
         let ids: Vec<PathBuf> = self
             .outputs
             .iter()
             .map(|out| match &out.kind {
                 Kind::File => check_file(out),
-                Kind::Sidecar { mark } => check_file(out).and_then(|id| check_ours(out, id, mark)).and_then(|id| self.check_beside_file(out, id)),
+                Kind::Sidecar { mark } => check_file(out)
+                    .and_then(|id| check_ours(out, id, mark))
+                    .and_then(|id| self.check_beside_file(out, id)),
                 Kind::Dir => check_dir(out).and_then(|id| check_replaceable(out, id)),
-                Kind::FilesIn { files, mark } => check_dir(out).and_then(|id| check_files_in(out, id, files, mark)),
+                Kind::FilesIn { files, mark } => {
+                    check_dir(out).and_then(|id| check_files_in(out, id, files, mark))
+                }
             })
             .collect::<Result<_>>()?;
         for (k, (out, id)) in self.outputs.iter().zip(&ids).enumerate() {
@@ -118,18 +159,35 @@ impl OutputPlan {
                     format!("{} would replace the input {}; voltrack never writes over its input: choose another name", out.what, given.display()),
                 ));
             }
-            if let Some((_, given)) = input_files.iter().find(|(f, _)| matches!(out.kind, Kind::File | Kind::Sidecar { .. }) && FileId::of(id) == Some(*f)) {
+            if let Some((_, given)) = input_files.iter().find(|(f, _)| {
+                matches!(out.kind, Kind::File | Kind::Sidecar { .. }) && FileId::of(id) == Some(*f)
+            }) {
                 return Err(Error::refuse(
                     &out.path,
                     format!("{} is another name (a hard link) of the input {}; voltrack never writes over its input: choose another name", out.what, given.display()),
                 ));
             }
             if let Some(first) = (0..k).find(|&j| ids[j] == *id) {
-                return Err(Error::refuse(&out.path, format!("{} and {} would be the same file", self.outputs[first].what, out.what)));
+                return Err(Error::refuse(
+                    &out.path,
+                    format!(
+                        "{} and {} would be the same file",
+                        self.outputs[first].what, out.what
+                    ),
+                ));
             }
-            let dir_holding = self.outputs.iter().zip(&ids).find(|(o, d)| matches!(o.kind, Kind::Dir | Kind::FilesIn { .. }) && Some(d.as_path()) == id.parent());
+            let dir_holding = self.outputs.iter().zip(&ids).find(|(o, d)| {
+                matches!(o.kind, Kind::Dir | Kind::FilesIn { .. })
+                    && Some(d.as_path()) == id.parent()
+            });
             if let (Kind::File | Kind::Sidecar { .. }, Some((dir, _))) = (&out.kind, dir_holding) {
-                return Err(Error::refuse(&out.path, format!("{} would be mixed with the files of {}: write it elsewhere", out.what, dir.what)));
+                return Err(Error::refuse(
+                    &out.path,
+                    format!(
+                        "{} would be mixed with the files of {}: write it elsewhere",
+                        out.what, dir.what
+                    ),
+                ));
             }
             match out.kind {
                 Kind::File | Kind::Sidecar { .. } => self.check_not_picked_up(out, id)?,
@@ -143,10 +201,14 @@ impl OutputPlan {
     /// An output the next run on the same input would read as a frame:
     /// frames given one by one are read from their folder next time.
     fn check_not_picked_up(&self, out: &Planned, id: &Path) -> Result<()> {
-        let folders = self.sources.iter().filter(|s| s.is_file()).map(|s| match s.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        });
+        let folders = self
+            .sources
+            .iter()
+            .filter(|s| s.is_file())
+            .map(|s| match s.parent() {
+                Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+                _ => PathBuf::from("."),
+            });
         let sources: Vec<PathBuf> = self.sources.iter().cloned().chain(folders).collect();
         match sources.iter().find(|source| would_discover(source, id)) {
             Some(source) => Err(Error::refuse(
@@ -164,7 +226,9 @@ impl OutputPlan {
     /// A sidecar beside an output that is a device or a FIFO would be a
     /// new file beside the device (`/dev/null.obj`).
     fn check_beside_file(&self, out: &Planned, id: PathBuf) -> Result<PathBuf> {
-        let Some(main) = out.beside.map(|k| &self.outputs[k]) else { return Ok(id) };
+        let Some(main) = out.beside.map(|k| &self.outputs[k]) else {
+            return Ok(id);
+        };
         if std::fs::metadata(&main.path).is_ok_and(|m| crate::files::writes_through(&m)) {
             return Err(Error::refuse(
                 &main.path,
@@ -177,12 +241,25 @@ impl OutputPlan {
     /// A directory of outputs that holds input files (or is an input
     /// directory) would mix the two and could overwrite inputs.
     fn check_not_an_input_dir(&self, out: &Planned, id: &Path) -> Result<()> {
-        let holds_input = self.inputs.iter().find(|i| std::fs::canonicalize(i).ok().and_then(|c| c.parent().map(Path::to_path_buf)).as_deref() == Some(id));
-        let is_source = self.sources.iter().find(|s| s.is_dir() && std::fs::canonicalize(s).ok().as_deref() == Some(id));
+        let holds_input = self.inputs.iter().find(|i| {
+            std::fs::canonicalize(i)
+                .ok()
+                .and_then(|c| c.parent().map(Path::to_path_buf))
+                .as_deref()
+                == Some(id)
+        });
+        let is_source = self
+            .sources
+            .iter()
+            .find(|s| s.is_dir() && std::fs::canonicalize(s).ok().as_deref() == Some(id));
         match holds_input.or(is_source) {
             Some(input) => Err(Error::refuse(
                 &out.path,
-                format!("{} would be written into the folder of the input {}: choose another folder", out.what, input.display()),
+                format!(
+                    "{} would be written into the folder of the input {}: choose another folder",
+                    out.what,
+                    input.display()
+                ),
             )),
             None => Ok(()),
         }
@@ -199,7 +276,10 @@ impl FileId {
         #[cfg(unix)]
         {
             use std::os::unix::fs::MetadataExt;
-            std::fs::metadata(path).ok().filter(|m| m.is_file()).map(|m| FileId(m.dev(), m.ino()))
+            std::fs::metadata(path)
+                .ok()
+                .filter(|m| m.is_file())
+                .map(|m| FileId(m.dev(), m.ino()))
         }
         #[cfg(not(unix))]
         {
@@ -212,7 +292,10 @@ impl FileId {
 /// A folder replaced as a whole must hold only what voltrack wrote there,
 /// and must not be the root, the current folder or one holding it.
 fn check_replaceable(out: &Planned, id: PathBuf) -> Result<PathBuf> {
-    let holds_cwd = std::env::current_dir().ok().and_then(|d| std::fs::canonicalize(d).ok()).is_some_and(|cwd| cwd.starts_with(&id));
+    let holds_cwd = std::env::current_dir()
+        .ok()
+        .and_then(|d| std::fs::canonicalize(d).ok())
+        .is_some_and(|cwd| cwd.starts_with(&id));
     if id.parent().is_none() || holds_cwd {
         return Err(Error::refuse(&out.path, format!("{} is replaced as a whole, and this folder holds the current one: name a folder of its own", out.what)));
     }
@@ -233,8 +316,12 @@ fn check_replaceable(out: &Planned, id: PathBuf) -> Result<PathBuf> {
 /// file that starts with `mark` (written by an earlier run).
 fn check_files_in(out: &Planned, id: PathBuf, files: &[PathBuf], mark: &[u8]) -> Result<PathBuf> {
     for file in files {
-        let Ok(meta) = std::fs::symlink_metadata(file) else { continue };
-        if meta.file_type().is_symlink() || (meta.is_file() && crate::files::starts_with(file, mark)) {
+        let Ok(meta) = std::fs::symlink_metadata(file) else {
+            continue;
+        };
+        if meta.file_type().is_symlink()
+            || (meta.is_file() && crate::files::starts_with(file, mark))
+        {
             continue;
         }
         return Err(Error::refuse(file, format!("{} would replace this, which voltrack did not write: move it or choose another folder", out.what)));
@@ -255,8 +342,11 @@ fn identity(path: &Path) -> Result<PathBuf> {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
-    let name = path.file_name().ok_or_else(|| Error::refuse(path, "not a file name"))?;
-    let dir = std::fs::canonicalize(dir).map_err(|e| Error::refuse(path, format!("{}: {e}", dir.display())))?;
+    let name = path
+        .file_name()
+        .ok_or_else(|| Error::refuse(path, "not a file name"))?;
+    let dir = std::fs::canonicalize(dir)
+        .map_err(|e| Error::refuse(path, format!("{}: {e}", dir.display())))?;
     Ok(dir.join(name))
 }
 
@@ -265,17 +355,31 @@ fn identity(path: &Path) -> Result<PathBuf> {
 fn check_file(out: &Planned) -> Result<PathBuf> {
     let path = &out.path;
     if path.as_os_str().is_empty() {
-        return Err(Error::refuse(path, format!("{} has an empty name", out.what)));
+        return Err(Error::refuse(
+            path,
+            format!("{} has an empty name", out.what),
+        ));
     }
     if path.as_os_str().as_encoded_bytes().ends_with(b"/") {
-        return Err(Error::refuse(path, format!("{} ends in '/', which names a folder; give a file name", out.what)));
+        return Err(Error::refuse(
+            path,
+            format!(
+                "{} ends in '/', which names a folder; give a file name",
+                out.what
+            ),
+        ));
     }
     crate::files::check_writable(path).map_err(refused)?;
     let id = identity(path)?;
     match std::fs::metadata(&id) {
-        Ok(meta) if meta.is_dir() => return Err(Error::refuse(path, "a directory of this name exists")),
+        Ok(meta) if meta.is_dir() => {
+            return Err(Error::refuse(path, "a directory of this name exists"))
+        }
         Ok(meta) if !meta.is_file() && !crate::files::writes_through(&meta) => {
-            return Err(Error::refuse(path, "not a regular file, a character device or a FIFO; voltrack will not replace it"))
+            return Err(Error::refuse(
+                path,
+                "not a regular file, a character device or a FIFO; voltrack will not replace it",
+            ))
         }
         Ok(meta) if crate::files::writes_through(&meta) => return Ok(id),
         _ => {}
@@ -286,12 +390,15 @@ fn check_file(out: &Planned) -> Result<PathBuf> {
 
 /// A sidecar may replace only what an earlier run wrote.
 fn check_ours(out: &Planned, id: PathBuf, mark: &str) -> Result<PathBuf> {
-    let Ok(file) = std::fs::File::open(&id) else { return Ok(id) };
+    let Ok(file) = std::fs::File::open(&id) else {
+        return Ok(id);
+    };
     if !std::fs::metadata(&id).is_ok_and(|m| m.is_file()) {
         return Ok(id);
     }
     let mut head = Vec::with_capacity(4096);
-    std::io::Read::read_to_end(&mut std::io::Read::take(file, 4096), &mut head).map_err(|e| Error::refuse(&out.path, e))?;
+    std::io::Read::read_to_end(&mut std::io::Read::take(file, 4096), &mut head)
+        .map_err(|e| Error::refuse(&out.path, e))?;
     if String::from_utf8_lossy(&head).contains(mark) {
         Ok(id)
     } else {
@@ -303,14 +410,30 @@ fn check_ours(out: &Planned, id: PathBuf, mark: &str) -> Result<PathBuf> {
 fn check_dir(out: &Planned) -> Result<PathBuf> {
     let path = &out.path;
     if path.as_os_str().is_empty() {
-        return Err(Error::refuse(path, format!("{} has an empty name", out.what)));
+        return Err(Error::refuse(
+            path,
+            format!("{} has an empty name", out.what),
+        ));
     }
     if path.exists() && !path.is_dir() {
-        return Err(Error::refuse(path, format!("{} must be a folder, and a file of this name exists", out.what)));
+        return Err(Error::refuse(
+            path,
+            format!(
+                "{} must be a folder, and a file of this name exists",
+                out.what
+            ),
+        ));
     }
     crate::files::check_dir_creatable(path).map_err(refused)?;
-    let existing = path.ancestors().find(|a| a.as_os_str().is_empty() || a.exists()).unwrap_or(Path::new("."));
-    let existing = if existing.as_os_str().is_empty() { Path::new(".") } else { existing };
+    let existing = path
+        .ancestors()
+        .find(|a| a.as_os_str().is_empty() || a.exists())
+        .unwrap_or(Path::new("."));
+    let existing = if existing.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        existing
+    };
     probe(existing, path)?;
     if path.exists() {
         return std::fs::canonicalize(path).map_err(|e| Error::refuse(path, e));
@@ -325,12 +448,19 @@ fn check_dir(out: &Planned) -> Result<PathBuf> {
 /// (read-only, full, no permission) fails now.
 fn probe(dir: &Path, output: &Path) -> Result<()> {
     let name = dir.join(format!(".voltrack-probe.{}", std::process::id()));
-    match std::fs::OpenOptions::new().write(true).create_new(true).open(&name) {
+    match std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&name)
+    {
         Ok(_) => {
             let _ = std::fs::remove_file(&name);
             Ok(())
         }
-        Err(e) => Err(Error::refuse(output, format!("{} does not take new files: {e}", dir.display()))),
+        Err(e) => Err(Error::refuse(
+            output,
+            format!("{} does not take new files: {e}", dir.display()),
+        )),
     }
 }
 

@@ -4,14 +4,16 @@
 use crate::deform::{conform, deform, DynamicMesh};
 use crate::error::{Error, Result, Saved};
 use crate::math::Real;
-use crate::model::mesh::TriangleMesh;
-use crate::model::FrameSource;
 use crate::metrics::{fit_outliers, fit_to_input, Coverage, FitOutliers, SequenceFit};
+use crate::model::mesh::TriangleMesh;
+use crate::model::metadata::GridRecord;
+use crate::model::FrameSource;
+use crate::model::{GridSpec, Trajectories, TrajectoryMetadata};
 use crate::params::{ConformParams, CoverageParams, DeformParams, RefineParams, TrackParams};
 use crate::progress::{Progress, Stage};
-use crate::refine::{global_affinity, refine_with_checkpoints, RefineResult, Refinement, SequenceCells};
-use crate::model::metadata::GridRecord;
-use crate::model::{GridSpec, TrajectoryMetadata, Trajectories};
+use crate::refine::{
+    global_affinity, refine_with_checkpoints, RefineResult, Refinement, SequenceCells,
+};
 use crate::track::{track_with_checkpoints, Checkpointing, FrameTiming, TrackResult};
 use crate::voxel::{voxelize_sequence, VoxelParams, VoxelSequence};
 
@@ -43,8 +45,10 @@ impl Quality {
 /// Measures trajectories against the voxelised sequence they track.
 pub fn measure(traj: &Trajectories, seq: &VoxelSequence) -> Quality {
     let mut cells = SequenceCells::single_pass(seq);
-    let counts: Vec<Vec<u32>> =
-        crate::refine::cells::frame_blocks(0..traj.frames).flat_map(|block| cells.update_frames(traj, 0, block, false)).map(|s| s.count).collect();
+    let counts: Vec<Vec<u32>> = crate::refine::cells::frame_blocks(0..traj.frames)
+        .flat_map(|block| cells.update_frames(traj, 0, block, false))
+        .map(|s| s.count)
+        .collect();
     measure_with_counts(traj, &counts)
 }
 
@@ -52,11 +56,21 @@ pub fn measure(traj: &Trajectories, seq: &VoxelSequence) -> Quality {
 /// (the tracker returns them for its final positions).
 pub fn measure_with_counts(traj: &Trajectories, counts: &[Vec<u32>]) -> Quality {
     let (dfu, dfu_per_frame) = crate::metrics::dfu(counts);
-    Quality { pcac: crate::metrics::pcac(traj), dfu, dfu_per_frame, irregularity: crate::metrics::irregularity(traj) }
+    Quality {
+        pcac: crate::metrics::pcac(traj),
+        dfu,
+        dfu_per_frame,
+        irregularity: crate::metrics::irregularity(traj),
+    }
 }
 
 /// The metadata recording how trajectories were made, for their EXR file.
-pub fn trajectory_metadata(seq: &VoxelSequence, voxel: &VoxelParams, track: &TrackParams, refine: Option<(&RefineParams, &[usize])>) -> TrajectoryMetadata {
+pub fn trajectory_metadata(
+    seq: &VoxelSequence,
+    voxel: &VoxelParams,
+    track: &TrackParams,
+    refine: Option<(&RefineParams, &[usize])>,
+) -> TrajectoryMetadata {
     let mut meta = TrajectoryMetadata {
         resolution: Some(voxel.resolution),
         voxel_size: Some(seq.grid.voxel_size),
@@ -86,7 +100,13 @@ pub fn resolution_of(meta: &TrajectoryMetadata, path: &Path) -> Result<usize> {
 }
 
 /// Checks that re-voxelised input lies on the grid the trajectories were made on.
-pub fn check_grid(meta: &TrajectoryMetadata, grid: &GridSpec, traj: &Trajectories, seq: &VoxelSequence, path: &Path) -> Result<()> {
+pub fn check_grid(
+    meta: &TrajectoryMetadata,
+    grid: &GridSpec,
+    traj: &Trajectories,
+    seq: &VoxelSequence,
+    path: &Path,
+) -> Result<()> {
     if traj.frames != seq.frames.len() {
         return Err(Error::InvalidInput(format!(
             "{} has {} frames but the input has {}",
@@ -133,19 +153,38 @@ impl Measurements {
         let tracked = conv.tracked.quality.clone().ok_or_else(|| {
             Error::InvalidParameter("the conversion did not measure its forward-tracked trajectories: set ConvertOptions::measure_tracked".into())
         })?;
-        let refined = conv.refined.as_ref().map(|_| measure(&conv.trajectories, &conv.sequence));
+        let refined = conv
+            .refined
+            .as_ref()
+            .map(|_| measure(&conv.trajectories, &conv.sequence));
         let (fit, fit_outliers) = Self::fit_of(conv, source, progress)?;
-        Ok(Measurements { tracked, refined, fit, fit_outliers })
+        Ok(Measurements {
+            tracked,
+            refined,
+            fit,
+            fit_outliers,
+        })
     }
 
     /// The result's fit to every input frame and the frames fitted far worse
     /// than the rest: the part of [`Measurements::of`] every conversion's
     /// summary shows, since a lost part often leaves no input volume empty.
-    pub fn fit_of(conv: &Conversion, source: &dyn FrameSource, progress: Progress) -> Result<(SequenceFit, FitOutliers)> {
+    pub fn fit_of(
+        conv: &Conversion,
+        source: &dyn FrameSource,
+        progress: Progress,
+    ) -> Result<(SequenceFit, FitOutliers)> {
         let params = &conv.coverage.params;
         let diagonal = conv.sequence.bounds.diagonal();
         let far = params.far_distances(diagonal, conv.sequence.grid.voxel_size);
-        let fit = fit_to_input(&conv.mesh, source, diagonal, far, Some(&conv.sequence), progress)?;
+        let fit = fit_to_input(
+            &conv.mesh,
+            source,
+            diagonal,
+            far,
+            Some(&conv.sequence),
+            progress,
+        )?;
         let outliers = fit_outliers(&fit, params)?;
         Ok((fit, outliers))
     }
@@ -153,7 +192,10 @@ impl Measurements {
 
 /// The frames where `conv` may have lost a part: from its unreached volume
 /// and, when measured ([`Measurements::fit_of`]), its fit to the input.
-pub fn lost_parts(conv: &Conversion, fit: Option<(&SequenceFit, &FitOutliers)>) -> crate::metrics::LostParts {
+pub fn lost_parts(
+    conv: &Conversion,
+    fit: Option<(&SequenceFit, &FitOutliers)>,
+) -> crate::metrics::LostParts {
     crate::metrics::lost_parts(&conv.coverage, fit)
 }
 
@@ -174,8 +216,16 @@ impl Tracked {
     /// Splits `result`'s trajectories off, measuring them first if `measure`;
     /// its cell counts are not kept.
     pub fn split(result: TrackResult, measure: bool) -> (Self, Trajectories) {
-        let quality = measure.then(|| measure_with_counts(&result.trajectories, &result.cell_counts));
-        (Tracked { centers: result.trajectories.centers, quality, timings: result.timings }, result.trajectories)
+        let quality =
+            measure.then(|| measure_with_counts(&result.trajectories, &result.cell_counts));
+        (
+            Tracked {
+                centers: result.trajectories.centers,
+                quality,
+                timings: result.timings,
+            },
+            result.trajectories,
+        )
     }
 }
 
@@ -236,16 +286,29 @@ impl Default for ConvertOptions {
 /// given), refine, deform and conform to the input surfaces: the whole
 /// pipeline up to export, reading the frames of `source` as each stage
 /// needs them.
-pub fn convert(source: &dyn FrameSource, options: &ConvertOptions, progress: Progress) -> Result<Conversion> {
+pub fn convert(
+    source: &dyn FrameSource,
+    options: &ConvertOptions,
+    progress: Progress,
+) -> Result<Conversion> {
     let checkpoint = options.checkpoint.as_ref();
     crate::model::PositionFrames::check_temporary_folder()?;
     let sequence = voxelize_sequence(source, &options.voxel, progress)?;
     let first = sequence.first_mesh.clone().ok_or_else(|| {
-        Error::InvalidInput(format!("{}: voxel input has no mesh to deform; convert needs meshes", sequence.names[0]))
+        Error::InvalidInput(format!(
+            "{}: voxel input has no mesh to deform; convert needs meshes",
+            sequence.names[0]
+        ))
     })?;
-    let mut seconds = vec![(Stage::Read, sequence.read_seconds), (Stage::Voxelize, sequence.voxelize_seconds)];
+    let mut seconds = vec![
+        (Stage::Read, sequence.read_seconds),
+        (Stage::Voxelize, sequence.voxelize_seconds),
+    ];
     let clock = Instant::now();
-    let (tracked, trajectories) = Tracked::split(track_with_checkpoints(&sequence, &options.track, checkpoint, progress)?, options.measure_tracked);
+    let (tracked, trajectories) = Tracked::split(
+        track_with_checkpoints(&sequence, &options.track, checkpoint, progress)?,
+        options.measure_tracked,
+    );
     seconds.push((Stage::Track, clock.elapsed().as_secs_f64()));
     let (trajectories, refined) = match &options.refine {
         Some(p) => {
@@ -259,39 +322,75 @@ pub fn convert(source: &dyn FrameSource, options: &ConvertOptions, progress: Pro
     let coverage = check_coverage(&trajectories, &sequence, &options.coverage)?;
     let clock = Instant::now();
     progress.report(Stage::Deform, 0, 1);
-    let mesh = deform_sequence(&first, &trajectories, &sequence, options.refine.as_ref(), &options.deform)?;
+    let mesh = deform_sequence(
+        &first,
+        &trajectories,
+        &sequence,
+        options.refine.as_ref(),
+        &options.deform,
+    )?;
     progress.report(Stage::Deform, 1, 1);
     seconds.push((Stage::Deform, clock.elapsed().as_secs_f64()));
     let clock = Instant::now();
-    let mesh = conform(mesh, source, &sequence.bounds, &options.conform, progress).map_err(|e| finished_saved(e, checkpoint, &sequence, options.refine.as_ref()))?;
+    let mesh = conform(mesh, source, &sequence.bounds, &options.conform, progress)
+        .map_err(|e| finished_saved(e, checkpoint, &sequence, options.refine.as_ref()))?;
     if options.conform.iterations > 0 {
         seconds.push((Stage::Conform, clock.elapsed().as_secs_f64()));
     }
-    Ok(Conversion { sequence, trajectories, tracked, refined, mesh, coverage, seconds })
+    Ok(Conversion {
+        sequence,
+        trajectories,
+        tracked,
+        refined,
+        mesh,
+        coverage,
+        seconds,
+    })
 }
 
 /// [`crate::metrics::coverage`] of the final trajectories, logging the
 /// frames it flags.
-pub fn check_coverage(traj: &Trajectories, seq: &VoxelSequence, params: &CoverageParams) -> Result<Coverage> {
+pub fn check_coverage(
+    traj: &Trajectories,
+    seq: &VoxelSequence,
+    params: &CoverageParams,
+) -> Result<Coverage> {
     let coverage = crate::metrics::coverage(traj, seq, params)?;
     for (a, b) in coverage.flagged_runs() {
-        log::info!("frames {a}-{b}: input volume no tracked cell reaches (a part may have been lost)");
+        log::info!(
+            "frames {a}-{b}: input volume no tracked cell reaches (a part may have been lost)"
+        );
     }
     Ok(coverage)
 }
 
 /// [`refine_with_checkpoints`] after [`track_with_checkpoints`], saving and
 /// resuming through the same checkpoint folder.
-pub fn refine_tracked(traj: Trajectories, seq: &VoxelSequence, params: &RefineParams, checkpoint: Option<&Checkpointing>, progress: Progress) -> Result<RefineResult> {
+pub fn refine_tracked(
+    traj: Trajectories,
+    seq: &VoxelSequence,
+    params: &RefineParams,
+    checkpoint: Option<&Checkpointing>,
+    progress: Progress,
+) -> Result<RefineResult> {
     refine_with_checkpoints(traj, seq, params, checkpoint, progress)
 }
 
 /// An interruption after tracking (and refinement, when `refine` gives its
 /// parameters) names the checkpoint folder, which holds them finished.
-fn finished_saved(e: Error, checkpoint: Option<&Checkpointing>, seq: &VoxelSequence, refine: Option<&RefineParams>) -> Error {
+fn finished_saved(
+    e: Error,
+    checkpoint: Option<&Checkpointing>,
+    seq: &VoxelSequence,
+    refine: Option<&RefineParams>,
+) -> Error {
     match e {
         Error::Interrupted { saved: None } => Error::Interrupted {
-            saved: checkpoint.map(|c| Saved { path: c.path(), frames: seq.frames.len(), refine: refine.map(|p| (p.batches, p.batches)) }),
+            saved: checkpoint.map(|c| Saved {
+                path: c.path(),
+                frames: seq.frames.len(),
+                refine: refine.map(|p| (p.batches, p.batches)),
+            }),
         },
         e => e,
     }
@@ -309,6 +408,13 @@ pub fn deform_sequence(
 ) -> Result<DynamicMesh> {
     let rp = refine_params.cloned().unwrap_or_default();
     let scale = rp.length_scale(&seq.bounds);
-    let omega = global_affinity(traj, seq, &mut SequenceCells::single_pass(seq), rp.rho_gp * scale, rp.rho_gm * scale, rp.mu);
+    let omega = global_affinity(
+        traj,
+        seq,
+        &mut SequenceCells::single_pass(seq),
+        rp.rho_gp * scale,
+        rp.rho_gm * scale,
+        rp.mu,
+    );
     deform(first, traj, &omega, deform_params)
 }

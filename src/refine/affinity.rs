@@ -4,9 +4,9 @@
 
 use super::cells::{frame_blocks, SequenceCells};
 use crate::math::Real;
+use crate::model::{PairTable, Rigid, Trajectories};
 use crate::params::sigma_for;
 use crate::track::affinity::{within_reach, CellMotion};
-use crate::model::{PairTable, Rigid, Trajectories};
 use crate::track::cell_moments;
 use crate::voxel::VoxelSequence;
 use rayon::prelude::*;
@@ -24,7 +24,9 @@ impl SparseAffinity {
     }
 
     pub fn weight(&self, i: usize, j: usize) -> Real {
-        self.lists[i].binary_search_by_key(&(j as u32), |e| e.0).map_or(0.0, |k| self.lists[i][k].1)
+        self.lists[i]
+            .binary_search_by_key(&(j as u32), |e| e.0)
+            .map_or(0.0, |k| self.lists[i][k].1)
     }
 
     pub fn mean_neighbors(&self) -> Real {
@@ -50,7 +52,9 @@ pub(crate) fn max_distance_affinity(traj: &Trajectories, rho_gp: Real, mu: Real)
         .map(|(i, js)| {
             js.into_iter()
                 .filter_map(|j| {
-                    let d2 = (0..traj.frames).map(|f| (traj.get(f, i) - traj.get(f, j as usize)).norm_squared()).fold(0.0, Real::max);
+                    let d2 = (0..traj.frames)
+                        .map(|f| (traj.get(f, i) - traj.get(f, j as usize)).norm_squared())
+                        .fold(0.0, Real::max);
                     let w = (-sigma * d2).exp();
                     (w >= mu).then_some((j, w))
                 })
@@ -64,7 +68,14 @@ pub(crate) fn max_distance_affinity(traj: &Trajectories, rho_gp: Real, mu: Real)
 /// with A the motions from f-1 to f fitted under ω_max and d_i over cell
 /// V_i^f. Restricting to ω_max's pairs keeps it sparse: centers never within
 /// reach of each other do not steer each other's fits.
-pub fn global_affinity(traj: &Trajectories, seq: &VoxelSequence, cells: &mut SequenceCells, rho_gp: Real, rho_gm: Real, mu: Real) -> SparseAffinity {
+pub fn global_affinity(
+    traj: &Trajectories,
+    seq: &VoxelSequence,
+    cells: &mut SequenceCells,
+    rho_gp: Real,
+    rho_gm: Real,
+    mu: Real,
+) -> SparseAffinity {
     let omega_max = max_distance_affinity(traj, rho_gp, mu);
     let sigma = sigma_for(rho_gm);
     let mut worst: Vec<Vec<Real>> = omega_max.lists.iter().map(|l| vec![0.0; l.len()]).collect();

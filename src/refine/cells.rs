@@ -19,7 +19,6 @@ use crate::voxel::VoxelSequence;
 use rayon::prelude::*;
 use std::ops::Range;
 
-
 /// Frames visited together by [`SequenceCells::update_frames`]'s callers:
 /// only a block's cell sums (and what is derived from them) are held at once.
 pub const FRAME_BLOCK: usize = 32;
@@ -27,7 +26,9 @@ pub const FRAME_BLOCK: usize = 32;
 /// `frames` cut into consecutive blocks of at most [`FRAME_BLOCK`] frames.
 pub fn frame_blocks(frames: Range<usize>) -> impl Iterator<Item = Range<usize>> {
     let end = frames.end;
-    frames.step_by(FRAME_BLOCK).map(move |start| start..(start + FRAME_BLOCK).min(end))
+    frames
+        .step_by(FRAME_BLOCK)
+        .map(move |start| start..(start + FRAME_BLOCK).min(end))
 }
 
 pub struct SequenceCells<'a> {
@@ -70,7 +71,12 @@ impl<'a> SequenceCells<'a> {
     /// Keeps the assignments of the first `cached_frames` frames (0: none).
     pub fn with_cache(seq: &'a VoxelSequence, cached_frames: usize) -> Self {
         let kept = cached_frames.min(seq.frames.len());
-        SequenceCells { seq, frames: (0..kept).map(|_| None).collect(), last: vec![Vec::new(); kept], indices: (0..kept).map(|_| None).collect() }
+        SequenceCells {
+            seq,
+            frames: (0..kept).map(|_| None).collect(),
+            last: vec![Vec::new(); kept],
+            indices: (0..kept).map(|_| None).collect(),
+        }
     }
 
     /// How many frames keep their assignment between updates.
@@ -83,14 +89,18 @@ impl<'a> SequenceCells<'a> {
     /// assignments, which keep their bounds for the others: after a batch of
     /// removals only the removed centers' voxels are searched afresh.
     pub fn keep_centers(&mut self, keep: &[usize]) {
-        self.frames.par_iter_mut().zip(self.last.par_iter_mut()).zip(self.indices.par_iter_mut()).for_each(|((cells, last), index)| {
-            if let Some(cells) = cells.as_mut().filter(|_| !last.is_empty()) {
-                cells.keep_centers(keep, last.len());
-                *last = keep.iter().map(|&i| last[i]).collect();
-                // Its candidate lists name the old indices.
-                *index = None;
-            }
-        });
+        self.frames
+            .par_iter_mut()
+            .zip(self.last.par_iter_mut())
+            .zip(self.indices.par_iter_mut())
+            .for_each(|((cells, last), index)| {
+                if let Some(cells) = cells.as_mut().filter(|_| !last.is_empty()) {
+                    cells.keep_centers(keep, last.len());
+                    *last = keep.iter().map(|&i| last[i]).collect();
+                    // Its candidate lists name the old indices.
+                    *index = None;
+                }
+            });
     }
 
     /// Each frame's cell sums for the centers in `traj` (frames in parallel).
@@ -103,9 +113,22 @@ impl<'a> SequenceCells<'a> {
     /// block of frames at a time, so that only a block's sums are held.
     /// `traj` holds the centers of frames `offset..`: its frame k is the
     /// sequence's frame `offset + k`.
-    pub fn update_frames(&mut self, traj: &Trajectories, offset: usize, range: Range<usize>, with_moments: bool) -> Vec<CellStats> {
+    pub fn update_frames(
+        &mut self,
+        traj: &Trajectories,
+        offset: usize,
+        range: Range<usize>,
+        with_moments: bool,
+    ) -> Vec<CellStats> {
         let seq = self.seq;
-        let fresh = |f: usize| Assignment::new(&seq.grid, &seq.frames[f].indices(), vec![NO_OWNER; seq.frames[f].len()]).without_runner_ups();
+        let fresh = |f: usize| {
+            Assignment::new(
+                &seq.grid,
+                &seq.frames[f].indices(),
+                vec![NO_OWNER; seq.frames[f].len()],
+            )
+            .without_runner_ups()
+        };
         let kept = range.start.min(self.frames.len())..range.end.min(self.frames.len());
         let mut stats: Vec<CellStats> = self.frames[kept.clone()]
             .par_iter_mut()
@@ -125,7 +148,11 @@ impl<'a> SequenceCells<'a> {
                     Some(carried) => carried.moved_to(now, &moved),
                     None => CenterIndex::new(now),
                 };
-                let stats = cells.as_mut().expect("just made").update(&moved_index, &moved, with_moments);
+                let stats =
+                    cells
+                        .as_mut()
+                        .expect("just made")
+                        .update(&moved_index, &moved, with_moments);
                 *index = Some(moved_index);
                 *last = now.to_vec();
                 stats

@@ -55,7 +55,11 @@ pub(super) struct Restored {
 /// 64-bit FNV-1a over the tool version, the parameters, the grid, every
 /// frame's number of occupied voxels and the tracked trajectories: two runs
 /// with the same fingerprint refine the same way.
-pub(super) fn fingerprint(tracked: &Trajectories, seq: &VoxelSequence, params: &RefineParams) -> u64 {
+pub(super) fn fingerprint(
+    tracked: &Trajectories,
+    seq: &VoxelSequence,
+    params: &RefineParams,
+) -> u64 {
     let mut h = Fnv::run(params, &seq.grid);
     for frame in &seq.frames {
         h.bytes(&(frame.len() as u64).to_le_bytes());
@@ -72,7 +76,9 @@ pub(super) fn fingerprint(tracked: &Trajectories, seq: &VoxelSequence, params: &
 
 /// Writes the state atomically (a kill mid-write leaves the previous one).
 pub(super) fn save(ckpt: &Checkpointing, fingerprint: u64, s: &Snapshot) -> Result<()> {
-    crate::checkpoint::save(&ckpt.refine_path(), MAGIC, |w| write_state(w, fingerprint, s))
+    crate::checkpoint::save(&ckpt.refine_path(), MAGIC, |w| {
+        write_state(w, fingerprint, s)
+    })
 }
 
 fn write_state(w: &mut dyn Write, fingerprint: u64, s: &Snapshot) -> std::io::Result<()> {
@@ -107,12 +113,19 @@ fn write_state(w: &mut dyn Write, fingerprint: u64, s: &Snapshot) -> std::io::Re
 
 fn put_history(w: &mut dyn Write, history: &[Iteration]) -> std::io::Result<()> {
     put_u64(w, history.len() as u64)?;
-    history.iter().try_for_each(|it| put_reals(w, &[it.energy, it.smooth, it.data, it.lambda]))
+    history
+        .iter()
+        .try_for_each(|it| put_reals(w, &[it.energy, it.smooth, it.data, it.lambda]))
 }
 
 /// Reads the state of `ckpt` back, checking it belongs to this run: refining
 /// `tracked` (`centers` at the start) with `params` into `batches` batches.
-pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, tracked: &Trajectories, batches: usize) -> Result<Restored> {
+pub(super) fn load(
+    ckpt: &Checkpointing,
+    fingerprint: u64,
+    tracked: &Trajectories,
+    batches: usize,
+) -> Result<Restored> {
     let path = ckpt.refine_path();
     let bytes = crate::checkpoint::load(&path, MAGIC, "refinement checkpoint")?;
     let mut r = Reader::new(&bytes, &path);
@@ -125,7 +138,10 @@ pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, tracked: &Trajectorie
     }
     let bad = |message: String| Error::parse(&path, None, message);
     let (batches_done, frames, centers, removed) = (r.usize()?, r.usize()?, r.usize()?, r.usize()?);
-    if batches_done > batches || frames != tracked.frames || centers.checked_add(removed) != Some(tracked.centers) {
+    if batches_done > batches
+        || frames != tracked.frames
+        || centers.checked_add(removed) != Some(tracked.centers)
+    {
         return Err(bad(format!("inconsistent header: {batches_done} of {batches} batches, {frames} frames, {centers} + {removed} centers")));
     }
     let mut trajectories = Trajectories::new(frames, centers);
@@ -139,13 +155,21 @@ pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, tracked: &Trajectorie
         }
         Ok(i)
     };
-    let kept = (0..centers).map(|_| original(&mut r)).collect::<Result<_>>()?;
-    let removed = (0..removed).map(|_| original(&mut r)).collect::<Result<_>>()?;
+    let kept = (0..centers)
+        .map(|_| original(&mut r))
+        .collect::<Result<_>>()?;
+    let removed = (0..removed)
+        .map(|_| original(&mut r))
+        .collect::<Result<_>>()?;
     let finished_len = r.usize()?;
     if finished_len > batches_done {
-        return Err(bad(format!("{finished_len} histories for {batches_done} batches")));
+        return Err(bad(format!(
+            "{finished_len} histories for {batches_done} batches"
+        )));
     }
-    let finished = (0..finished_len).map(|_| history(&mut r)).collect::<Result<_>>()?;
+    let finished = (0..finished_len)
+        .map(|_| history(&mut r))
+        .collect::<Result<_>>()?;
     let current = match r.u64()? {
         0 => None,
         1 if batches_done < batches => {
@@ -172,7 +196,15 @@ pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, tracked: &Trajectorie
     };
     let seconds = r.real()?;
     r.finish("refinement state")?;
-    Ok(Restored { batches_done, trajectories, kept, removed, finished, current, seconds })
+    Ok(Restored {
+        batches_done,
+        trajectories,
+        kept,
+        removed,
+        finished,
+        current,
+        seconds,
+    })
 }
 
 fn history(r: &mut Reader) -> Result<Vec<Iteration>> {
@@ -180,5 +212,14 @@ fn history(r: &mut Reader) -> Result<Vec<Iteration>> {
     if len > r.bytes.len() {
         return Err(Error::parse(r.path, None, "history longer than the file"));
     }
-    (0..len).map(|_| Ok(Iteration { energy: r.real()?, smooth: r.real()?, data: r.real()?, lambda: r.real()? })).collect()
+    (0..len)
+        .map(|_| {
+            Ok(Iteration {
+                energy: r.real()?,
+                smooth: r.real()?,
+                data: r.real()?,
+                lambda: r.real()?,
+            })
+        })
+        .collect()
 }

@@ -3,10 +3,10 @@
 
 use super::affinity::SparseAffinity;
 use super::cells::{frame_blocks, SequenceCells};
-use crate::params::RefineParams;
 use crate::error::Result;
 use crate::math::{Point3, Real, Vector3};
 use crate::model::{FrameStore, GridSpec, Trajectories};
+use crate::params::RefineParams;
 use rayon::prelude::*;
 
 /// Ê at one set of trajectories, with what its gradient needs.
@@ -36,7 +36,14 @@ pub struct Iteration {
 /// as over all at once. The gradient is kept in memory up to `memory` bytes
 /// ([`RefineParams::memory`](crate::params::RefineParams::memory)), in a
 /// temporary file past it; errors are that file's.
-pub fn evaluate(traj: &Trajectories, grid: &GridSpec, cells: &mut SequenceCells, omega: &SparseAffinity, beta_hat: Real, memory: usize) -> Result<Evaluation> {
+pub fn evaluate(
+    traj: &Trajectories,
+    grid: &GridSpec,
+    cells: &mut SequenceCells,
+    omega: &SparseAffinity,
+    beta_hat: Real,
+    memory: usize,
+) -> Result<Evaluation> {
     evaluate_moved(traj, None, grid, cells, omega, beta_hat, memory)
 }
 
@@ -67,9 +74,18 @@ fn evaluate_moved(
                 let mut positions = Vec::with_capacity((hi - lo) * n);
                 for f in lo..hi {
                     let g = step.get(f)?;
-                    positions.extend(traj.frame(f).iter().zip(g.iter()).map(|(p, g)| p - g * lambda));
+                    positions.extend(
+                        traj.frame(f)
+                            .iter()
+                            .zip(g.iter())
+                            .map(|(p, g)| p - g * lambda),
+                    );
                 }
-                local = Trajectories { frames: hi - lo, centers: n, positions };
+                local = Trajectories {
+                    frames: hi - lo,
+                    centers: n,
+                    positions,
+                };
                 (&local, lo)
             }
         };
@@ -78,12 +94,21 @@ fn evaluate_moved(
         // `first`), of which only what they predict is kept: forward[k] is
         // A^f(c^{f-1}), backward[k] is (A^f)⁻¹(c^f), f = first + k.
         let first = start.max(1);
-        let (forward, backward): (Vec<Vec<Point3>>, Vec<Vec<Point3>>) = (first..(end + 1).min(frames))
+        let (forward, backward): (Vec<Vec<Point3>>, Vec<Vec<Point3>>) = (first
+            ..(end + 1).min(frames))
             .into_par_iter()
             .map(|f| {
                 let motions = omega.fit_frames(traj, f - 1 - offset, f - offset);
-                let forward = motions.iter().enumerate().map(|(i, a)| a.apply(&traj.get(f - 1 - offset, i))).collect();
-                let backward = motions.iter().enumerate().map(|(i, a)| a.inverse().apply(&traj.get(f - offset, i))).collect();
+                let forward = motions
+                    .iter()
+                    .enumerate()
+                    .map(|(i, a)| a.apply(&traj.get(f - 1 - offset, i)))
+                    .collect();
+                let backward = motions
+                    .iter()
+                    .enumerate()
+                    .map(|(i, a)| a.inverse().apply(&traj.get(f - offset, i)))
+                    .collect();
                 (forward, backward)
             })
             .unzip();
@@ -129,7 +154,12 @@ fn evaluate_moved(
         smooth += s;
         data += d;
     }
-    Ok(Evaluation { energy: smooth + beta_hat * data, smooth, data, gradient })
+    Ok(Evaluation {
+        energy: smooth + beta_hat * data,
+        smooth,
+        data,
+        gradient,
+    })
 }
 
 /// Gradient descent with λ (`params.lambda`) halved until the energy drops
@@ -148,14 +178,34 @@ pub fn optimise(
     params: &RefineParams,
     mut on_iteration: impl FnMut(usize, &Trajectories, &[Iteration]) -> bool,
 ) -> Result<Vec<Iteration>> {
-    let RefineParams { beta_hat, lambda: lambda0, max_iterations, max_halvings, memory, .. } = *params;
+    let RefineParams {
+        beta_hat,
+        lambda: lambda0,
+        max_iterations,
+        max_halvings,
+        memory,
+        ..
+    } = *params;
     let mut current = evaluate(traj, grid, cells, omega, beta_hat, memory)?;
-    let mut history = vec![Iteration { energy: current.energy, smooth: current.smooth, data: current.data, lambda: 0.0 }];
+    let mut history = vec![Iteration {
+        energy: current.energy,
+        smooth: current.smooth,
+        data: current.data,
+        lambda: 0.0,
+    }];
     for it in 0..max_iterations {
         let mut lambda = lambda0;
         let mut accepted = None;
         for _ in 0..=max_halvings {
-            let e = evaluate_moved(traj, Some((&current.gradient, lambda)), grid, cells, omega, beta_hat, memory)?;
+            let e = evaluate_moved(
+                traj,
+                Some((&current.gradient, lambda)),
+                grid,
+                cells,
+                omega,
+                beta_hat,
+                memory,
+            )?;
             if e.energy < current.energy {
                 accepted = Some(e);
                 break;
@@ -174,7 +224,12 @@ pub fn optimise(
                 *p -= g * lambda;
             }
         }
-        history.push(Iteration { energy: e.energy, smooth: e.smooth, data: e.data, lambda });
+        history.push(Iteration {
+            energy: e.energy,
+            smooth: e.smooth,
+            data: e.data,
+            lambda,
+        });
         current = e;
         if !on_iteration(it + 1, traj, &history) {
             break;

@@ -35,10 +35,23 @@ pub fn relative_irregularity(traj: &Trajectories, irregularity: &[Real]) -> Vec<
     (0..points.len())
         .into_par_iter()
         .map(|i| {
-            let near = tree.query(&points[i]).nearest_n::<kiddo::SquaredEuclidean<Real>>(std::num::NonZeroUsize::new(2).expect("2 > 0")).execute();
+            let near = tree
+                .query(&points[i])
+                .nearest_n::<kiddo::SquaredEuclidean<Real>>(
+                    std::num::NonZeroUsize::new(2).expect("2 > 0"),
+                )
+                .execute();
             // The nearest other: the first found may be i itself, or another at the same place.
-            let d2 = near.iter().filter(|n| n.item as usize != i).map(|n| n.distance).fold(Real::INFINITY, Real::min);
-            let d2 = if d2.is_finite() { d2 } else { near.iter().map(|n| n.distance).fold(0.0, Real::max) };
+            let d2 = near
+                .iter()
+                .filter(|n| n.item as usize != i)
+                .map(|n| n.distance)
+                .fold(Real::INFINITY, Real::min);
+            let d2 = if d2.is_finite() {
+                d2
+            } else {
+                near.iter().map(|n| n.distance).fold(0.0, Real::max)
+            };
             irregularity[i] / (frames * d2.max(Real::MIN_POSITIVE))
         })
         .collect()
@@ -63,16 +76,21 @@ pub fn irregularity(traj: &Trajectories) -> Vec<Real> {
     };
     let means: Vec<[Real; 3]> = (0..n)
         .map(|i| {
-            let s = (0..frames).map(|f| point(f, i)).fold([0.0; 3], |s, q| [s[0] + q[0], s[1] + q[1], s[2] + q[2]]);
+            let s = (0..frames)
+                .map(|f| point(f, i))
+                .fold([0.0; 3], |s, q| [s[0] + q[0], s[1] + q[1], s[2] + q[2]]);
             s.map(|c| c / frames.max(1) as Real)
         })
         .collect();
-    let squared = |a: &[Real; 3], b: &[Real; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<Real>();
+    let squared =
+        |a: &[Real; 3], b: &[Real; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<Real>();
     (0..n)
         .into_par_iter()
         .map(|i| {
-            let mut order: Vec<(Real, usize)> =
-                (0..n).filter(|&j| j != i).map(|j| (frames as Real * squared(&means[i], &means[j]), j)).collect();
+            let mut order: Vec<(Real, usize)> = (0..n)
+                .filter(|&j| j != i)
+                .map(|j| (frames as Real * squared(&means[i], &means[j]), j))
+                .collect();
             order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             let mut best = Real::INFINITY;
             for (bound, j) in order {

@@ -9,15 +9,15 @@ pub mod irregular;
 
 pub use affinity::{global_affinity, SparseAffinity};
 pub use cells::SequenceCells;
-pub use global::{evaluate, optimise, Iteration};
 use checkpoint::Snapshot;
+pub use global::{evaluate, optimise, Iteration};
 pub use irregular::most_irregular;
 
 use crate::checkpoint::Checkpointing;
 use crate::error::{Error, Result, Saved};
+use crate::model::Trajectories;
 use crate::params::RefineParams;
 use crate::progress::{Progress, Stage};
-use crate::model::Trajectories;
 use crate::voxel::VoxelSequence;
 use std::time::Instant;
 
@@ -44,7 +44,12 @@ pub struct Refinement {
 /// Removes `params.total_removed(N)` irregular centers in `params.batches`
 /// batches, optimising globally after each. The trajectories are moved in
 /// and refined in place: a long sequence's are not held twice.
-pub fn refine(traj: Trajectories, seq: &VoxelSequence, params: &RefineParams, progress: Progress) -> Result<RefineResult> {
+pub fn refine(
+    traj: Trajectories,
+    seq: &VoxelSequence,
+    params: &RefineParams,
+    progress: Progress,
+) -> Result<RefineResult> {
     refine_with_checkpoints(traj, seq, params, None, progress)
 }
 
@@ -53,7 +58,13 @@ pub fn refine(traj: Trajectories, seq: &VoxelSequence, params: &RefineParams, pr
 /// cancelled through `progress` (then returning [`Error::Interrupted`]); with
 /// `checkpoint.resume` it continues from the saved state. The result is
 /// bit-identical to an uninterrupted [`refine`].
-pub fn refine_with_checkpoints(traj: Trajectories, seq: &VoxelSequence, params: &RefineParams, checkpoint: Option<&Checkpointing>, progress: Progress) -> Result<RefineResult> {
+pub fn refine_with_checkpoints(
+    traj: Trajectories,
+    seq: &VoxelSequence,
+    params: &RefineParams,
+    checkpoint: Option<&Checkpointing>,
+    progress: Progress,
+) -> Result<RefineResult> {
     params.validate(traj.centers)?;
     let start = Instant::now();
     let scale = params.length_scale(&seq.bounds);
@@ -63,23 +74,55 @@ pub fn refine_with_checkpoints(traj: Trajectories, seq: &VoxelSequence, params: 
     let restored = match saving {
         Some((c, fp)) if c.resume && c.refine_path().exists() => {
             let r = checkpoint::load(c, fp, &traj, params.batches)?;
-            log::info!("resuming refinement from {} after {} of {} batches", c.refine_path().display(), r.batches_done, params.batches);
+            log::info!(
+                "resuming refinement from {} after {} of {} batches",
+                c.refine_path().display(),
+                r.batches_done,
+                params.batches
+            );
             Some(r)
         }
         _ => None,
     };
-    let (first, mut kept, mut current, mut removed, mut batches, mut in_progress, earlier) = match restored {
-        Some(r) => (r.batches_done, r.kept, r.trajectories, r.removed, r.finished, r.current, r.seconds),
-        None => (0, (0..traj.centers).collect(), traj, Vec::new(), Vec::new(), None, 0.0),
-    };
+    let (first, mut kept, mut current, mut removed, mut batches, mut in_progress, earlier) =
+        match restored {
+            Some(r) => (
+                r.batches_done,
+                r.kept,
+                r.trajectories,
+                r.removed,
+                r.finished,
+                r.current,
+                r.seconds,
+            ),
+            None => (
+                0,
+                (0..traj.centers).collect(),
+                traj,
+                Vec::new(),
+                Vec::new(),
+                None,
+                0.0,
+            ),
+        };
     let seconds = |start: &Instant| earlier + start.elapsed().as_secs_f64();
-    let interrupted = |batches_done: usize| {
-        Error::Interrupted { saved: checkpoint.map(|c| Saved { path: c.path(), frames, refine: Some((batches_done, params.batches)) }) }
+    let interrupted = |batches_done: usize| Error::Interrupted {
+        saved: checkpoint.map(|c| Saved {
+            path: c.path(),
+            frames,
+            refine: Some((batches_done, params.batches)),
+        }),
     };
     // A share of the memory available now, 1 GiB where that is unknown.
-    let budget = params.cell_memory.unwrap_or_else(|| crate::voxel::available_memory().map_or((1u64 << 30) as f64, crate::params::kept_cell_share));
+    let budget = params.cell_memory.unwrap_or_else(|| {
+        crate::voxel::available_memory().map_or((1u64 << 30) as f64, crate::params::kept_cell_share)
+    });
     let mut cells = SequenceCells::new(seq, budget as usize);
-    log::info!("the cells of {} of {frames} frames kept between evaluations (budget {:.0} MiB)", cells.cached_frames(), budget as f64 / (1u64 << 20) as f64);
+    log::info!(
+        "the cells of {} of {frames} frames kept between evaluations (budget {:.0} MiB)",
+        cells.cached_frames(),
+        budget as f64 / (1u64 << 20) as f64
+    );
     let per_batch = params.max_iterations.max(1);
     let steps = params.batches * per_batch;
     progress.report(Stage::Refine, first * per_batch, steps);
@@ -99,11 +142,33 @@ pub fn refine_with_checkpoints(traj: Trajectories, seq: &VoxelSequence, params: 
                 cells.keep_centers(&survivors);
                 kept = survivors.into_iter().map(|i| kept[i]).collect();
                 if !params.optimise {
-                    save(saving, Snapshot { batches_done: b + 1, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: None, seconds: seconds(&start) })?;
+                    save(
+                        saving,
+                        Snapshot {
+                            batches_done: b + 1,
+                            trajectories: &current,
+                            kept: &kept,
+                            removed: &removed,
+                            finished: &batches,
+                            current: None,
+                            seconds: seconds(&start),
+                        },
+                    )?;
                     continue;
                 }
-                let omega = global_affinity(&current, seq, &mut cells, params.rho_gp * scale, params.rho_gm * scale, params.mu);
-                log::info!("batch {}: removed {n_rem}, ω keeps {:.1} neighbours per center", b + 1, omega.mean_neighbors());
+                let omega = global_affinity(
+                    &current,
+                    seq,
+                    &mut cells,
+                    params.rho_gp * scale,
+                    params.rho_gm * scale,
+                    params.mu,
+                );
+                log::info!(
+                    "batch {}: removed {n_rem}, ω keeps {:.1} neighbours per center",
+                    b + 1,
+                    omega.mean_neighbors()
+                );
                 (omega, Vec::new())
             }
         };
@@ -114,7 +179,11 @@ pub fn refine_with_checkpoints(traj: Trajectories, seq: &VoxelSequence, params: 
             if before.is_empty() {
                 history.to_vec()
             } else {
-                before.iter().chain(history.iter().skip(1)).copied().collect()
+                before
+                    .iter()
+                    .chain(history.iter().skip(1))
+                    .copied()
+                    .collect()
             }
         };
         let mut last_save = Instant::now();
@@ -125,15 +194,28 @@ pub fn refine_with_checkpoints(traj: Trajectories, seq: &VoxelSequence, params: 
             &seq.grid,
             &mut cells,
             &omega,
-            &RefineParams { max_iterations: params.max_iterations.saturating_sub(done_before), ..params.clone() },
+            &RefineParams {
+                max_iterations: params.max_iterations.saturating_sub(done_before),
+                ..params.clone()
+            },
             |it, now, history| {
                 progress.report(Stage::Refine, done + it, steps);
                 if progress.cancelled() {
                     return false;
                 }
-                if saving.is_some_and(|(c, _)| last_save.elapsed().as_secs_f64() >= c.refine_save_seconds) {
+                if saving.is_some_and(|(c, _)| {
+                    last_save.elapsed().as_secs_f64() >= c.refine_save_seconds
+                }) {
                     let history = joined(history);
-                    let snapshot = Snapshot { batches_done: b, trajectories: now, kept: &kept, removed: &removed, finished: &batches, current: Some((&omega, &history)), seconds: seconds(&start) };
+                    let snapshot = Snapshot {
+                        batches_done: b,
+                        trajectories: now,
+                        kept: &kept,
+                        removed: &removed,
+                        finished: &batches,
+                        current: Some((&omega, &history)),
+                        seconds: seconds(&start),
+                    };
                     if let Err(e) = save(saving, snapshot) {
                         save_error = Some(e);
                         return false;
@@ -150,14 +232,44 @@ pub fn refine_with_checkpoints(traj: Trajectories, seq: &VoxelSequence, params: 
         if progress.cancelled() {
             // The batch may have ended too; resumed, it finds no iteration
             // left or no step that lowers the energy, as it would have.
-            save(saving, Snapshot { batches_done: b, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: Some((&omega, &history)), seconds: seconds(&start) })?;
+            save(
+                saving,
+                Snapshot {
+                    batches_done: b,
+                    trajectories: &current,
+                    kept: &kept,
+                    removed: &removed,
+                    finished: &batches,
+                    current: Some((&omega, &history)),
+                    seconds: seconds(&start),
+                },
+            )?;
             return Err(interrupted(b));
         }
         batches.push(history);
-        save(saving, Snapshot { batches_done: b + 1, trajectories: &current, kept: &kept, removed: &removed, finished: &batches, current: None, seconds: seconds(&start) })?;
+        save(
+            saving,
+            Snapshot {
+                batches_done: b + 1,
+                trajectories: &current,
+                kept: &kept,
+                removed: &removed,
+                finished: &batches,
+                current: None,
+                seconds: seconds(&start),
+            },
+        )?;
     }
     progress.report(Stage::Refine, steps, steps);
-    Ok(RefineResult { trajectories: current, refinement: Refinement { removed, kept, batches, seconds: seconds(&start) } })
+    Ok(RefineResult {
+        trajectories: current,
+        refinement: Refinement {
+            removed,
+            kept,
+            batches,
+            seconds: seconds(&start),
+        },
+    })
 }
 
 /// Saves `snapshot` where `saving` says, if anywhere.

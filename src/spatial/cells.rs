@@ -107,7 +107,12 @@ struct Loosening {
 impl Loosening {
     /// Hamerly's bound alone: no center moved farther than `max_move`.
     fn everyone(moved: Real, max_move: Real) -> Self {
-        Loosening { moved, decay: max_move, reach: Real::INFINITY, max_move }
+        Loosening {
+            moved,
+            decay: max_move,
+            reach: Real::INFINITY,
+            max_move,
+        }
     }
 
     /// The lower bound `lower` after the move, for a voxel whose distance
@@ -119,9 +124,17 @@ impl Loosening {
         // whose NaN handling costs instructions on every voxel measured;
         // no operand is NaN (the bounds are finite or infinite, the terms
         // finite but an infinite reach).
-        let (a, b, c) = (lower - self.decay, self.reach - upper, lower - self.max_move);
+        let (a, b, c) = (
+            lower - self.decay,
+            self.reach - upper,
+            lower - self.max_move,
+        );
         let m = if a < b { a } else { b };
-        if m > c { m } else { c }
+        if m > c {
+            m
+        } else {
+            c
+        }
     }
 }
 
@@ -146,17 +159,30 @@ const SHRINK: f32 = 1.0 - 1.0 / (1u32 << 20) as f32;
 
 fn round_up(x: Real) -> f32 {
     let f = x as f32;
-    if (f as Real) < x { f.next_up() } else { f }
+    if (f as Real) < x {
+        f.next_up()
+    } else {
+        f
+    }
 }
 
 fn round_down(x: Real) -> f32 {
     let f = x as f32;
-    if (f as Real) > x { f.next_down() } else { f }
+    if (f as Real) > x {
+        f.next_down()
+    } else {
+        f
+    }
 }
 
 impl From<&Loosening> for Loosening32 {
     fn from(b: &Loosening) -> Self {
-        Loosening32 { moved: round_up(b.moved), decay: round_up(b.decay), reach: round_down(b.reach), max_move: round_up(b.max_move) }
+        Loosening32 {
+            moved: round_up(b.moved),
+            decay: round_up(b.decay),
+            reach: round_down(b.reach),
+            max_move: round_up(b.max_move),
+        }
     }
 }
 
@@ -223,7 +249,15 @@ impl Candidates {
     /// centers moved by `moved` (its own by `own_move`), with `reach` the
     /// list's r_K now.
     fn loosening(&self, own_move: Real, moved: &[Real], reach: Real, max_move: Real) -> Loosening {
-        Loosening { moved: own_move, decay: self.list[..self.near].iter().map(|&j| moved[j as usize]).fold(0.0, Real::max), reach, max_move }
+        Loosening {
+            moved: own_move,
+            decay: self.list[..self.near]
+                .iter()
+                .map(|&j| moved[j as usize])
+                .fold(0.0, Real::max),
+            reach,
+            max_move,
+        }
     }
 
     /// Whether center j, unless in the list of center o, is beyond both
@@ -231,7 +265,8 @@ impl Candidates {
     fn keeps_out(&self, j: u32, o: usize, points: &[[Real; 3]], shrink: Real) -> bool {
         let d2 = squared_distance(&points[j as usize], &points[o]);
         let beyond = |reach: Real| reach - shrink <= 0.0 || d2 >= (reach - shrink).powi(2);
-        (beyond(self.reach) || self.list[..self.near].contains(&j)) && (beyond(self.reach_far) || self.list.contains(&j))
+        (beyond(self.reach) || self.list[..self.near].contains(&j))
+            && (beyond(self.reach_far) || self.list.contains(&j))
     }
 
     /// How much the reaches have shrunk since the list was built: the
@@ -279,7 +314,9 @@ impl CenterIndex {
         let fast = FAST.min(moved.len().saturating_sub(1));
         let mut order: Vec<u32> = (0..moved.len() as u32).collect();
         if !order.is_empty() {
-            order.select_nth_unstable_by(fast, |a, b| moved[*b as usize].total_cmp(&moved[*a as usize]));
+            order.select_nth_unstable_by(fast, |a, b| {
+                moved[*b as usize].total_cmp(&moved[*a as usize])
+            });
             self.travel_cap += moved[order[fast] as usize];
         }
         let fast = &order[..fast];
@@ -298,7 +335,10 @@ impl CenterIndex {
                 let kept = slot
                     .get()
                     .map(|c| (c, c.shrink(travel, travel_cap)))
-                    .filter(|(c, shrink)| c.reach - shrink >= 0.9 * c.reach && fast.iter().all(|&j| c.keeps_out(j, o, points, *shrink)))
+                    .filter(|(c, shrink)| {
+                        c.reach - shrink >= 0.9 * c.reach
+                            && fast.iter().all(|&j| c.keeps_out(j, o, points, *shrink))
+                    })
                     .map(|(c, shrink)| (c, c.reach - shrink));
                 match kept.map(|(c, reach)| c.loosening(own_move, moved, reach, max_move)) {
                     Some(loosening) => Ok(loosening),
@@ -335,13 +375,20 @@ impl CenterIndex {
             Some(local) => local.into(),
             None => {
                 let max_move = moved.iter().copied().fold(0.0, Real::max);
-                moved.iter().map(|&m| Loosening::everyone(m, max_move)).collect::<Vec<_>>().into()
+                moved
+                    .iter()
+                    .map(|&m| Loosening::everyone(m, max_move))
+                    .collect::<Vec<_>>()
+                    .into()
             }
         }
     }
 
     fn tree(&self) -> &ImmutableKdTree<Real, 3> {
-        self.tree.get_or_init(|| ImmutableKdTree::new_from_slice(&self.points).expect("building a k-d tree over finite centers"))
+        self.tree.get_or_init(|| {
+            ImmutableKdTree::new_from_slice(&self.points)
+                .expect("building a k-d tree over finite centers")
+        })
     }
 
     fn candidates(&self, i: u32) -> &Candidates {
@@ -354,22 +401,54 @@ impl CenterIndex {
     /// k-d tree then skips what lies beyond instead of sorting it in.
     fn candidates_around(&self, i: u32, old: Option<&[u32]>) -> &Candidates {
         self.knn[i as usize].get_or_init(|| {
-            let (p, k) = (&self.points[i as usize], NonZeroUsize::new(self.k_far).unwrap());
+            let (p, k) = (
+                &self.points[i as usize],
+                NonZeroUsize::new(self.k_far).unwrap(),
+            );
             let query = self.tree().query(p).nearest_n::<SquaredEuclidean<Real>>(k);
             let bounded = old.filter(|old| old.len() >= self.k_far).map(|old| {
                 // Widened by a hair for the rounding of the distances.
-                let reach2 = old.iter().map(|&j| self.dist2(j, p)).fold(0.0, Real::max) * (1.0 + 1e-9) + Real::MIN_POSITIVE;
-                query.clone().within(reach2).execute().into_iter().map(|r| (r.distance, r.item)).collect::<Vec<(Real, u32)>>()
+                let reach2 = old.iter().map(|&j| self.dist2(j, p)).fold(0.0, Real::max)
+                    * (1.0 + 1e-9)
+                    + Real::MIN_POSITIVE;
+                query
+                    .clone()
+                    .within(reach2)
+                    .execute()
+                    .into_iter()
+                    .map(|r| (r.distance, r.item))
+                    .collect::<Vec<(Real, u32)>>()
             });
             let mut found = match bounded {
                 Some(found) if found.len() == self.k_far => found,
-                _ => query.execute().into_iter().map(|r| (r.distance, r.item)).collect(),
+                _ => query
+                    .execute()
+                    .into_iter()
+                    .map(|r| (r.distance, r.item))
+                    .collect(),
             };
-            found.sort_by(|a, b| a.0.total_cmp(&b.0).then((a.1 != i).cmp(&(b.1 != i))).then(a.1.cmp(&b.1)));
+            found.sort_by(|a, b| {
+                a.0.total_cmp(&b.0)
+                    .then((a.1 != i).cmp(&(b.1 != i)))
+                    .then(a.1.cmp(&b.1))
+            });
             // Any center outside the first m is at least as far as the m-th.
-            let reach = |m: usize| if m == self.points.len() { Real::INFINITY } else { found[m - 1].0.sqrt() };
+            let reach = |m: usize| {
+                if m == self.points.len() {
+                    Real::INFINITY
+                } else {
+                    found[m - 1].0.sqrt()
+                }
+            };
             let (reach, reach_far) = (reach(self.k), reach(self.k_far));
-            Candidates { near: self.k, reach, reach_far, list: found.into_iter().map(|r| r.1).collect(), travel: self.travel[i as usize], travel_cap: self.travel_cap }
+            Candidates {
+                near: self.k,
+                reach,
+                reach_far,
+                list: found.into_iter().map(|r| r.1).collect(),
+                travel: self.travel[i as usize],
+                travel_cap: self.travel_cap,
+            }
         })
     }
 
@@ -392,13 +471,22 @@ impl CenterIndex {
 
     /// Nearest center from the k-d tree, ties to the lower index.
     pub fn nearest_tree(&self, v: &[Real; 3]) -> u32 {
-        let r = self.tree().query(v).nearest_one::<SquaredEuclidean<Real>>().execute();
+        let r = self
+            .tree()
+            .query(v)
+            .nearest_one::<SquaredEuclidean<Real>>()
+            .execute();
         // The tree may return any of several equidistant centers (common while
         // centers sit on voxel centers); settle ties over all of them.
         let d = self.dist2(r.item, v);
         let reach = d * (1.0 + 1e-9) + Real::MIN_POSITIVE;
         let mut best = (d, r.item);
-        for c in self.tree().query(v).within::<SquaredEuclidean<Real>>(reach).execute() {
+        for c in self
+            .tree()
+            .query(v)
+            .within::<SquaredEuclidean<Real>>(reach)
+            .execute()
+        {
             let d = self.dist2(c.item, v);
             if d < best.0 || (d == best.0 && c.item < best.1) {
                 best = (d, c.item);
@@ -425,16 +513,36 @@ impl CenterIndex {
             }
         }
         if self.points.len() == 1 {
-            return Found { owner: 0, distance: self.dist2(0, v).sqrt(), second: Real::INFINITY, runner_up: NO_OWNER, third: Real::INFINITY };
+            return Found {
+                owner: 0,
+                distance: self.dist2(0, v).sqrt(),
+                second: Real::INFINITY,
+                runner_up: NO_OWNER,
+                third: Real::INFINITY,
+            };
         }
-        let found = self.tree().query(v).nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(2).unwrap()).execute();
+        let found = self
+            .tree()
+            .query(v)
+            .nearest_n::<SquaredEuclidean<Real>>(NonZeroUsize::new(2).unwrap())
+            .execute();
         let (a, b) = (found[0].item, found[1].item);
         let (da, db) = (self.dist2(a, v), self.dist2(b, v));
         // Clearly nearer than the runner-up: no tie to settle.
-        let owner = if db > da * (1.0 + 1e-9) + Real::MIN_POSITIVE { a } else { self.nearest_tree(v) };
+        let owner = if db > da * (1.0 + 1e-9) + Real::MIN_POSITIVE {
+            a
+        } else {
+            self.nearest_tree(v)
+        };
         // The second distance bounds every center but the owner from below.
         let second = if owner == a { db } else { da.min(db) };
-        Found { owner, distance: self.dist2(owner, v).sqrt(), second: second.sqrt(), runner_up: NO_OWNER, third: Real::INFINITY }
+        Found {
+            owner,
+            distance: self.dist2(owner, v).sqrt(),
+            second: second.sqrt(),
+            runner_up: NO_OWNER,
+            third: Real::INFINITY,
+        }
     }
 
     /// The nearest center among `hint`'s candidates with a lower bound on
@@ -442,10 +550,18 @@ impl CenterIndex {
     /// nearest of all; otherwise Err with the best candidate.
     #[inline]
     fn nearest_among_candidates(&self, v: &[Real; 3], hint: u32) -> Result<Found, u32> {
-        let (mut best, mut second, mut third) = ((Real::INFINITY, 0u32), (Real::INFINITY, NO_OWNER), Real::INFINITY);
+        let (mut best, mut second, mut third) = (
+            (Real::INFINITY, 0u32),
+            (Real::INFINITY, NO_OWNER),
+            Real::INFINITY,
+        );
         let cand = self.candidates(hint);
-        let shrink = cand.shrink(self.travel[hint as usize], self.travel_cap) + self.dist2(hint, v).sqrt();
-        for (part, reach) in [(&cand.list[..cand.near], cand.reach), (&cand.list[cand.near..], cand.reach_far)] {
+        let shrink =
+            cand.shrink(self.travel[hint as usize], self.travel_cap) + self.dist2(hint, v).sqrt();
+        for (part, reach) in [
+            (&cand.list[..cand.near], cand.reach),
+            (&cand.list[cand.near..], cand.reach_far),
+        ] {
             for &c in part {
                 let d = self.dist2(c, v);
                 // Branch-free (selects rather than jumps: which candidate
@@ -458,7 +574,10 @@ impl CenterIndex {
                 let seconds = lose < second.0;
                 let drop = if seconds { second.0 } else { lose };
                 third = if drop < third { drop } else { third };
-                second = (if seconds { lose } else { second.0 }, if seconds { lose_c } else { second.1 });
+                second = (
+                    if seconds { lose } else { second.0 },
+                    if seconds { lose_c } else { second.1 },
+                );
                 best = (if wins { d } else { best.0 }, if wins { c } else { best.1 });
             }
             let bound = reach - shrink;
@@ -466,7 +585,13 @@ impl CenterIndex {
             // Strict: a center at exactly the bound could tie and win on index.
             if d_best < bound {
                 // Every center outside the list is at least `bound` away.
-                return Ok(Found { owner: best.1, distance: d_best, second: second.0.sqrt().min(bound), runner_up: second.1, third: third.sqrt().min(bound) });
+                return Ok(Found {
+                    owner: best.1,
+                    distance: d_best,
+                    second: second.0.sqrt().min(bound),
+                    runner_up: second.1,
+                    third: third.sqrt().min(bound),
+                });
             }
         }
         Err(best.1)
@@ -535,7 +660,14 @@ impl CellStats {
     /// coordinates `c` in cell `cell`.
     fn tally(&mut self, cell: usize, c: [u16; 3], sign: i64) {
         let [x, y, z] = c.map(|c| c as i64);
-        self.tally_block(cell, &Block { count: 1, sum: [x, y, z] }, sign);
+        self.tally_block(
+            cell,
+            &Block {
+                count: 1,
+                sum: [x, y, z],
+            },
+            sign,
+        );
         if let Some(second) = &mut self.second {
             let q = &mut second[cell];
             q[0] += sign * x * x;
@@ -569,7 +701,11 @@ impl CellStats {
         let (xy, xz, yz) = (q[3] - s[0] * s[1], q[4] - s[0] * s[2], q[5] - s[1] * s[2]);
         let a2 = grid.voxel_size * grid.voxel_size;
         let covariance = nalgebra::Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz) * a2;
-        Some(CellMoments { count: self.count[i], mean, covariance })
+        Some(CellMoments {
+            count: self.count[i],
+            mean,
+            covariance,
+        })
     }
 }
 
@@ -629,7 +765,10 @@ impl Assignment {
     /// `hints`: one center index (or NO_OWNER) per voxel.
     pub fn new(grid: &GridSpec, voxels: &[u32], hints: Vec<u32>) -> Self {
         assert_eq!(voxels.len(), hints.len());
-        let coords = voxels.iter().map(|&v| grid.voxel_coords(v as usize).map(|c| c as u16)).collect();
+        let coords = voxels
+            .iter()
+            .map(|&v| grid.voxel_coords(v as usize).map(|c| c as u16))
+            .collect();
         let n = voxels.len();
         Assignment {
             origin: grid.origin.coords.into(),
@@ -669,13 +808,19 @@ impl Assignment {
     /// was last updated to, so the first [`Assignment::update`] must be
     /// given an index moved from those (a voxel that stays occupied
     /// needs no search unless the centers moved past its bounds).
-    pub fn carried(grid: &GridSpec, voxels: &[u32], prev_voxels: &[u32], prev: &Assignment) -> Self {
+    pub fn carried(
+        grid: &GridSpec,
+        voxels: &[u32],
+        prev_voxels: &[u32],
+        prev: &Assignment,
+    ) -> Self {
         assert!(prev.blocks.is_none(), "bounds are carried between voxels");
         assert_eq!(prev_voxels.len(), prev.owners.len());
         let mut a = Assignment::new(grid, voxels, vec![NO_OWNER; voxels.len()]);
         match_voxels(prev_voxels, voxels, |k, found| match found {
             Ok(j) => {
-                (a.owners[k], a.upper[k], a.lower[k]) = (prev.owners[j], prev.upper[j], prev.lower[j]);
+                (a.owners[k], a.upper[k], a.lower[k]) =
+                    (prev.owners[j], prev.upper[j], prev.lower[j]);
                 if !prev.runner_up.is_empty() {
                     (a.runner_up[k], a.third[k]) = (prev.runner_up[j], prev.third[j]);
                 }
@@ -734,20 +879,31 @@ impl Assignment {
             })
             .collect();
         order.sort_unstable_by_key(|&(key, c, _)| (key, c[2], c[1], c[0]));
-        let (mut blocks, mut positions, mut owners, mut coords) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let (mut blocks, mut positions, mut owners, mut coords) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         let a = grid.voxel_size;
         for group in order.chunk_by(|x, y| x.0 == y.0) {
-            let mut block = Block { count: group.len() as u32, sum: [0; 3] };
+            let mut block = Block {
+                count: group.len() as u32,
+                sum: [0; 3],
+            };
             for (_, c, _) in group {
                 for d in 0..3 {
                     block.sum[d] += c[d] as i64;
                 }
             }
             let n = block.count as Real;
-            positions.push([0, 1, 2].map(|d| grid.origin[d] + (block.sum[d] as Real / n + 0.5) * a));
+            positions
+                .push([0, 1, 2].map(|d| grid.origin[d] + (block.sum[d] as Real / n + 0.5) * a));
             blocks.push(block);
             coords.push(group[0].1.map(|c| c as u16));
-            owners.push(group.iter().map(|g| g.2).find(|&h| h != NO_OWNER).unwrap_or(NO_OWNER));
+            owners.push(
+                group
+                    .iter()
+                    .map(|g| g.2)
+                    .find(|&h| h != NO_OWNER)
+                    .unwrap_or(NO_OWNER),
+            );
         }
         let n = blocks.len();
         Assignment {
@@ -774,16 +930,29 @@ impl Assignment {
     /// the owner (a minority once the centers settle), then those are
     /// measured.
     pub fn update(&mut self, index: &CenterIndex, moved: &[Real], with_moments: bool) -> CellStats {
-        assert!(!(with_moments && self.blocks.is_some()), "blocks keep no second moments");
+        assert!(
+            !(with_moments && self.blocks.is_some()),
+            "blocks keep no second moments"
+        );
         let loosening = index.loosening(moved);
         let (eps, origin, a) = (self.eps, self.origin, self.voxel_size);
-        let bounds = Bounds { owners: &mut self.owners, upper: &mut self.upper, lower: &mut self.lower, runner_up: &mut self.runner_up, third: &mut self.third };
+        let bounds = Bounds {
+            owners: &mut self.owners,
+            upper: &mut self.upper,
+            lower: &mut self.lower,
+            runner_up: &mut self.runner_up,
+            third: &mut self.third,
+        };
         let coords = &self.coords;
         // One copy of the pass for each kind of element, each with its own
         // position lookup compiled in.
         let changes = match &self.blocks {
-            Some(b) => reassign(bounds, coords, eps, index, &loosening, |at, _| b.positions[at]),
-            None => reassign(bounds, coords, eps, index, &loosening, |_, c| [0, 1, 2].map(|d| origin[d] + (c[d] as Real + 0.5) * a)),
+            Some(b) => reassign(bounds, coords, eps, index, &loosening, |at, _| {
+                b.positions[at]
+            }),
+            None => reassign(bounds, coords, eps, index, &loosening, |_, c| {
+                [0, 1, 2].map(|d| origin[d] + (c[d] as Real + 0.5) * a)
+            }),
         };
         match &mut self.sums {
             Some(sums) if !with_moments && sums.count.len() == index.len() => {
@@ -808,7 +977,10 @@ impl Assignment {
                     Some(b) => block_stats(&b.blocks, &self.owners, index.len()),
                     None => cell_stats(&self.coords, &self.owners, index.len(), with_moments),
                 };
-                self.sums = Some(CellStats { second: None, ..stats.clone() });
+                self.sums = Some(CellStats {
+                    second: None,
+                    ..stats.clone()
+                });
                 stats
             }
         }
@@ -820,7 +992,14 @@ impl Assignment {
 /// lower bound before) those whose bounds no longer prove the owner, and
 /// those without one. Returns how many. `third` is empty when the
 /// assignment keeps no runner-ups.
-fn loosen_all(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [Pending]) -> usize {
+fn loosen_all(
+    owners: &[u32],
+    upper: &mut [f32],
+    lower: &mut [f32],
+    third: &mut [f32],
+    loosening: &[Loosening32],
+    pending: &mut [Pending],
+) -> usize {
     let pairs = !third.is_empty();
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") && !loosening.is_empty() {
@@ -841,7 +1020,15 @@ fn loosen_all(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut 
 /// [`loosen_all`] from element `from` on, one element at a time; `PAIRS`:
 /// whether there is a third bound to loosen.
 #[inline(always)]
-fn loosen_all_portable<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [Pending], from: usize) -> usize {
+fn loosen_all_portable<const PAIRS: bool>(
+    owners: &[u32],
+    upper: &mut [f32],
+    lower: &mut [f32],
+    third: &mut [f32],
+    loosening: &[Loosening32],
+    pending: &mut [Pending],
+    from: usize,
+) -> usize {
     let mut n = 0;
     for k in from..owners.len() {
         let lo = lower[k];
@@ -857,7 +1044,10 @@ fn loosen_all_portable<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], low
             }
             None => false,
         };
-        pending[n] = Pending { element: k as u32, lower: lo };
+        pending[n] = Pending {
+            element: k as u32,
+            lower: lo,
+        };
         n += !skip as usize;
     }
     n
@@ -869,17 +1059,31 @@ fn loosen_all_portable<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], low
 /// { b }`, NaN included), so the bounds come out bit-identical.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn loosen_all_avx2<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], lower: &mut [f32], third: &mut [f32], loosening: &[Loosening32], pending: &mut [Pending]) -> usize {
+unsafe fn loosen_all_avx2<const PAIRS: bool>(
+    owners: &[u32],
+    upper: &mut [f32],
+    lower: &mut [f32],
+    third: &mut [f32],
+    loosening: &[Loosening32],
+    pending: &mut [Pending],
+) -> usize {
     use std::arch::x86_64::*;
     let len = owners.len();
-    assert!(upper.len() == len && lower.len() == len && (!PAIRS || third.len() == len) && pending.len() >= len);
+    assert!(
+        upper.len() == len
+            && lower.len() == len
+            && (!PAIRS || third.len() == len)
+            && pending.len() >= len
+    );
     let table = loosening.as_ptr() as *const f32;
     let top = loosening.len() as u32 - 1;
     let last = _mm256_set1_epi32(top as i32);
     let (grow, shrink) = (_mm256_set1_ps(GROW), _mm256_set1_ps(SHRINK));
     // The same for every center (the largest move of all): not transposed.
     let max_move = _mm256_set1_ps(loosening[0].max_move);
-    debug_assert!(loosening.iter().all(|l| l.max_move == loosening[0].max_move));
+    debug_assert!(loosening
+        .iter()
+        .all(|l| l.max_move == loosening[0].max_move));
     let lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     let mut n = 0;
     let mut k = 0;
@@ -891,16 +1095,33 @@ unsafe fn loosen_all_avx2<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], 
         let valid = _mm256_cmpeq_epi32(clamped, own);
         // Each owner's loosening as one 16-byte load, transposed into
         // vectors of moves, decays and reaches: cheaper than three gathers.
-        let row = |j: usize| _mm_loadu_ps(table.add(4 * (*owners.get_unchecked(k + j)).min(top) as usize));
-        let (r0, r1) = (_mm256_set_m128(row(4), row(0)), _mm256_set_m128(row(5), row(1)));
-        let (r2, r3) = (_mm256_set_m128(row(6), row(2)), _mm256_set_m128(row(7), row(3)));
+        let row = |j: usize| {
+            _mm_loadu_ps(table.add(4 * (*owners.get_unchecked(k + j)).min(top) as usize))
+        };
+        let (r0, r1) = (
+            _mm256_set_m128(row(4), row(0)),
+            _mm256_set_m128(row(5), row(1)),
+        );
+        let (r2, r3) = (
+            _mm256_set_m128(row(6), row(2)),
+            _mm256_set_m128(row(7), row(3)),
+        );
         // Lanes 0-3 hold elements 0-3 and 4-7 in the two halves: moved,
         // decay, reach, max_move of rows 0..3, then of 4..7.
         let (t0, t1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpacklo_ps(r2, r3));
         let (t2, t3) = (_mm256_unpackhi_ps(r0, r1), _mm256_unpackhi_ps(r2, r3));
-        let moved = _mm256_castpd_ps(_mm256_unpacklo_pd(_mm256_castps_pd(t0), _mm256_castps_pd(t1)));
-        let decay = _mm256_castpd_ps(_mm256_unpackhi_pd(_mm256_castps_pd(t0), _mm256_castps_pd(t1)));
-        let reach = _mm256_castpd_ps(_mm256_unpacklo_pd(_mm256_castps_pd(t2), _mm256_castps_pd(t3)));
+        let moved = _mm256_castpd_ps(_mm256_unpacklo_pd(
+            _mm256_castps_pd(t0),
+            _mm256_castps_pd(t1),
+        ));
+        let decay = _mm256_castpd_ps(_mm256_unpackhi_pd(
+            _mm256_castps_pd(t0),
+            _mm256_castps_pd(t1),
+        ));
+        let reach = _mm256_castpd_ps(_mm256_unpacklo_pd(
+            _mm256_castps_pd(t2),
+            _mm256_castps_pd(t3),
+        ));
         let up0 = _mm256_loadu_ps(upper.as_ptr().add(k));
         let lo0 = _mm256_loadu_ps(lower.as_ptr().add(k));
         let u = _mm256_mul_ps(_mm256_add_ps(up0, moved), grow);
@@ -914,7 +1135,10 @@ unsafe fn loosen_all_avx2<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], 
         _mm256_storeu_ps(lower.as_mut_ptr().add(k), _mm256_blendv_ps(lo0, l, valid));
         if PAIRS {
             let th0 = _mm256_loadu_ps(third.as_ptr().add(k));
-            _mm256_storeu_ps(third.as_mut_ptr().add(k), _mm256_blendv_ps(th0, lowered(th0), valid));
+            _mm256_storeu_ps(
+                third.as_mut_ptr().add(k),
+                _mm256_blendv_ps(th0, lowered(th0), valid),
+            );
         }
         let skip = _mm256_and_ps(_mm256_cmp_ps::<_CMP_LT_OQ>(u, l), valid);
         let listed = !_mm256_movemask_ps(skip) & 0xff;
@@ -922,10 +1146,18 @@ unsafe fn loosen_all_avx2<const PAIRS: bool>(owners: &[u32], upper: &mut [f32], 
         // front, then written as eight pairs at once: the slots past the
         // listed ones are overwritten later or never read, and the eight
         // fit since n <= k and k + 8 <= len.
-        let order = _mm256_cvtepu8_epi32(_mm_loadl_epi64(LEFT_PACK[listed as usize].as_ptr() as *const __m128i));
-        let elements = _mm256_permutevar8x32_epi32(_mm256_add_epi32(_mm256_set1_epi32(k as i32), lanes), order);
+        let order = _mm256_cvtepu8_epi32(_mm_loadl_epi64(
+            LEFT_PACK[listed as usize].as_ptr() as *const __m128i
+        ));
+        let elements = _mm256_permutevar8x32_epi32(
+            _mm256_add_epi32(_mm256_set1_epi32(k as i32), lanes),
+            order,
+        );
         let lows = _mm256_castps_si256(_mm256_permutevar8x32_ps(lo0, order));
-        let (a, b) = (_mm256_unpacklo_epi32(elements, lows), _mm256_unpackhi_epi32(elements, lows));
+        let (a, b) = (
+            _mm256_unpacklo_epi32(elements, lows),
+            _mm256_unpackhi_epi32(elements, lows),
+        );
         let out = pending.as_mut_ptr().add(n) as *mut __m256i;
         _mm256_storeu_si256(out, _mm256_permute2x128_si256::<0x20>(a, b));
         _mm256_storeu_si256(out.add(1), _mm256_permute2x128_si256::<0x31>(a, b));
@@ -1003,15 +1235,27 @@ fn reassign(
     position: impl Fn(usize, [u16; 3]) -> [Real; 3] + Sync,
 ) -> Vec<Vec<(u32, u32)>> {
     let loosening32: Vec<Loosening32> = loosening.iter().map(Loosening32::from).collect();
-    let Bounds { owners, upper, lower, runner_up, third } = bounds;
+    let Bounds {
+        owners,
+        upper,
+        lower,
+        runner_up,
+        third,
+    } = bounds;
     // Without runner-ups ([`Assignment::without_runner_ups`]) every chunk
     // gets empty slices for them.
     let pairs = !runner_up.is_empty();
     let chunks = owners.len().div_ceil(CHUNK);
     let (runner_up, third) = if pairs {
-        (Either::Left(runner_up.par_chunks_mut(CHUNK)), Either::Left(third.par_chunks_mut(CHUNK)))
+        (
+            Either::Left(runner_up.par_chunks_mut(CHUNK)),
+            Either::Left(third.par_chunks_mut(CHUNK)),
+        )
     } else {
-        (Either::Right((0..chunks).into_par_iter().map(|_| <&mut [u32]>::default())), Either::Right((0..chunks).into_par_iter().map(|_| <&mut [f32]>::default())))
+        (
+            Either::Right((0..chunks).into_par_iter().map(|_| <&mut [u32]>::default())),
+            Either::Right((0..chunks).into_par_iter().map(|_| <&mut [f32]>::default())),
+        )
     };
     // (voxel, old owner) for every voxel whose owner changed.
     owners
@@ -1026,8 +1270,15 @@ fn reassign(
         // pass, then split into those their owner's distance settles and
         // the others: buffers per rayon job rather than zeroed ones per chunk.
         .map_init(
-            || (vec![Pending::default(); CHUNK], vec![Settled::default(); CHUNK], vec![Unsettled::default(); CHUNK]),
-            |(pending, settled, unsettled), (chunk, (((((own, up), low), runner), third), coords))| {
+            || {
+                (
+                    vec![Pending::default(); CHUNK],
+                    vec![Settled::default(); CHUNK],
+                    vec![Unsettled::default(); CHUNK],
+                )
+            },
+            |(pending, settled, unsettled),
+             (chunk, (((((own, up), low), runner), third), coords))| {
                 let n = loosen_all(own, up, low, third, &loosening32, pending);
                 // First the distance to the owner, whose new bounds settle
                 // about half of the voxels measured: without a branch on
@@ -1035,7 +1286,11 @@ fn reassign(
                 // listed on one side or the other. The others follow in
                 // their order, so the scan's hint below sees the same voxels.
                 let (mut n_settled, mut n_unsettled) = (0, 0);
-                for &Pending { element: k, lower: lo } in &pending[..n] {
+                for &Pending {
+                    element: k,
+                    lower: lo,
+                } in &pending[..n]
+                {
                     let o = own[k as usize];
                     let (own2, done) = match loosening.get(o as usize) {
                         Some(b) => {
@@ -1044,7 +1299,11 @@ fn reassign(
                             let u = u2.sqrt();
                             let l = b.lowered(lo as Real, u);
                             let done = u + eps < l;
-                            settled[n_settled] = Settled { element: k, upper: u as f32, lower: l as f32 };
+                            settled[n_settled] = Settled {
+                                element: k,
+                                upper: u as f32,
+                                lower: l as f32,
+                            };
                             n_settled += done as usize;
                             (u2, done)
                         }
@@ -1053,7 +1312,12 @@ fn reassign(
                     unsettled[n_unsettled] = Unsettled { element: k, own2 };
                     n_unsettled += !done as usize;
                 }
-                for &Settled { element: k, upper, lower } in &settled[..n_settled] {
+                for &Settled {
+                    element: k,
+                    upper,
+                    lower,
+                } in &settled[..n_settled]
+                {
                     up[k as usize] = upper.next_up();
                     low[k as usize] = lower.next_down();
                 }
@@ -1077,11 +1341,19 @@ fn reassign(
                             let (u2, u) = (own2, own2.sqrt());
                             // Between the owner and the runner-up, when every
                             // other center is farther than both.
-                            let (r, others) = if pairs { (runner[k], third[k] as Real) } else { (NO_OWNER, Real::NEG_INFINITY) };
+                            let (r, others) = if pairs {
+                                (runner[k], third[k] as Real)
+                            } else {
+                                (NO_OWNER, Real::NEG_INFINITY)
+                            };
                             if r != NO_OWNER && u + eps < others {
                                 let r2 = index.dist2(r, &pos);
                                 let takes = r2 < u2 || (r2 == u2 && r < o);
-                                let (near, far) = if takes { (r2.sqrt(), u) } else { (u, r2.sqrt()) };
+                                let (near, far) = if takes {
+                                    (r2.sqrt(), u)
+                                } else {
+                                    (u, r2.sqrt())
+                                };
                                 if near + eps < others {
                                     if takes {
                                         own[k] = r;
@@ -1104,7 +1376,11 @@ fn reassign(
                     // owner the scan just found is often nearer than the
                     // voxel's own, and its candidate list the one that
                     // settles the voxel.
-                    let hint = if last != NO_OWNER && last != o && index.dist2(last, &pos) < own2 { last } else { o };
+                    let hint = if last != NO_OWNER && last != o && index.dist2(last, &pos) < own2 {
+                        last
+                    } else {
+                        o
+                    };
                     let found = index.nearest2(&pos, hint);
                     last = found.owner;
                     if found.owner != o {
@@ -1126,7 +1402,13 @@ fn reassign(
 
 /// Assigns every occupied voxel to its nearest center in one go. `owners`
 /// holds one hint per voxel on entry (NO_OWNER for none), the owner on return.
-pub fn assign(grid: &GridSpec, voxels: &[u32], index: &CenterIndex, owners: &mut [u32], with_moments: bool) -> CellStats {
+pub fn assign(
+    grid: &GridSpec,
+    voxels: &[u32],
+    index: &CenterIndex,
+    owners: &mut [u32],
+    with_moments: bool,
+) -> CellStats {
     let mut a = Assignment::new(grid, voxels, owners.to_vec());
     let stats = a.update(index, &[], with_moments);
     owners.copy_from_slice(&a.owners);
@@ -1149,7 +1431,11 @@ fn cell_stats(coords: &[[u16; 3]], owners: &[u32], n: usize, with_moments: bool)
 
 /// [`cell_stats`] over blocks (counts and sums only).
 fn block_stats(blocks: &[Block], owners: &[u32], n: usize) -> CellStats {
-    let mut stats = CellStats { count: vec![0; n], sum: vec![[0; 3]; n], second: None };
+    let mut stats = CellStats {
+        count: vec![0; n],
+        sum: vec![[0; 3]; n],
+        second: None,
+    };
     for (&o, b) in owners.iter().zip(blocks) {
         stats.tally_block(o as usize, b, 1);
     }
@@ -1171,13 +1457,24 @@ pub(crate) fn carry_owners(prev_voxels: &[u32], prev_owners: &[u32], voxels: &[u
 
 /// For each of `voxels` (index k), where it is in `prev_voxels` (both
 /// sorted): Ok(j) when there, else Err with the last index before it, if any.
-fn match_voxels(prev_voxels: &[u32], voxels: &[u32], mut each: impl FnMut(usize, Result<usize, Option<usize>>)) {
+fn match_voxels(
+    prev_voxels: &[u32],
+    voxels: &[u32],
+    mut each: impl FnMut(usize, Result<usize, Option<usize>>),
+) {
     let mut j = 0;
     for (k, &v) in voxels.iter().enumerate() {
         while j < prev_voxels.len() && prev_voxels[j] < v {
             j += 1;
         }
-        each(k, if j < prev_voxels.len() && prev_voxels[j] == v { Ok(j) } else { Err(j.checked_sub(1)) });
+        each(
+            k,
+            if j < prev_voxels.len() && prev_voxels[j] == v {
+                Ok(j)
+            } else {
+                Err(j.checked_sub(1))
+            },
+        );
     }
 }
 
@@ -1201,11 +1498,28 @@ mod tests {
                 let mut unit = || rng.unit();
                 let loosening: Vec<Loosening32> = (0..centers)
                     .map(|i| {
-                        let reach = if i % 7 == 0 { Real::INFINITY } else { 1.0 + unit() };
-                        Loosening32::from(&Loosening { moved: 0.1 * unit(), decay: 0.1 * unit(), reach, max_move: 0.2 })
+                        let reach = if i % 7 == 0 {
+                            Real::INFINITY
+                        } else {
+                            1.0 + unit()
+                        };
+                        Loosening32::from(&Loosening {
+                            moved: 0.1 * unit(),
+                            decay: 0.1 * unit(),
+                            reach,
+                            max_move: 0.2,
+                        })
                     })
                     .collect();
-                let owners: Vec<u32> = (0..len).map(|_| if unit() < 0.1 { NO_OWNER } else { (unit() * centers as Real) as u32 }).collect();
+                let owners: Vec<u32> = (0..len)
+                    .map(|_| {
+                        if unit() < 0.1 {
+                            NO_OWNER
+                        } else {
+                            (unit() * centers as Real) as u32
+                        }
+                    })
+                    .collect();
                 let mut bound = |inf: f32| if unit() < 0.05 { inf } else { unit() as f32 };
                 let upper: Vec<f32> = (0..len).map(|_| bound(f32::INFINITY)).collect();
                 let lower: Vec<f32> = (0..len).map(|_| bound(f32::NEG_INFINITY)).collect();
@@ -1220,17 +1534,57 @@ mod tests {
                     }
                     // SAFETY: the CPU has AVX2, checked above.
                     let n = match (vector, pairs) {
-                        (true, true) => unsafe { loosen_all_avx2::<true>(&owners, &mut up, &mut lo, &mut th, &loosening, &mut pending) },
-                        (true, false) => unsafe { loosen_all_avx2::<false>(&owners, &mut up, &mut lo, &mut th, &loosening, &mut pending) },
-                        (false, true) => loosen_all_portable::<true>(&owners, &mut up, &mut lo, &mut th, &loosening, &mut pending, 0),
-                        (false, false) => loosen_all_portable::<false>(&owners, &mut up, &mut lo, &mut th, &loosening, &mut pending, 0),
+                        (true, true) => unsafe {
+                            loosen_all_avx2::<true>(
+                                &owners,
+                                &mut up,
+                                &mut lo,
+                                &mut th,
+                                &loosening,
+                                &mut pending,
+                            )
+                        },
+                        (true, false) => unsafe {
+                            loosen_all_avx2::<false>(
+                                &owners,
+                                &mut up,
+                                &mut lo,
+                                &mut th,
+                                &loosening,
+                                &mut pending,
+                            )
+                        },
+                        (false, true) => loosen_all_portable::<true>(
+                            &owners,
+                            &mut up,
+                            &mut lo,
+                            &mut th,
+                            &loosening,
+                            &mut pending,
+                            0,
+                        ),
+                        (false, false) => loosen_all_portable::<false>(
+                            &owners,
+                            &mut up,
+                            &mut lo,
+                            &mut th,
+                            &loosening,
+                            &mut pending,
+                            0,
+                        ),
                     };
                     let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-                    let listed: Vec<(u32, u32)> = pending[..n].iter().map(|p| (p.element, p.lower.to_bits())).collect();
+                    let listed: Vec<(u32, u32)> = pending[..n]
+                        .iter()
+                        .map(|p| (p.element, p.lower.to_bits()))
+                        .collect();
                     (bits(&up), bits(&lo), bits(&th), listed)
                 };
                 let (vector, scalar) = (run(true), run(false));
-                assert_eq!(vector, scalar, "case {case}: {centers} centers, {len} elements");
+                assert_eq!(
+                    vector, scalar,
+                    "case {case}: {centers} centers, {len} elements"
+                );
             }
         }
     }
@@ -1247,23 +1601,41 @@ mod tests {
             let moved = scale * 1e-3 * unit();
             let max_move = scale * 1e-3 * unit();
             let decay = max_move * unit();
-            let reach = if case % 5 == 0 { Real::INFINITY } else { scale * (1.0 + 2.0 * unit()) };
-            let b = Loosening { moved, decay, reach, max_move };
+            let reach = if case % 5 == 0 {
+                Real::INFINITY
+            } else {
+                scale * (1.0 + 2.0 * unit())
+            };
+            let b = Loosening {
+                moved,
+                decay,
+                reach,
+                max_move,
+            };
             let upper = (scale * unit()) as f32;
             // Within a few f32 roundings of the loosened bounds meeting.
             let tie = upper as Real + moved + max_move.max(decay);
             let lower = (tie * (1.0 + 1e-6 * (2.0 * unit() - 1.0))) as f32;
             let (u, l) = Loosening32::from(&b).loosen(upper, lower);
             let u_exact = upper as Real + moved;
-            assert!(u as Real >= u_exact, "case {case}: upper {u} below {u_exact}");
+            assert!(
+                u as Real >= u_exact,
+                "case {case}: upper {u} below {u_exact}"
+            );
             if u < l {
                 skipped += 1;
                 let l_exact = b.lowered(lower as Real, u_exact);
-                assert!(l as Real <= l_exact, "case {case}: lower {l} above {l_exact}");
+                assert!(
+                    l as Real <= l_exact,
+                    "case {case}: lower {l} above {l_exact}"
+                );
             } else {
                 measured += 1;
             }
         }
-        assert!(skipped > 10_000 && measured > 10_000, "{skipped} skipped, {measured} measured: the cases miss the boundary");
+        assert!(
+            skipped > 10_000 && measured > 10_000,
+            "{skipped} skipped, {measured} measured: the cases miss the boundary"
+        );
     }
 }

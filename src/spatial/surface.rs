@@ -10,10 +10,14 @@ pub fn closest_point_on_triangle(p: &Point3, a: &Point3, b: &Point3, c: &Point3)
     let (ab, ac, ap) = (b - a, c - a, p - a);
     // Zero area: the region tests below would divide 0 by 0.
     if ab.cross(&ac).norm_squared() == 0.0 {
-        return [closest_point_on_segment(p, a, b), closest_point_on_segment(p, b, c), closest_point_on_segment(p, c, a)]
-            .into_iter()
-            .min_by(|x, y| (p - x).norm_squared().total_cmp(&(p - y).norm_squared()))
-            .expect("three candidates");
+        return [
+            closest_point_on_segment(p, a, b),
+            closest_point_on_segment(p, b, c),
+            closest_point_on_segment(p, c, a),
+        ]
+        .into_iter()
+        .min_by(|x, y| (p - x).norm_squared().total_cmp(&(p - y).norm_squared()))
+        .expect("three candidates");
     }
     let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
     if d1 <= 0.0 && d2 <= 0.0 {
@@ -78,7 +82,14 @@ impl Node {
     /// anything in it, so a box at least as far as the best triangle found
     /// cannot hold a closer one.
     fn distance_squared(&self, p: &Point3) -> Real {
-        (0..3).map(|k| (self.min[k] - p[k]).max(p[k] - self.max[k]).max(0.0).powi(2)).sum()
+        (0..3)
+            .map(|k| {
+                (self.min[k] - p[k])
+                    .max(p[k] - self.max[k])
+                    .max(0.0)
+                    .powi(2)
+            })
+            .sum()
     }
 }
 
@@ -108,8 +119,14 @@ impl SurfaceIndex {
     /// Indexes the triangles of `positions`. Indices must be in range (as
     /// [`TriangleMesh::validate`] checks).
     pub fn new(positions: &[Point3], triangles: &[[u32; 3]]) -> Self {
-        let corners: Vec<[Point3; 3]> = triangles.iter().map(|t| t.map(|i| positions[i as usize])).collect();
-        let centroids: Vec<Point3> = corners.iter().map(|[a, b, c]| Point3::from((a.coords + b.coords + c.coords) / 3.0)).collect();
+        let corners: Vec<[Point3; 3]> = triangles
+            .iter()
+            .map(|t| t.map(|i| positions[i as usize]))
+            .collect();
+        let centroids: Vec<Point3> = corners
+            .iter()
+            .map(|[a, b, c]| Point3::from((a.coords + b.coords + c.coords) / 3.0))
+            .collect();
         let mut order: Vec<u32> = (0..corners.len() as u32).collect();
         let mut nodes = Vec::with_capacity(2 * corners.len() / LEAF_SIZE + 1);
         if !order.is_empty() {
@@ -128,12 +145,20 @@ impl SurfaceIndex {
                 parents[node.first as usize] = n as u32;
             }
         }
-        SurfaceIndex { nodes, triangles: order.iter().map(|&t| corners[t as usize]).collect(), ids: order, places, leaves, parents }
+        SurfaceIndex {
+            nodes,
+            triangles: order.iter().map(|&t| corners[t as usize]).collect(),
+            ids: order,
+            places,
+            leaves,
+            parents,
+        }
     }
 
     /// Squared distance from `p` to the surface (infinite without triangles).
     pub(crate) fn distance_squared(&self, p: &Point3) -> Real {
-        self.nearest_triangle(p, Real::INFINITY).map_or(Real::INFINITY, |(_, d)| d)
+        self.nearest_triangle(p, Real::INFINITY)
+            .map_or(Real::INFINITY, |(_, d)| d)
     }
 
     /// The point of the surface nearest to `p` and the unit normal of the
@@ -149,7 +174,10 @@ impl SurfaceIndex {
     pub fn closest_point_within(&self, p: &Point3, bound: Real) -> Option<(Point3, Vector3)> {
         let (t, _) = self.nearest_triangle(p, bound * bound)?;
         let [a, b, c] = &self.triangles[t];
-        let normal = (b - a).cross(&(c - a)).try_normalize(0.0).unwrap_or_else(Vector3::zeros);
+        let normal = (b - a)
+            .cross(&(c - a))
+            .try_normalize(0.0)
+            .unwrap_or_else(Vector3::zeros);
         Some((closest_point_on_triangle(p, a, b, c), normal))
     }
 
@@ -172,7 +200,10 @@ impl SurfaceIndex {
                 }
             };
             if node.count > 0 {
-                for p in self.triangles[node.first as usize..(node.first + node.count) as usize].iter().flatten() {
+                for p in self.triangles[node.first as usize..(node.first + node.count) as usize]
+                    .iter()
+                    .flatten()
+                {
                     let c = [p.x, p.y, p.z];
                     grow(&c, &c);
                 }
@@ -202,14 +233,23 @@ impl SurfaceIndex {
     /// moved a little), its leaf tightens the bound at once and the walk up
     /// visits only the siblings that could hold a nearer triangle, instead
     /// of descending from the root. The answer is the same.
-    pub fn closest_triangle_near(&self, p: &Point3, bound: Real, near: u32) -> Option<(u32, Point3)> {
+    pub fn closest_triangle_near(
+        &self,
+        p: &Point3,
+        bound: Real,
+        near: u32,
+    ) -> Option<(u32, Point3)> {
         let mut best = (usize::MAX, bound * bound * (1.0 + 1e-9));
         let mut stack = Vec::with_capacity(64);
         let mut node = self.leaves[self.places[near as usize] as usize];
         self.descend(node, p, &mut best, &mut stack);
         while node != 0 {
             let parent = self.parents[node as usize];
-            let sibling = if node == parent + 1 { self.nodes[parent as usize].first } else { parent + 1 };
+            let sibling = if node == parent + 1 {
+                self.nodes[parent as usize].first
+            } else {
+                parent + 1
+            };
             self.descend(sibling, p, &mut best, &mut stack);
             node = parent;
         }
@@ -237,7 +277,13 @@ impl SurfaceIndex {
     /// triangles equally near, the first in leaf order wins, whatever order
     /// they are visited in, so that a search from anywhere in the tree finds
     /// the same one. `stack` is scratch space.
-    fn descend(&self, root: u32, p: &Point3, best: &mut (usize, Real), stack: &mut Vec<(u32, Real)>) {
+    fn descend(
+        &self,
+        root: u32,
+        p: &Point3,
+        best: &mut (usize, Real),
+        stack: &mut Vec<(u32, Real)>,
+    ) {
         // Depth is at most log2 of the triangle count (median splits), and the
         // stack holds at most one pending sibling per level.
         stack.clear();
@@ -259,10 +305,17 @@ impl SurfaceIndex {
                 continue;
             }
             let (l, r) = (n + 1, node.first);
-            let (dl, dr) = (self.nodes[l as usize].distance_squared(p), self.nodes[r as usize].distance_squared(p));
+            let (dl, dr) = (
+                self.nodes[l as usize].distance_squared(p),
+                self.nodes[r as usize].distance_squared(p),
+            );
             // The nearer child is popped first, so its triangles tighten `best`
             // before the farther one is considered.
-            let (near, far) = if dl <= dr { ((l, dl), (r, dr)) } else { ((r, dr), (l, dl)) };
+            let (near, far) = if dl <= dr {
+                ((l, dl), (r, dr))
+            } else {
+                ((r, dr), (l, dl))
+            };
             if far.1 <= best.1 {
                 stack.push(far);
             }
@@ -280,7 +333,13 @@ impl SurfaceIndex {
 
 /// Appends the subtree over `order` (a slice of triangle ids starting at
 /// `offset` in the final leaf order) and returns its node index.
-fn build(nodes: &mut Vec<Node>, order: &mut [u32], offset: usize, corners: &[[Point3; 3]], centroids: &[Point3]) -> usize {
+fn build(
+    nodes: &mut Vec<Node>,
+    order: &mut [u32],
+    offset: usize,
+    corners: &[[Point3; 3]],
+    centroids: &[Point3],
+) -> usize {
     let (mut min, mut max) = ([Real::INFINITY; 3], [Real::NEG_INFINITY; 3]);
     let (mut cmin, mut cmax) = ([Real::INFINITY; 3], [Real::NEG_INFINITY; 3]);
     for &t in order.iter() {
@@ -297,14 +356,25 @@ fn build(nodes: &mut Vec<Node>, order: &mut [u32], offset: usize, corners: &[[Po
         }
     }
     let index = nodes.len();
-    nodes.push(Node { min, max, first: offset as u32, count: order.len() as u32 });
+    nodes.push(Node {
+        min,
+        max,
+        first: offset as u32,
+        count: order.len() as u32,
+    });
     if order.len() <= LEAF_SIZE {
         return index;
     }
-    let axis = (0..3).max_by(|&a, &b| (cmax[a] - cmin[a]).total_cmp(&(cmax[b] - cmin[b]))).unwrap_or(0);
+    let axis = (0..3)
+        .max_by(|&a, &b| (cmax[a] - cmin[a]).total_cmp(&(cmax[b] - cmin[b])))
+        .unwrap_or(0);
     let mid = order.len() / 2;
     // Ties broken by id so the tree does not depend on the sort's internals.
-    order.select_nth_unstable_by(mid, |&a, &b| centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis]).then(a.cmp(&b)));
+    order.select_nth_unstable_by(mid, |&a, &b| {
+        centroids[a as usize][axis]
+            .total_cmp(&centroids[b as usize][axis])
+            .then(a.cmp(&b))
+    });
     let (left, right) = order.split_at_mut(mid);
     build(nodes, left, offset, corners, centroids);
     let second = build(nodes, right, offset + mid, corners, centroids);
@@ -312,4 +382,3 @@ fn build(nodes: &mut Vec<Node>, order: &mut [u32], offset: usize, corners: &[[Po
     nodes[index].count = 0;
     index
 }
-

@@ -6,10 +6,10 @@
 //! pair (N² floats, updated once per frame, never in the iteration loop) and
 //! rebuilds the lists from it.
 
-use crate::spatial::cells::CellMoments;
-use crate::model::Rigid;
 use crate::math::{Matrix3, Point3, Real};
+use crate::model::Rigid;
 use crate::params::{sigma_for, AffinityKind};
+use crate::spatial::cells::CellMoments;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
@@ -52,7 +52,12 @@ pub struct CellMotion {
 
 impl CellMotion {
     pub fn new(cell: &CellMoments, own: &Rigid) -> Self {
-        CellMotion { trace: cell.covariance.trace(), turned: own.rotation * cell.covariance, mean: cell.mean, moved_mean: own.apply(&cell.mean) }
+        CellMotion {
+            trace: cell.covariance.trace(),
+            turned: own.rotation * cell.covariance,
+            mean: cell.mean,
+            moved_mean: own.apply(&cell.mean),
+        }
     }
 
     /// d_i(A_i, `other`)², as [`motion_dissimilarity2`] gives it up to rounding.
@@ -77,20 +82,51 @@ pub struct Affinity {
 
 impl Affinity {
     /// Frame 0: positional weights only. `rho_p`, `rho_m` in the input's units.
-    pub fn initial(centers: &[Point3], kind: AffinityKind, rho_p: Real, rho_m: Real, alpha: Real, mu: Real) -> Self {
-        let iir = if kind == AffinityKind::Iir { vec![1.0; centers.len() * centers.len()] } else { Vec::new() };
+    pub fn initial(
+        centers: &[Point3],
+        kind: AffinityKind,
+        rho_p: Real,
+        rho_m: Real,
+        alpha: Real,
+        mu: Real,
+    ) -> Self {
+        let iir = if kind == AffinityKind::Iir {
+            vec![1.0; centers.len() * centers.len()]
+        } else {
+            Vec::new()
+        };
         let mut a = Affinity::restore(kind, rho_p, rho_m, alpha, mu, Vec::new(), iir);
         a.lists = a.positional_lists(centers, |_, _| 1.0);
         a
     }
 
     /// The state saved by a checkpoint, put back (see `super::checkpoint`).
-    pub(super) fn restore(kind: AffinityKind, rho_p: Real, rho_m: Real, alpha: Real, mu: Real, lists: Vec<Vec<Neighbor>>, iir: Vec<f32>) -> Self {
-        Affinity { kind, sigma_p: sigma_for(rho_p), sigma_m: sigma_for(rho_m), alpha, mu, lists, iir }
+    pub(super) fn restore(
+        kind: AffinityKind,
+        rho_p: Real,
+        rho_m: Real,
+        alpha: Real,
+        mu: Real,
+        lists: Vec<Vec<Neighbor>>,
+        iir: Vec<f32>,
+    ) -> Self {
+        Affinity {
+            kind,
+            sigma_p: sigma_for(rho_p),
+            sigma_m: sigma_for(rho_m),
+            alpha,
+            mu,
+            lists,
+            iir,
+        }
     }
 
     /// Lists of every j with exp(-σ_p d²) · extra(i, j) >= μ.
-    fn positional_lists(&self, centers: &[Point3], extra: impl Fn(usize, usize) -> Real + Sync) -> Vec<Vec<Neighbor>> {
+    fn positional_lists(
+        &self,
+        centers: &[Point3],
+        extra: impl Fn(usize, usize) -> Real + Sync,
+    ) -> Vec<Vec<Neighbor>> {
         within_reach(centers, self.sigma_p, self.mu)
             .into_par_iter()
             .enumerate()
@@ -100,7 +136,12 @@ impl Affinity {
                     .filter_map(|j| {
                         let d2 = (centers[i] - centers[j as usize]).norm_squared();
                         let w = (-self.sigma_p * d2).exp() * extra(i, j as usize);
-                        (w >= self.mu).then_some(Neighbor { j, w, max_d2: d2, max_m2: 0.0 })
+                        (w >= self.mu).then_some(Neighbor {
+                            j,
+                            w,
+                            max_d2: d2,
+                            max_m2: 0.0,
+                        })
                     })
                     .collect()
             })
@@ -133,7 +174,9 @@ impl Affinity {
                         let j = n.j as usize;
                         n.max_d2 = n.max_d2.max((centers[i] - centers[j]).norm_squared());
                         if let Some(cell) = &cells[i] {
-                            n.max_m2 = n.max_m2.max(motion_dissimilarity2(cell, &motions[i], &motions[j]));
+                            n.max_m2 =
+                                n.max_m2
+                                    .max(motion_dissimilarity2(cell, &motions[i], &motions[j]));
                         }
                         n.w = (-sp * n.max_d2).exp() * (-sm * n.max_m2).exp();
                     }
@@ -146,7 +189,8 @@ impl Affinity {
                 self.iir.par_chunks_mut(n).enumerate().for_each(|(i, row)| {
                     let Some(cell) = &cells[i] else { return };
                     for (j, a) in row.iter_mut().enumerate() {
-                        let am = (-sm * motion_dissimilarity2(cell, &motions[i], &motions[j])).exp();
+                        let am =
+                            (-sm * motion_dissimilarity2(cell, &motions[i], &motions[j])).exp();
                         *a = (alpha * am + (1.0 - alpha) * *a as Real) as f32;
                     }
                 });
@@ -168,7 +212,13 @@ pub(crate) fn within_reach(centers: &[Point3], sigma: Real, mu: Real) -> Vec<Vec
     points
         .par_iter()
         .map(|p| {
-            let mut found: Vec<u32> = tree.query(p).within::<SquaredEuclidean<Real>>(radius2).execute().into_iter().map(|r| r.item).collect();
+            let mut found: Vec<u32> = tree
+                .query(p)
+                .within::<SquaredEuclidean<Real>>(radius2)
+                .execute()
+                .into_iter()
+                .map(|r| r.item)
+                .collect();
             found.sort_unstable();
             found
         })

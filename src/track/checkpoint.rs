@@ -12,13 +12,13 @@
 
 use super::affinity::{Affinity, Neighbor};
 use super::FrameTiming;
-use crate::model::Trajectories;
-use crate::error::{Error, Result};
-use crate::math::Point3;
-use crate::params::{AffinityKind, TrackParams};
-use crate::voxel::VoxelSequence;
 use crate::checkpoint::{put_reals, put_u32s, put_u64, Fnv, Reader};
 pub use crate::checkpoint::{Checkpointing, CHECKPOINT_FILE};
+use crate::error::{Error, Result};
+use crate::math::Point3;
+use crate::model::Trajectories;
+use crate::params::{AffinityKind, TrackParams};
+use crate::voxel::VoxelSequence;
 use std::io::Write;
 
 const MAGIC: &[u8; 16] = b"voltrack-track\0\x03";
@@ -99,7 +99,12 @@ fn write_state(w: &mut dyn Write, fingerprint: u64, s: &Snapshot) -> std::io::Re
 }
 
 /// Reads the checkpoint of `ckpt` back, checking it belongs to this run.
-pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, seq: &VoxelSequence, params: &TrackParams) -> Result<Restored> {
+pub(super) fn load(
+    ckpt: &Checkpointing,
+    fingerprint: u64,
+    seq: &VoxelSequence,
+    params: &TrackParams,
+) -> Result<Restored> {
     let path = ckpt.path();
     let bytes = crate::checkpoint::load(&path, MAGIC, "tracking checkpoint")?;
     let mut r = Reader::new(&bytes, &path);
@@ -111,19 +116,43 @@ pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, seq: &VoxelSequence, 
         )));
     }
     let (frames, centers, frames_done) = (r.usize()?, r.usize()?, r.usize()?);
-    if frames != seq.frames.len() || centers != params.centers || frames_done == 0 || frames_done > frames {
-        return Err(Error::parse(&path, None, format!("inconsistent header: {frames_done} of {frames} frames, {centers} centers")));
+    if frames != seq.frames.len()
+        || centers != params.centers
+        || frames_done == 0
+        || frames_done > frames
+    {
+        return Err(Error::parse(
+            &path,
+            None,
+            format!("inconsistent header: {frames_done} of {frames} frames, {centers} centers"),
+        ));
     }
     let mut trajectories = Trajectories::new(frames, centers);
     for p in &mut trajectories.positions[..frames_done * centers] {
         *p = Point3::new(r.real()?, r.real()?, r.real()?);
     }
-    let cell_counts = (0..frames_done).map(|_| r.u32s(centers)).collect::<Result<_>>()?;
+    let cell_counts = (0..frames_done)
+        .map(|_| r.u32s(centers))
+        .collect::<Result<_>>()?;
     let timings = (0..frames_done)
-        .map(|_| Ok(FrameTiming { total: r.real()?, assign: r.real()?, fit: r.real()?, affinity: r.real()?, iterations: r.usize()?, dropped_iterations: r.usize()?, kept_guess: guess(&mut r)? }))
+        .map(|_| {
+            Ok(FrameTiming {
+                total: r.real()?,
+                assign: r.real()?,
+                fit: r.real()?,
+                affinity: r.real()?,
+                iterations: r.usize()?,
+                dropped_iterations: r.usize()?,
+                kept_guess: guess(&mut r)?,
+            })
+        })
         .collect::<Result<_>>()?;
     if r.usize()? != centers {
-        return Err(Error::parse(&path, None, "affinity lists do not match the number of centers"));
+        return Err(Error::parse(
+            &path,
+            None,
+            "affinity lists do not match the number of centers",
+        ));
     }
     let lists = (0..centers)
         .map(|_| {
@@ -132,28 +161,62 @@ pub(super) fn load(ckpt: &Checkpointing, fingerprint: u64, seq: &VoxelSequence, 
                 .map(|_| {
                     let j = r.u32()?;
                     if j as usize >= centers {
-                        return Err(Error::parse(&path, None, format!("neighbour {j} out of range")));
+                        return Err(Error::parse(
+                            &path,
+                            None,
+                            format!("neighbour {j} out of range"),
+                        ));
                     }
-                    Ok(Neighbor { j, w: r.real()?, max_d2: r.real()?, max_m2: r.real()? })
+                    Ok(Neighbor {
+                        j,
+                        w: r.real()?,
+                        max_d2: r.real()?,
+                        max_m2: r.real()?,
+                    })
                 })
                 .collect::<Result<Vec<_>>>()
         })
         .collect::<Result<_>>()?;
     let iir_len = r.usize()?;
-    let expected = if params.affinity == AffinityKind::Iir { centers * centers } else { 0 };
+    let expected = if params.affinity == AffinityKind::Iir {
+        centers * centers
+    } else {
+        0
+    };
     if iir_len != expected {
-        return Err(Error::parse(&path, None, "affinity filter state does not match the affinity kind"));
+        return Err(Error::parse(
+            &path,
+            None,
+            "affinity filter state does not match the affinity kind",
+        ));
     }
-    let iir = (0..iir_len).map(|_| Ok(f32::from_bits(r.u32()?))).collect::<Result<_>>()?;
+    let iir = (0..iir_len)
+        .map(|_| Ok(f32::from_bits(r.u32()?)))
+        .collect::<Result<_>>()?;
     let owners = r.u32s(seq.frames[frames_done - 1].len())?;
     r.finish("tracker state")?;
     let scale = params.length_scale(&seq.bounds);
-    let affinity = Affinity::restore(params.affinity, super::rho_p(params, seq, scale), params.rho_m * scale, params.alpha, params.mu, lists, iir);
-    Ok(Restored { frames_done, trajectories, cell_counts, timings, affinity, owners })
+    let affinity = Affinity::restore(
+        params.affinity,
+        super::rho_p(params, seq, scale),
+        params.rho_m * scale,
+        params.alpha,
+        params.mu,
+        lists,
+        iir,
+    );
+    Ok(Restored {
+        frames_done,
+        trajectories,
+        cell_counts,
+        timings,
+        affinity,
+        owners,
+    })
 }
-
 
 fn guess(r: &mut Reader) -> Result<super::Guess> {
     let code = r.u64()?;
-    super::Guess::from_code(code).ok_or_else(|| Error::parse(r.path, None, format!("unknown guess {code}")))
+    super::Guess::from_code(code)
+        .ok_or_else(|| Error::parse(r.path, None, format!("unknown guess {code}")))
 }

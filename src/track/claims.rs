@@ -56,16 +56,30 @@ impl Capacity {
         // A one-voxel cell still reaches half a voxel.
         let floor = 0.5 * grid.voxel_size;
         reach.iter_mut().for_each(|r| *r = r.max(floor));
-        Capacity { count, reach, total: voxels.len() as Real }
+        Capacity {
+            count,
+            reach,
+            total: voxels.len() as Real,
+        }
     }
 
     /// The data targets of the starved centers of `cur` whose cells `cells`
     /// and `stats` hold: (center, centroid of its voxels and its claim); and
     /// how many voxels are loose.
-    pub(crate) fn claims(&self, grid: &GridSpec, cells: &Assignment, cur: &[Point3], stats: &CellStats) -> (Vec<(usize, Point3)>, usize) {
-        let Some(coords) = cells.voxel_coords() else { return (Vec::new(), 0) };
+    pub(crate) fn claims(
+        &self,
+        grid: &GridSpec,
+        cells: &Assignment,
+        cur: &[Point3],
+        stats: &CellStats,
+    ) -> (Vec<(usize, Point3)>, usize) {
+        let Some(coords) = cells.voxel_coords() else {
+            return (Vec::new(), 0);
+        };
         let scale = coords.len() as Real / self.total;
-        let starved: Vec<usize> = (0..cur.len()).filter(|&i| (stats.count[i] as Real) < STARVED * self.count[i] * scale).collect();
+        let starved: Vec<usize> = (0..cur.len())
+            .filter(|&i| (stats.count[i] as Real) < STARVED * self.count[i] * scale)
+            .collect();
         let at = |c: &[u16; 3]| grid.center_at(c.map(usize::from));
         // Loose voxels: (position, squared distance to their owner).
         let loose: Vec<(Point3, Real)> = coords
@@ -82,7 +96,8 @@ impl Capacity {
             return (Vec::new(), loose.len());
         }
         let points: Vec<[Real; 3]> = loose.iter().map(|(p, _)| [p.x, p.y, p.z]).collect();
-        let tree = ImmutableKdTree::<Real, 3>::new_from_slice(&points).expect("finite voxel positions");
+        let tree =
+            ImmutableKdTree::<Real, 3>::new_from_slice(&points).expect("finite voxel positions");
         let claims = starved
             .par_iter()
             .map(|&i| {
@@ -90,8 +105,16 @@ impl Capacity {
                 let lack = want.saturating_sub(stats.count[i] as usize).max(1);
                 let c = cur[i];
                 let k = (4 * lack).clamp(1, loose.len());
-                let found = tree.query(&[c.x, c.y, c.z]).nearest_n::<SquaredEuclidean<Real>>(std::num::NonZeroUsize::new(k).expect("k > 0")).execute();
-                let mut by_excess: Vec<(Real, usize)> = found.iter().map(|nb| (nb.distance - loose[nb.item as usize].1, nb.item as usize)).collect();
+                let found = tree
+                    .query(&[c.x, c.y, c.z])
+                    .nearest_n::<SquaredEuclidean<Real>>(
+                        std::num::NonZeroUsize::new(k).expect("k > 0"),
+                    )
+                    .execute();
+                let mut by_excess: Vec<(Real, usize)> = found
+                    .iter()
+                    .map(|nb| (nb.distance - loose[nb.item as usize].1, nb.item as usize))
+                    .collect();
                 by_excess.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
                 by_excess.truncate(lack);
                 let own = stats.count[i] as Real;

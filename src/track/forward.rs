@@ -9,18 +9,19 @@
 
 use super::affinity::Affinity;
 use super::checkpoint::{self, Checkpointing, Snapshot};
-use crate::spatial::cells::{assign, carry_owners, Assignment, CellMoments, CellStats, CenterIndex, NO_OWNER};
 use super::lloyd::seed_centers_until;
-use crate::model::{GridSpec, Rigid, RigidFits, Trajectories};
+use super::{FrameTiming, Guess};
 use crate::error::{Error, Result, Saved};
 use crate::math::{Point3, Real};
+use crate::model::{GridSpec, Rigid, RigidFits, Trajectories};
 use crate::params::TrackParams;
 use crate::progress::{Progress, Stage};
+use crate::spatial::cells::{
+    assign, carry_owners, Assignment, CellMoments, CellStats, CenterIndex, NO_OWNER,
+};
 use crate::voxel::VoxelSequence;
-use super::{FrameTiming, Guess};
 use rayon::prelude::*;
 use std::time::Instant;
-
 
 impl FrameTiming {
     /// Adds the parts of a dropped run of the same frame.
@@ -80,7 +81,12 @@ pub fn track(seq: &VoxelSequence, params: &TrackParams, progress: Progress) -> R
 /// cancelled through `progress` (then returning [`Error::Interrupted`]) and at
 /// the end; with `checkpoint.resume` it continues from the saved state. The
 /// result is bit-identical to an uninterrupted [`track`].
-pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpoint: Option<&Checkpointing>, progress: Progress) -> Result<TrackResult> {
+pub fn track_with_checkpoints(
+    seq: &VoxelSequence,
+    params: &TrackParams,
+    checkpoint: Option<&Checkpointing>,
+    progress: Progress,
+) -> Result<TrackResult> {
     params.validate()?;
     let frames = seq.frames.len();
     let n0 = seq.frames[0].len();
@@ -92,7 +98,9 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
         )));
     }
     if checkpoint.is_some_and(|c| c.every == 0) {
-        return Err(Error::InvalidParameter("the checkpoint interval must be at least 1 frame".into()));
+        return Err(Error::InvalidParameter(
+            "the checkpoint interval must be at least 1 frame".into(),
+        ));
     }
     let fingerprint = checkpoint.map(|_| checkpoint::fingerprint(seq, params));
     let scale = params.length_scale(&seq.bounds);
@@ -103,7 +111,10 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
         Some(c) if c.resume && c.path().exists() => Some(c),
         Some(c) if c.resume => {
             // So that one command line can be rerun until it completes.
-            log::warn!("no checkpoint in {} yet: tracking starts from the first frame", c.dir.display());
+            log::warn!(
+                "no checkpoint in {} yet: tracking starts from the first frame",
+                c.dir.display()
+            );
             None
         }
         _ => None,
@@ -111,8 +122,19 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
     let (mut traj, mut cell_counts, mut timings, affinity, owners, first) = match resume {
         Some(c) => {
             let r = checkpoint::load(c, fingerprint.expect("fingerprinted"), seq, params)?;
-            log::info!("resuming from {} after {} of {frames} frames", c.path().display(), r.frames_done);
-            (r.trajectories, r.cell_counts, r.timings, r.affinity, r.owners, r.frames_done)
+            log::info!(
+                "resuming from {} after {} of {frames} frames",
+                c.path().display(),
+                r.frames_done
+            );
+            (
+                r.trajectories,
+                r.cell_counts,
+                r.timings,
+                r.affinity,
+                r.owners,
+                r.frames_done,
+            )
         }
         None => {
             if let Some(stale) = checkpoint.map(|c| c.refine_path()).filter(|p| p.exists()) {
@@ -137,11 +159,32 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
             let mut traj = Trajectories::new(frames, params.centers);
             traj.frame_mut(0).copy_from_slice(&centers0);
             let mut owners = vec![NO_OWNER; voxels0.len()];
-            let stats0 = assign(grid, voxels0, &CenterIndex::new(&centers0), &mut owners, false);
+            let stats0 = assign(
+                grid,
+                voxels0,
+                &CenterIndex::new(&centers0),
+                &mut owners,
+                false,
+            );
             let reach = super::rho_p(params, seq, scale);
-            let affinity = Affinity::initial(&centers0, params.affinity, reach, params.rho_m * scale, params.alpha, params.mu);
-            let timing = FrameTiming { total: start.elapsed().as_secs_f64(), iterations: lloyd_steps, ..Default::default() };
-            log::info!("frame 0: {} centers placed; ρ_p {reach:.4}, {:.1} neighbours each", params.centers, affinity.mean_neighbors());
+            let affinity = Affinity::initial(
+                &centers0,
+                params.affinity,
+                reach,
+                params.rho_m * scale,
+                params.alpha,
+                params.mu,
+            );
+            let timing = FrameTiming {
+                total: start.elapsed().as_secs_f64(),
+                iterations: lloyd_steps,
+                ..Default::default()
+            };
+            log::info!(
+                "frame 0: {} centers placed; ρ_p {reach:.4}, {:.1} neighbours each",
+                params.centers,
+                affinity.mean_neighbors()
+            );
             (traj, vec![stats0.count], vec![timing], affinity, owners, 1)
         }
     };
@@ -151,7 +194,13 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
     let capacity = params.reclaim.then(|| {
         let voxels0 = seq.frames[0].indices();
         let mut owners = vec![NO_OWNER; voxels0.len()];
-        assign(grid, &voxels0, &CenterIndex::new(traj.frame(0)), &mut owners, false);
+        assign(
+            grid,
+            &voxels0,
+            &CenterIndex::new(traj.frame(0)),
+            &mut owners,
+            false,
+        );
         super::claims::Capacity::new(grid, &voxels0, &owners, traj.frame(0))
     });
     let mut tracker = Tracker {
@@ -166,12 +215,28 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
     };
     // Frames held by the checkpoint file.
     let mut saved = if resume.is_some() { first } else { 0 };
-    let save = |tracker: &Tracker, traj: &Trajectories, cell_counts: &[Vec<u32>], timings: &[FrameTiming]| -> Result<()> {
-        let (Some(c), Some(fp)) = (checkpoint, fingerprint) else { return Ok(()) };
+    let save = |tracker: &Tracker,
+                traj: &Trajectories,
+                cell_counts: &[Vec<u32>],
+                timings: &[FrameTiming]|
+     -> Result<()> {
+        let (Some(c), Some(fp)) = (checkpoint, fingerprint) else {
+            return Ok(());
+        };
         let frames_done = cell_counts.len();
-        let snapshot = Snapshot { frames_done, trajectories: traj, cell_counts, timings, affinity: &tracker.affinity, owners: &tracker.prev_cells.owners };
+        let snapshot = Snapshot {
+            frames_done,
+            trajectories: traj,
+            cell_counts,
+            timings,
+            affinity: &tracker.affinity,
+            owners: &tracker.prev_cells.owners,
+        };
         checkpoint::save(c, fp, &snapshot)?;
-        log::debug!("checkpoint: {frames_done} frames saved in {}", c.path().display());
+        log::debug!(
+            "checkpoint: {frames_done} frames saved in {}",
+            c.path().display()
+        );
         Ok(())
     };
     for f in first..frames {
@@ -180,17 +245,34 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
         let (prev, voxels) = (traj.frame(f - 1), &voxels);
         let fits = tracker.fits(prev);
         let kept = tracker.track_frame(prev, guesses(&traj, f, params), &fits, voxels, progress);
-        let Some(FrameResult { centers, counts, mut timing, energy }) = kept else {
+        let Some(FrameResult {
+            centers,
+            counts,
+            mut timing,
+            energy,
+        }) = kept
+        else {
             // Frame f was abandoned; the state is still that after frame f - 1.
             if saved < f {
                 save(&tracker, &traj, &cell_counts, &timings)?;
             }
-            return Err(Error::Interrupted { saved: checkpoint.map(|c| Saved { path: c.path(), frames: f, refine: None }) });
+            return Err(Error::Interrupted {
+                saved: checkpoint.map(|c| Saved {
+                    path: c.path(),
+                    frames: f,
+                    refine: None,
+                }),
+            });
         };
         timing.total = start.elapsed().as_secs_f64();
         traj.frame_mut(f).copy_from_slice(&centers);
         cell_counts.push(counts);
-        log::debug!("frame {f}: {:?} guess kept, {} iterations, energy {energy:.4e}, {:.3} s", timing.kept_guess, timing.iterations, timing.total);
+        log::debug!(
+            "frame {f}: {:?} guess kept, {} iterations, energy {energy:.4e}, {:.3} s",
+            timing.kept_guess,
+            timing.iterations,
+            timing.total
+        );
         timings.push(timing);
         progress.report(Stage::Track, f + 1, frames);
         if checkpoint.is_some_and(|c| (f + 1) % c.every == 0 || f + 1 == frames) {
@@ -198,7 +280,12 @@ pub fn track_with_checkpoints(seq: &VoxelSequence, params: &TrackParams, checkpo
             saved = f + 1;
         }
     }
-    Ok(TrackResult { trajectories: traj, cell_counts, timings, scale })
+    Ok(TrackResult {
+        trajectories: traj,
+        cell_counts,
+        timings,
+        scale,
+    })
 }
 
 /// The starts of frame `f` (from 1): the paper's constant-velocity guess
@@ -212,13 +299,23 @@ fn guesses(traj: &Trajectories, f: usize, params: &TrackParams) -> Vec<(Guess, V
         return vec![(Guess::ConstantVelocity, prev.to_vec())];
     }
     let before = traj.frame(f - 2);
-    let extrapolate = |k: Real| -> Vec<Point3> { prev.iter().zip(before).map(|(a, b)| a + (a - b) * k).collect() };
+    let extrapolate = |k: Real| -> Vec<Point3> {
+        prev.iter()
+            .zip(before)
+            .map(|(a, b)| a + (a - b) * k)
+            .collect()
+    };
     let mut starts = vec![(Guess::ConstantVelocity, extrapolate(1.0))];
     if let Some(k) = params.damped_guess {
         starts.push((Guess::Damped, extrapolate(k)));
     }
     if params.accelerated_guess && f >= 3 {
-        let accelerated = prev.iter().zip(before).zip(traj.frame(f - 3)).map(|((a, b), c)| a + (a - b) * 2.0 - (b - c)).collect();
+        let accelerated = prev
+            .iter()
+            .zip(before)
+            .zip(traj.frame(f - 3))
+            .map(|((a, b), c)| a + (a - b) * 2.0 - (b - c))
+            .collect();
         starts.push((Guess::Accelerated, accelerated));
     }
     starts
@@ -254,7 +351,15 @@ impl<'a> Tracker<'a> {
     /// `presmooth_steps` of presmoothing from the guess `cur`, and the cells
     /// carried over from frame f-1: of blocks of `block`³ voxels when
     /// `block` > 1.
-    fn start(&self, prev: &[Point3], mut cur: Vec<Point3>, fits: &RigidFits, voxels: &[u32], presmooth_steps: usize, block: usize) -> Run {
+    fn start(
+        &self,
+        prev: &[Point3],
+        mut cur: Vec<Point3>,
+        fits: &RigidFits,
+        voxels: &[u32],
+        presmooth_steps: usize,
+        block: usize,
+    ) -> Run {
         let mut timing = FrameTiming::default();
         let clock = Instant::now();
         for _ in 0..presmooth_steps {
@@ -262,15 +367,31 @@ impl<'a> Tracker<'a> {
         }
         timing.fit += clock.elapsed().as_secs_f64();
         let (cells, index, moved) = if block > 1 {
-            (Assignment::blocks(self.grid, voxels, &self.carried_owners(voxels), block), CenterIndex::new(&cur), Vec::new())
+            (
+                Assignment::blocks(self.grid, voxels, &self.carried_owners(voxels), block),
+                CenterIndex::new(&cur),
+                Vec::new(),
+            )
         } else {
             // Frame f-1's bounds, loosened in the first iteration by how far
             // each center is from where they were measured: a voxel that
             // stays occupied and whose centers moved little needs no search.
             let moved = cur.iter().zip(prev).map(|(c, p)| (c - p).norm()).collect();
-            (Assignment::carried(self.grid, voxels, &self.prev_voxels, &self.prev_cells), self.prev_index.clone(), moved)
+            (
+                Assignment::carried(self.grid, voxels, &self.prev_voxels, &self.prev_cells),
+                self.prev_index.clone(),
+                moved,
+            )
         };
-        Run { cur, cells, moved, index, timing, converged: false, blocks: block > 1 }
+        Run {
+            cur,
+            cells,
+            moved,
+            index,
+            timing,
+            converged: false,
+            blocks: block > 1,
+        }
     }
 
     /// Frame f-1's owners carried over to `voxels` as hints.
@@ -288,18 +409,41 @@ impl<'a> Tracker<'a> {
     /// it takes the state among those whose largest update was the shortest.
     /// In the screening it stops once no more than
     /// [`TrackParams::screening_unsettled`] of the centers' updates are that long.
-    fn iterate(&self, run: &mut Run, prev: &[Point3], fits: &RigidFits, threshold2: Real, progress: Progress) -> Option<()> {
+    fn iterate(
+        &self,
+        run: &mut Run,
+        prev: &[Point3],
+        fits: &RigidFits,
+        threshold2: Real,
+        progress: Progress,
+    ) -> Option<()> {
         let limit = self.params.max_iterations;
         let (beta, omega) = (self.params.beta, self.params.tracking_over_relaxation);
         // Blocks jitter more than voxels (one changing owner moves a
         // centroid several times as far), so they need the window too.
         let screening = threshold2 > self.threshold2;
-        let window = if screening && !run.blocks { 1 } else { self.params.convergence_window };
+        let window = if screening && !run.blocks {
+            1
+        } else {
+            self.params.convergence_window
+        };
         // The screening compares regions: a few centers still creeping along
         // need not hold it up ([`TrackParams::screening_unsettled`]).
-        let unsettled = if screening { (self.params.screening_unsettled * run.cur.len() as Real) as usize } else { 0 };
+        let unsettled = if screening {
+            (self.params.screening_unsettled * run.cur.len() as Real) as usize
+        } else {
+            0
+        };
         let mut recent = Recent::new(window);
-        let Run { cur, cells, moved, index, timing: t, converged, .. } = run;
+        let Run {
+            cur,
+            cells,
+            moved,
+            index,
+            timing: t,
+            converged,
+            ..
+        } = run;
         while !*converged && t.iterations < limit {
             if progress.cancelled() {
                 return None;
@@ -334,7 +478,8 @@ impl<'a> Tracker<'a> {
                 log::debug!("iteration {}: {over} centers move more than the threshold, largest residual {residual_most:.2e}", t.iterations);
             }
             recent.set_largest_update(residual_most);
-            *converged = residual_most * residual_most < threshold2 || (unsettled > 0 && unsettled_now <= unsettled);
+            *converged = residual_most * residual_most < threshold2
+                || (unsettled > 0 && unsettled_now <= unsettled);
             if !*converged && recent.settled(cur, threshold2) {
                 recent.take_steadiest(cur, moved);
                 *converged = true;
@@ -345,28 +490,61 @@ impl<'a> Tracker<'a> {
 
     /// The frame's cells and motions at the final positions; they feed the
     /// affinity, which is updated, and the tracker moves on to this frame.
-    fn finish(&mut self, run: Run, prev: &[Point3], fits: &RigidFits, voxels: &std::sync::Arc<[u32]>) -> FrameResult {
-        let Run { cur, mut cells, moved, index, mut timing, .. } = run;
+    fn finish(
+        &mut self,
+        run: Run,
+        prev: &[Point3],
+        fits: &RigidFits,
+        voxels: &std::sync::Arc<[u32]>,
+    ) -> FrameResult {
+        let Run {
+            cur,
+            mut cells,
+            moved,
+            index,
+            mut timing,
+            ..
+        } = run;
         let clock = Instant::now();
         let index = index.moved_to(&cur, &moved);
         let stats = cells.update(&index, &moved, true);
         timing.assign += clock.elapsed().as_secs_f64();
         let clock = Instant::now();
         let motions = fits.fit(&cur);
-        let energy = energy(&cur, &predict(&motions, prev), &stats, self.grid, self.params.beta);
-        self.affinity.update(&cur, &motions, &cell_moments(&stats, self.grid));
+        let energy = energy(
+            &cur,
+            &predict(&motions, prev),
+            &stats,
+            self.grid,
+            self.params.beta,
+        );
+        self.affinity
+            .update(&cur, &motions, &cell_moments(&stats, self.grid));
         timing.affinity += clock.elapsed().as_secs_f64();
         self.prev_cells = cells;
         self.prev_index = index;
         self.prev_voxels = voxels.clone();
-        FrameResult { centers: cur, counts: stats.count, timing, energy }
+        FrameResult {
+            centers: cur,
+            counts: stats.count,
+            timing,
+            energy,
+        }
     }
 
     /// Moves the starved centers of a converged run to the volume they
     /// lost (see `track::claims`) and iterates again, as long as that
     /// leaves clearly less volume loose.
-    fn reclaim(&self, mut run: Run, prev: &[Point3], fits: &RigidFits, progress: Progress) -> Option<Run> {
-        let Some(capacity) = &self.capacity else { return Some(run) };
+    fn reclaim(
+        &self,
+        mut run: Run,
+        prev: &[Point3],
+        fits: &RigidFits,
+        progress: Progress,
+    ) -> Option<Run> {
+        let Some(capacity) = &self.capacity else {
+            return Some(run);
+        };
         for _ in 0..MAX_RECLAIMS {
             let stats = self.refresh(&mut run);
             let (claims, loose) = capacity.claims(self.grid, &run.cells, &run.cur, &stats);
@@ -377,13 +555,24 @@ impl<'a> Tracker<'a> {
             for &(i, x) in &claims {
                 trial.cur[i] = x;
             }
-            trial.moved = trial.cur.iter().zip(&run.cur).map(|(a, b)| (a - b).norm()).collect();
+            trial.moved = trial
+                .cur
+                .iter()
+                .zip(&run.cur)
+                .map(|(a, b)| (a - b).norm())
+                .collect();
             trial.converged = false;
             self.iterate(&mut trial, prev, fits, self.threshold2, progress)?;
             let stats = self.refresh(&mut trial);
             let (_, loose_after) = capacity.claims(self.grid, &trial.cells, &trial.cur, &stats);
-            log::debug!("reclaim: {} starved centers, loose voxels {loose} -> {loose_after}", claims.len());
-            run.timing.add_dropped(&FrameTiming { iterations: trial.timing.iterations - run.timing.iterations, ..Default::default() });
+            log::debug!(
+                "reclaim: {} starved centers, loose voxels {loose} -> {loose_after}",
+                claims.len()
+            );
+            run.timing.add_dropped(&FrameTiming {
+                iterations: trial.timing.iterations - run.timing.iterations,
+                ..Default::default()
+            });
             if (loose_after as Real) < RECLAIM_GAIN * loose as Real {
                 run = trial;
             } else {
@@ -395,7 +584,13 @@ impl<'a> Tracker<'a> {
 
     /// Brings a run's cells up to its positions and returns their sums.
     fn refresh(&self, run: &mut Run) -> CellStats {
-        let Run { cur, cells, moved, index, .. } = run;
+        let Run {
+            cur,
+            cells,
+            moved,
+            index,
+            ..
+        } = run;
         if !moved.is_empty() {
             *index = std::mem::replace(index, CenterIndex::new(&[])).moved_to(cur, moved);
         }
@@ -408,7 +603,14 @@ impl<'a> Tracker<'a> {
     /// Each center's term of E at `run`'s positions ([`center_energies`]).
     /// Brings the run's cells up to those positions.
     fn local_energies(&self, run: &mut Run, prev: &[Point3], fits: &RigidFits) -> Vec<Real> {
-        let Run { cur, cells, moved, index, timing, .. } = run;
+        let Run {
+            cur,
+            cells,
+            moved,
+            index,
+            timing,
+            ..
+        } = run;
         let clock = Instant::now();
         if !moved.is_empty() {
             *index = std::mem::replace(index, CenterIndex::new(&[])).moved_to(cur, moved);
@@ -440,7 +642,14 @@ impl<'a> Tracker<'a> {
     /// the last stretch to the threshold, a slow creep, takes most of a
     /// run's iterations (docs/measurements.md), and only the kept run needs
     /// it.
-    fn track_frame(&mut self, prev: &[Point3], guesses: Vec<(Guess, Vec<Point3>)>, fits: &RigidFits, voxels: &std::sync::Arc<[u32]>, progress: Progress) -> Option<FrameResult> {
+    fn track_frame(
+        &mut self,
+        prev: &[Point3],
+        guesses: Vec<(Guess, Vec<Point3>)>,
+        fits: &RigidFits,
+        voxels: &std::sync::Arc<[u32]>,
+        progress: Progress,
+    ) -> Option<FrameResult> {
         let this = &*self;
         let presmooth = self.params.presmooth_steps;
         let fine = self.threshold2;
@@ -468,22 +677,45 @@ impl<'a> Tracker<'a> {
         let choice: Vec<usize> = (0..prev.len())
             .into_par_iter()
             .map(|i| {
-                let around = |r: usize| this.affinity.pairs(i).map(|(j, w)| w * runs[r].2[j]).sum::<Real>();
+                let around = |r: usize| {
+                    this.affinity
+                        .pairs(i)
+                        .map(|(j, w)| w * runs[r].2[j])
+                        .sum::<Real>()
+                };
                 lowest((0..runs.len()).map(around))
             })
             .collect();
         if choice.iter().any(|&r| r != choice[0]) {
             // Already through presmoothing: it would blur the seams' choice.
-            let mixed: Vec<Point3> = choice.iter().enumerate().map(|(i, &r)| runs[r].1.cur[i]).collect();
+            let mixed: Vec<Point3> = choice
+                .iter()
+                .enumerate()
+                .map(|(i, &r)| runs[r].1.cur[i])
+                .collect();
             // From the cells of the run most centers chose, which hold for
             // its positions: only the centers taken from other runs have
             // moved, so few voxels need a search.
             let mut chosen = vec![0usize; runs.len()];
             choice.iter().for_each(|&r| chosen[r] += 1);
-            let majority = (0..runs.len()).max_by_key(|&r| (chosen[r], std::cmp::Reverse(r))).expect("several runs");
+            let majority = (0..runs.len())
+                .max_by_key(|&r| (chosen[r], std::cmp::Reverse(r)))
+                .expect("several runs");
             let base = &runs[majority].1;
-            let moved = mixed.iter().zip(&base.cur).map(|(a, b)| (a - b).norm()).collect();
-            let mut run = Run { cur: mixed, cells: base.cells.clone(), moved, index: base.index.clone(), timing: FrameTiming::default(), converged: false, blocks: base.blocks };
+            let moved = mixed
+                .iter()
+                .zip(&base.cur)
+                .map(|(a, b)| (a - b).norm())
+                .collect();
+            let mut run = Run {
+                cur: mixed,
+                cells: base.cells.clone(),
+                moved,
+                index: base.index.clone(),
+                timing: FrameTiming::default(),
+                converged: false,
+                blocks: base.blocks,
+            };
             this.iterate(&mut run, prev, fits, coarse, progress)?;
             let energies = this.local_energies(&mut run, prev, fits);
             runs.push((Guess::Mixed, run, energies));
@@ -523,7 +755,11 @@ struct Recent {
 
 impl Recent {
     fn new(window: usize) -> Self {
-        Recent { window, states: std::collections::VecDeque::with_capacity(window), iterations: 0 }
+        Recent {
+            window,
+            states: std::collections::VecDeque::with_capacity(window),
+            iterations: 0,
+        }
     }
 
     /// Records the positions an iteration starts from.
@@ -532,8 +768,16 @@ impl Recent {
         if self.window <= 1 {
             return;
         }
-        let slot = if self.states.len() == self.window { self.states.pop_front().map(|(mut v, _)| { v.copy_from_slice(start); v }) } else { None };
-        self.states.push_back((slot.unwrap_or_else(|| start.to_vec()), Real::INFINITY));
+        let slot = if self.states.len() == self.window {
+            self.states.pop_front().map(|(mut v, _)| {
+                v.copy_from_slice(start);
+                v
+            })
+        } else {
+            None
+        };
+        self.states
+            .push_back((slot.unwrap_or_else(|| start.to_vec()), Real::INFINITY));
     }
 
     /// The largest update found from the positions pushed last.
@@ -551,7 +795,9 @@ impl Recent {
             return false;
         }
         let reach2 = threshold2 * (self.window * self.window) as Real;
-        cur.iter().zip(&self.states[0].0).all(|(a, b)| (a - b).norm_squared() < reach2)
+        cur.iter()
+            .zip(&self.states[0].0)
+            .all(|(a, b)| (a - b).norm_squared() < reach2)
     }
 
     /// Moves `cur` to the recorded state with the shortest largest update
@@ -559,7 +805,9 @@ impl Recent {
     /// from the positions of the last iteration's start, where the cells
     /// were last assigned.
     fn take_steadiest(&self, cur: &mut [Point3], moved: &mut Vec<Real>) {
-        let k = (0..self.states.len()).min_by(|&a, &b| self.states[a].1.total_cmp(&self.states[b].1)).expect("settled after a full window");
+        let k = (0..self.states.len())
+            .min_by(|&a, &b| self.states[a].1.total_cmp(&self.states[b].1))
+            .expect("settled after a full window");
         let (chosen, last) = (&self.states[k].0, &self.states[self.states.len() - 1].0);
         moved.clear();
         moved.extend(chosen.iter().zip(last).map(|(a, b)| (a - b).norm()));
@@ -569,23 +817,49 @@ impl Recent {
 
 /// E = Es + β Eu = ½ Σ ‖c_i − p_i‖² + β ½ Σ ‖c_i − x̄_i‖² (method.md §3);
 /// an empty cell adds nothing to Eu.
-fn energy(centers: &[Point3], predictions: &[Point3], stats: &CellStats, grid: &GridSpec, beta: Real) -> Real {
-    center_energies(centers, predictions, stats, grid, beta).iter().sum()
+fn energy(
+    centers: &[Point3],
+    predictions: &[Point3],
+    stats: &CellStats,
+    grid: &GridSpec,
+    beta: Real,
+) -> Real {
+    center_energies(centers, predictions, stats, grid, beta)
+        .iter()
+        .sum()
 }
 
 /// Each center's term of [`energy`].
-fn center_energies(centers: &[Point3], predictions: &[Point3], stats: &CellStats, grid: &GridSpec, beta: Real) -> Vec<Real> {
+fn center_energies(
+    centers: &[Point3],
+    predictions: &[Point3],
+    stats: &CellStats,
+    grid: &GridSpec,
+    beta: Real,
+) -> Vec<Real> {
     centers
         .iter()
         .zip(predictions)
         .enumerate()
-        .map(|(i, (c, p))| 0.5 * ((c - p).norm_squared() + beta * stats.centroid(i, grid).map_or(0.0, |x| (c - x).norm_squared())))
+        .map(|(i, (c, p))| {
+            0.5 * ((c - p).norm_squared()
+                + beta
+                    * stats
+                        .centroid(i, grid)
+                        .map_or(0.0, |x| (c - x).norm_squared()))
+        })
         .collect()
 }
 
 /// The position of the smallest of `values`, the first of equal ones.
 fn lowest(values: impl Iterator<Item = Real>) -> usize {
-    values.enumerate().fold((0, Real::INFINITY), |(b, e), (r, v)| if v < e { (r, v) } else { (b, e) }).0
+    values
+        .enumerate()
+        .fold(
+            (0, Real::INFINITY),
+            |(b, e), (r, v)| if v < e { (r, v) } else { (b, e) },
+        )
+        .0
 }
 
 /// Rigid predictions p_i = A_i(c_i^{f-1}).
@@ -595,7 +869,9 @@ pub fn predict(motions: &[Rigid], prev: &[Point3]) -> Vec<Point3> {
 
 /// Every cell's moments (None for empty cells).
 pub(crate) fn cell_moments(stats: &CellStats, grid: &GridSpec) -> Vec<Option<CellMoments>> {
-    (0..stats.count.len()).map(|i| stats.moments(i, grid)).collect()
+    (0..stats.count.len())
+        .map(|i| stats.moments(i, grid))
+        .collect()
 }
 
 #[cfg(test)]
@@ -619,7 +895,12 @@ mod tests {
             recent.push(&cur);
             recent.set_largest_update(if k % 2 == 0 { 2.0 } else { 0.5 });
             cur = at(if k % 2 == 0 { 2.0 } else { 0.0 });
-            assert_eq!(recent.settled(&cur, threshold2), k == 3, "iteration {}", k + 1);
+            assert_eq!(
+                recent.settled(&cur, threshold2),
+                k == 3,
+                "iteration {}",
+                k + 1
+            );
         }
         let mut moved = Vec::new();
         recent.take_steadiest(&mut cur, &mut moved);

@@ -35,7 +35,14 @@ impl Guess {
     }
 
     pub(crate) fn from_code(code: u64) -> Option<Guess> {
-        [Guess::ConstantVelocity, Guess::Damped, Guess::Accelerated, Guess::Mixed].get(code as usize).copied()
+        [
+            Guess::ConstantVelocity,
+            Guess::Damped,
+            Guess::Accelerated,
+            Guess::Mixed,
+        ]
+        .get(code as usize)
+        .copied()
     }
 }
 
@@ -57,6 +64,13 @@ pub struct FrameTiming {
 
 /// ρ_p in the input's units (see [`crate::params::TrackParams::rho_p`]), from frame 0's
 /// occupied volume.
-fn rho_p(params: &crate::params::TrackParams, seq: &crate::voxel::VoxelSequence, scale: crate::math::Real) -> crate::math::Real {
-    params.rho_p_in_units(scale, seq.frames[0].len() as crate::math::Real * seq.grid.voxel_size.powi(3))
+fn rho_p(
+    params: &crate::params::TrackParams,
+    seq: &crate::voxel::VoxelSequence,
+    scale: crate::math::Real,
+) -> crate::math::Real {
+    params.rho_p_in_units(
+        scale,
+        seq.frames[0].len() as crate::math::Real * seq.grid.voxel_size.powi(3),
+    )
 }

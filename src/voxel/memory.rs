@@ -2,9 +2,9 @@
 //! before any voxel is filled, so that a resolution the machine cannot hold
 //! fails at once instead of after minutes of swapping.
 
-use crate::model::GridSpec;
 use crate::error::{Error, Result};
 use crate::model::mesh::{Aabb, TriangleMesh};
+use crate::model::GridSpec;
 use crate::params::{kept_cell_share, KEPT_CELL_BYTES_PER_VOXEL, KEPT_CELL_FRAMES};
 
 /// Bytes held per occupied voxel of every frame through the run: its share
@@ -12,7 +12,6 @@ use crate::params::{kept_cell_share, KEPT_CELL_BYTES_PER_VOXEL, KEPT_CELL_FRAMES
 /// a run holds many voxels in a solid, one in the worst case of scattered
 /// voxels, so this is generous for captures).
 const BYTES_PER_VOXEL: f64 = 2.0;
-
 
 /// What the memory estimate needs of a frame's mesh.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -39,7 +38,13 @@ impl MemoryEstimate {
     /// signed volume, bounded by its own box of voxels); voxelising holds
     /// one byte per voxel of a frame's box on each of `threads` threads.
     pub fn of(meshes: &[&TriangleMesh], grid: &GridSpec, threads: usize) -> Self {
-        let extents: Vec<FrameExtent> = meshes.iter().map(|m| FrameExtent { bounds: m.bounding_box(), volume: m.signed_volume().abs() }).collect();
+        let extents: Vec<FrameExtent> = meshes
+            .iter()
+            .map(|m| FrameExtent {
+                bounds: m.bounding_box(),
+                volume: m.signed_volume().abs(),
+            })
+            .collect();
         Self::of_frames(&extents, grid, threads)
     }
 
@@ -51,7 +56,9 @@ impl MemoryEstimate {
         let mut voxels = Vec::with_capacity(frames.len());
         for frame in frames {
             let b = &frame.bounds;
-            let cells: f64 = (0..3).map(|k| (b.extent()[k] / grid.voxel_size).ceil() + 2.0).product();
+            let cells: f64 = (0..3)
+                .map(|k| (b.extent()[k] / grid.voxel_size).ceil() + 2.0)
+                .product();
             let occupied = (frame.volume / voxel).min(cells);
             held += occupied * BYTES_PER_VOXEL;
             voxels.push(occupied);
@@ -59,8 +66,12 @@ impl MemoryEstimate {
         }
         // The frames with the most voxels stand for those whose assignments are kept.
         voxels.sort_by(|a, b| b.total_cmp(a));
-        let kept_cells = voxels.iter().take(KEPT_CELL_FRAMES).sum::<f64>() * KEPT_CELL_BYTES_PER_VOXEL as f64;
-        MemoryEstimate { bytes: held + largest_box * threads.max(1) as f64, kept_cells }
+        let kept_cells =
+            voxels.iter().take(KEPT_CELL_FRAMES).sum::<f64>() * KEPT_CELL_BYTES_PER_VOXEL as f64;
+        MemoryEstimate {
+            bytes: held + largest_box * threads.max(1) as f64,
+            kept_cells,
+        }
     }
 
     /// Bytes the run needs under a limit of `limit` bytes, the kept
@@ -79,8 +90,13 @@ impl MemoryEstimate {
         // The kept assignments take at most their share whatever the
         // resolution; the rest grows as its cube.
         let kept = self.kept_cells.min(kept_cell_share(limit));
-        let fits = (resolution as f64 * ((0.9 * limit - kept) / self.bytes).cbrt()).floor() as usize;
-        let fits = if fits >= 2 { format!("the largest resolution that fits is about {fits}") } else { "no resolution fits".into() };
+        let fits =
+            (resolution as f64 * ((0.9 * limit - kept) / self.bytes).cbrt()).floor() as usize;
+        let fits = if fits >= 2 {
+            format!("the largest resolution that fits is about {fits}")
+        } else {
+            "no resolution fits".into()
+        };
         Err(Error::InvalidParameter(format!(
             "resolution {resolution} over {frames} frames needs about {}, more than the {} allowed (the memory available now, unless a limit is set); \
              {fits}, or raise the memory limit if this estimate is too high",
@@ -112,12 +128,21 @@ pub(crate) fn available_memory() -> Option<f64> {
         let line = text.lines().find(|l| l.starts_with(key))?;
         Some(line.split_whitespace().nth(1)?.parse::<f64>().ok()? * 1024.0)
     };
-    let system = kib(&std::fs::read_to_string("/proc/meminfo").ok()?, "MemAvailable:")?;
-    let limit = std::fs::read_to_string("/proc/self/limits").ok().and_then(|limits| {
-        let line = limits.lines().find(|l| l.starts_with("Max address space"))?;
-        line.split_whitespace().nth(3)?.parse::<f64>().ok()
-    });
-    let used = std::fs::read_to_string("/proc/self/status").ok().and_then(|s| kib(&s, "VmSize:"));
+    let system = kib(
+        &std::fs::read_to_string("/proc/meminfo").ok()?,
+        "MemAvailable:",
+    )?;
+    let limit = std::fs::read_to_string("/proc/self/limits")
+        .ok()
+        .and_then(|limits| {
+            let line = limits
+                .lines()
+                .find(|l| l.starts_with("Max address space"))?;
+            line.split_whitespace().nth(3)?.parse::<f64>().ok()
+        });
+    let used = std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| kib(&s, "VmSize:"));
     Some(match (limit, used) {
         (Some(limit), Some(used)) => system.min((limit - used).max(0.0)),
         _ => system,

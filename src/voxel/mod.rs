@@ -4,10 +4,10 @@ mod memory;
 mod voxelize;
 mod winding;
 
+pub(crate) use memory::available_memory;
+pub use memory::{FrameExtent, MemoryEstimate};
 pub use voxelize::voxelize;
 pub(crate) use voxelize::voxelize_detailed;
-pub use memory::{FrameExtent, MemoryEstimate};
-pub(crate) use memory::available_memory;
 pub use winding::winding_number;
 mod sequence;
 pub use sequence::{voxelize_sequence, VoxelParams, VoxelSequence};

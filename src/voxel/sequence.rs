@@ -1,9 +1,9 @@
 //! The voxelisation stage: a whole sequence on one grid.
 
 use super::{voxelize_detailed, FrameExtent};
-use crate::model::{Frame, FrameSource, GridSpec, Occupancy, OccupancyRuns, MAX_RESOLUTION};
 use crate::error::{Error, Result};
 use crate::model::mesh::{Aabb, TriangleMesh};
+use crate::model::{Frame, FrameSource, GridSpec, Occupancy, OccupancyRuns, MAX_RESOLUTION};
 use crate::progress::{Counter, Progress, Stage};
 use rayon::prelude::*;
 use std::path::Path;
@@ -30,7 +30,11 @@ impl VoxelParams {
     /// Checks every field's range.
     pub fn validate(&self) -> Result<()> {
         crate::params::check_count("the resolution", self.resolution, 2..=MAX_RESOLUTION)?;
-        crate::params::check("the largest extent ratio", self.max_extent_ratio, crate::params::Span::closed(1.0, 1e12))?;
+        crate::params::check(
+            "the largest extent ratio",
+            self.max_extent_ratio,
+            crate::params::Span::closed(1.0, 1e12),
+        )?;
         if let Some(m) = self.max_memory {
             crate::params::check("the memory limit", m, crate::params::MEMORY)?;
         }
@@ -40,7 +44,11 @@ impl VoxelParams {
 
 impl Default for VoxelParams {
     fn default() -> Self {
-        VoxelParams { resolution: 256, max_extent_ratio: 100.0, max_memory: None }
+        VoxelParams {
+            resolution: 256,
+            max_extent_ratio: 100.0,
+            max_memory: None,
+        }
     }
 }
 
@@ -76,13 +84,20 @@ const MAX_UNVOUCHED: f64 = 0.5;
 const MAX_GAP_DIAGONALS: f64 = 10.0;
 
 /// Reads and voxelises every frame of `source` on one grid.
-pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progress: Progress) -> Result<VoxelSequence> {
+pub fn voxelize_sequence(
+    source: &dyn FrameSource,
+    params: &VoxelParams,
+    progress: Progress,
+) -> Result<VoxelSequence> {
     params.validate()?;
     let names: Vec<String> = (0..source.len()).map(|f| source.name(f)).collect();
     let paths: Vec<&Path> = names.iter().map(Path::new).collect();
     if paths.len() < 2 {
         return Err(Error::InvalidInput(match paths.first() {
-            Some(p) => format!("{}: a sequence needs at least 2 frames, got only this one", p.display()),
+            Some(p) => format!(
+                "{}: a sequence needs at least 2 frames, got only this one",
+                p.display()
+            ),
             None => "a sequence needs at least 2 frames, got none".into(),
         }));
     }
@@ -102,7 +117,10 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
             counter.tick();
             Ok(match frame {
                 Frame::Mesh(m) => Summary::Mesh {
-                    extent: FrameExtent { bounds: m.bounding_box(), volume: m.signed_volume().abs() },
+                    extent: FrameExtent {
+                        bounds: m.bounding_box(),
+                        volume: m.signed_volume().abs(),
+                    },
                     mesh: (f == 0).then_some(m),
                 },
                 Frame::Voxels(g, o) => Summary::Voxels(g, o),
@@ -114,7 +132,13 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
     let is_mesh = |d: &Summary| matches!(d, Summary::Mesh { .. });
     let meshes = summaries.iter().filter(|d| is_mesh(d)).count();
     if meshes != 0 && meshes != summaries.len() {
-        let first = |mesh: bool| paths[summaries.iter().position(|d| is_mesh(d) == mesh).expect("both kinds")].display();
+        let first = |mesh: bool| {
+            paths[summaries
+                .iter()
+                .position(|d| is_mesh(d) == mesh)
+                .expect("both kinds")]
+            .display()
+        };
         return Err(Error::InvalidInput(format!(
             "the sequence mixes meshes ({} …) and voxel grids ({} …): give one kind",
             first(true),
@@ -141,11 +165,22 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
     let bounds = boxes.iter().fold(Aabb::empty(), |a, b| a.union(b));
     let grid = GridSpec::for_bounds(&bounds, params.resolution)?;
     if let Some(limit) = params.max_memory.or_else(super::available_memory) {
-        let estimate = super::MemoryEstimate::of_frames(&extents, &grid, rayon::current_num_threads());
-        log::info!("estimated memory: {:.2} GiB of {:.2} GiB allowed", estimate.total(limit) / (1u64 << 30) as f64, limit / (1u64 << 30) as f64);
+        let estimate =
+            super::MemoryEstimate::of_frames(&extents, &grid, rayon::current_num_threads());
+        log::info!(
+            "estimated memory: {:.2} GiB of {:.2} GiB allowed",
+            estimate.total(limit) / (1u64 << 30) as f64,
+            limit / (1u64 << 30) as f64
+        );
         estimate.check(limit, params.resolution, paths.len())?;
     }
-    let Summary::Mesh { mesh: Some(first_mesh), .. } = summaries.swap_remove(0) else { unreachable!("frame 0 is a mesh, kept") };
+    let Summary::Mesh {
+        mesh: Some(first_mesh),
+        ..
+    } = summaries.swap_remove(0)
+    else {
+        unreachable!("frame 0 is a mesh, kept")
+    };
     drop(summaries);
 
     let start = Instant::now();
@@ -190,18 +225,38 @@ pub fn voxelize_sequence(source: &dyn FrameSource, params: &VoxelParams, progres
         })
         .collect::<Result<_>>()?;
     let voxelize_seconds = start.elapsed().as_secs_f64();
-    let (voxels, runs, bytes) = frames.iter().fold((0, 0, 0), |(v, r, b), f| (v + f.len(), r + f.runs(), b + f.bytes()));
-    log::info!("{voxels} occupied voxels in {runs} runs ({:.1} MiB kept)", bytes as f64 / (1u64 << 20) as f64);
-    Ok(VoxelSequence { grid, frames, names, bounds, first_mesh: Some(first_mesh), read_seconds, voxelize_seconds })
+    let (voxels, runs, bytes) = frames.iter().fold((0, 0, 0), |(v, r, b), f| {
+        (v + f.len(), r + f.runs(), b + f.bytes())
+    });
+    log::info!(
+        "{voxels} occupied voxels in {runs} runs ({:.1} MiB kept)",
+        bytes as f64 / (1u64 << 20) as f64
+    );
+    Ok(VoxelSequence {
+        grid,
+        frames,
+        names,
+        bounds,
+        first_mesh: Some(first_mesh),
+        read_seconds,
+        voxelize_seconds,
+    })
 }
 
 /// What the first pass keeps of a frame.
 enum Summary {
-    Mesh { extent: FrameExtent, mesh: Option<TriangleMesh> },
+    Mesh {
+        extent: FrameExtent,
+        mesh: Option<TriangleMesh>,
+    },
     Voxels(GridSpec, Occupancy),
 }
 
-fn voxel_input(names: Vec<String>, data: Vec<(GridSpec, Occupancy)>, read_seconds: f64) -> Result<VoxelSequence> {
+fn voxel_input(
+    names: Vec<String>,
+    data: Vec<(GridSpec, Occupancy)>,
+    read_seconds: f64,
+) -> Result<VoxelSequence> {
     let mut grid = None;
     let mut frames = Vec::with_capacity(data.len());
     for (d, name) in data.into_iter().zip(&names) {
@@ -241,13 +296,21 @@ fn voxel_input(names: Vec<String>, data: Vec<(GridSpec, Occupancy)>, read_second
 fn check_extents(paths: &[&Path], boxes: &[Aabb], max_ratio: f64) -> Result<()> {
     let diag: Vec<f64> = boxes.iter().map(Aabb::diagonal).collect();
     if let Some(i) = diag.iter().position(|&d| !(d > 0.0 && d.is_finite())) {
-        return Err(Error::mesh(&paths[i], format!("the bounding box's diagonal is {} (all vertices coincide, or overflow)", diag[i])));
+        return Err(Error::mesh(
+            &paths[i],
+            format!(
+                "the bounding box's diagonal is {} (all vertices coincide, or overflow)",
+                diag[i]
+            ),
+        ));
     }
     let mut order: Vec<usize> = (0..diag.len()).collect();
     order.sort_by(|&a, &b| diag[a].total_cmp(&diag[b]));
     let median = order[(order.len() - 1) / 2];
     let ratio = |i: usize| (diag[i] / diag[median]).max(diag[median] / diag[i]);
-    let odd = (0..diag.len()).max_by(|&a, &b| ratio(a).total_cmp(&ratio(b))).expect("at least one frame");
+    let odd = (0..diag.len())
+        .max_by(|&a, &b| ratio(a).total_cmp(&ratio(b)))
+        .expect("at least one frame");
     if ratio(odd) > max_ratio {
         return Err(Error::InvalidInput(format!(
             "{}: {:.0} times {} than the sequence's median frame {} (bounding-box diagonals {:.4} and {:.4}); are the frames in different units?",
@@ -272,7 +335,12 @@ fn check_placement(paths: &[&Path], boxes: &[Aabb]) -> Result<()> {
     let mut diag: Vec<f64> = boxes.iter().map(Aabb::diagonal).collect();
     diag.sort_by(f64::total_cmp);
     let reach = MAX_GAP_DIAGONALS * diag[(diag.len() - 1) / 2];
-    let gap = |a: &Aabb, b: &Aabb| (a.min - b.max).sup(&(b.min - a.max)).sup(&crate::math::Vector3::zeros()).norm();
+    let gap = |a: &Aabb, b: &Aabb| {
+        (a.min - b.max)
+            .sup(&(b.min - a.max))
+            .sup(&crate::math::Vector3::zeros())
+            .norm()
+    };
     // Union-find over the frames; the quadratic pass costs far less than
     // voxelising the frames.
     let mut group: Vec<usize> = (0..boxes.len()).collect();
@@ -296,11 +364,16 @@ fn check_placement(paths: &[&Path], boxes: &[Aabb]) -> Result<()> {
     let mut sizes = vec![0usize; boxes.len()];
     roots.iter().for_each(|&r| sizes[r] += 1);
     // Largest group; on a tie the earliest root, as max_by_key keeps the last maximum.
-    let main = (0..boxes.len()).rev().max_by_key(|&r| sizes[r]).expect("at least one frame");
+    let main = (0..boxes.len())
+        .rev()
+        .max_by_key(|&r| sizes[r])
+        .expect("at least one frame");
     let Some(odd) = (0..boxes.len()).find(|&i| roots[i] != main) else {
         return Ok(());
     };
-    let others = (0..boxes.len()).filter(|&i| roots[i] == main).fold(Aabb::empty(), |a, i| a.union(&boxes[i]));
+    let others = (0..boxes.len())
+        .filter(|&i| roots[i] == main)
+        .fold(Aabb::empty(), |a, i| a.union(&boxes[i]));
     let fmt = |p: &crate::math::Point3| format!("({:.4}, {:.4}, {:.4})", p.x, p.y, p.z);
     Err(Error::InvalidInput(format!(
         "{}: out of place: its bounding box {} .. {} lies {:.0} times the median frame's diagonal away from those of {} other frames ({} .. {}); \

@@ -18,16 +18,18 @@
 //! rasteriser's top-left rule on exactly antisymmetric edge functions, so a ray
 //! through a shared edge or vertex crosses the surface exactly once.
 
-use crate::model::{GridSpec, Occupancy};
 use crate::math::Real;
 use crate::model::mesh::TriangleMesh;
+use crate::model::{GridSpec, Occupancy};
 
 const INSIDE: u8 = 1; // bit `axis`
 const ABSTAIN: u8 = 8; // bit `3 + axis`
 
 /// Occupied voxels of one closed or open mesh on `grid`.
 pub fn voxelize(mesh: &TriangleMesh, grid: &GridSpec) -> Occupancy {
-    voxelize_detailed(mesh, grid, &|| false).expect("never stopped").occupancy
+    voxelize_detailed(mesh, grid, &|| false)
+        .expect("never stopped")
+        .occupancy
 }
 
 /// Triangles cast, and columns filled, between two looks at `stop`: a
@@ -48,8 +50,16 @@ pub(crate) struct Voxelization {
 
 /// [`voxelize`], also counting the occupied voxels no axis vouches for;
 /// None once `stop` says so.
-pub(crate) fn voxelize_detailed(mesh: &TriangleMesh, grid: &GridSpec, stop: &dyn Fn() -> bool) -> Option<Voxelization> {
-    let verts: Vec<[Real; 3]> = mesh.positions.iter().map(|p| grid.to_grid(p).into()).collect();
+pub(crate) fn voxelize_detailed(
+    mesh: &TriangleMesh,
+    grid: &GridSpec,
+    stop: &dyn Fn() -> bool,
+) -> Option<Voxelization> {
+    let verts: Vec<[Real; 3]> = mesh
+        .positions
+        .iter()
+        .map(|p| grid.to_grid(p).into())
+        .collect();
     // Sub-box of voxels whose centers can be inside: [lo, hi).
     let mut lo = [usize::MAX; 3];
     let mut hi = [0usize; 3];
@@ -92,7 +102,10 @@ pub(crate) fn voxelize_detailed(mesh: &TriangleMesh, grid: &GridSpec, stop: &dyn
             }
         }
     }
-    Some(Voxelization { occupancy: Occupancy { indices }, unvouched })
+    Some(Voxelization {
+        occupancy: Occupancy { indices },
+        unvouched,
+    })
 }
 
 /// Majority of the reliable axes; when every axis passed through a hole, the
@@ -119,7 +132,15 @@ struct Crossing {
 
 /// Rasterises every triangle onto the columns of `axis` and records crossings,
 /// sorted by column then depth; None once `stop` says so.
-fn cast_axis(mesh: &TriangleMesh, verts: &[[Real; 3]], axis: usize, lo: [usize; 3], n: [usize; 3], out: &mut Vec<Crossing>, stop: &dyn Fn() -> bool) -> Option<()> {
+fn cast_axis(
+    mesh: &TriangleMesh,
+    verts: &[[Real; 3]],
+    axis: usize,
+    lo: [usize; 3],
+    n: [usize; 3],
+    out: &mut Vec<Crossing>,
+    stop: &dyn Fn() -> bool,
+) -> Option<()> {
     let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
     out.clear();
     for (k, t) in mesh.triangles.iter().enumerate() {
@@ -134,7 +155,11 @@ fn cast_axis(mesh: &TriangleMesh, verts: &[[Real; 3]], axis: usize, lo: [usize; 
         // Normal's component along the axis > 0: the ray leaves the volume.
         let sign: i8 = if area > 0.0 { -1 } else { 1 };
         // Counter-clockwise in the (u, v) plane.
-        let (a, b, c) = if area > 0.0 { (p0, p1, p2) } else { (p0, p2, p1) };
+        let (a, b, c) = if area > 0.0 {
+            (p0, p1, p2)
+        } else {
+            (p0, p2, p1)
+        };
         let (a2, b2, c2) = ([a[u], a[v]], [b[u], b[v]], [c[u], c[v]]);
         let umin = a2[0].min(b2[0]).min(c2[0]);
         let umax = a2[0].max(b2[0]).max(c2[0]);
@@ -151,14 +176,20 @@ fn cast_axis(mesh: &TriangleMesh, verts: &[[Real; 3]], axis: usize, lo: [usize; 
                 let wa = covered(b2, c2, q);
                 let wb = covered(c2, a2, q);
                 let wc = covered(a2, b2, q);
-                let (Some(wa), Some(wb), Some(wc)) = (wa, wb, wc) else { continue };
+                let (Some(wa), Some(wb), Some(wc)) = (wa, wb, wc) else {
+                    continue;
+                };
                 let sum = wa + wb + wc;
                 if sum <= 0.0 {
                     continue;
                 }
                 let depth = (wa * a[axis] + wb * b[axis] + wc * c[axis]) / sum;
                 let column = (ju as usize - lo[u]) + n[u] * (jv as usize - lo[v]);
-                out.push(Crossing { column: column as u32, depth: depth as f32, sign });
+                out.push(Crossing {
+                    column: column as u32,
+                    depth: depth as f32,
+                    sign,
+                });
             }
         }
     }
@@ -179,7 +210,11 @@ fn edge_fn(p: [Real; 2], q: [Real; 2], r: [Real; 2]) -> Real {
 #[inline]
 fn covered(p: [Real; 2], q: [Real; 2], r: [Real; 2]) -> Option<Real> {
     let forward = (p[0], p[1]) < (q[0], q[1]);
-    let e = if forward { edge_fn(p, q, r) } else { -edge_fn(q, p, r) };
+    let e = if forward {
+        edge_fn(p, q, r)
+    } else {
+        -edge_fn(q, p, r)
+    };
     if e > 0.0 {
         return Some(e);
     }
@@ -196,7 +231,14 @@ fn covered(p: [Real; 2], q: [Real; 2], r: [Real; 2]) -> Option<Real> {
 
 /// Turns one axis's crossings into inside/abstain bits of the sub-box; None
 /// once `stop` says so.
-fn fill_axis(crossings: &[Crossing], axis: usize, lo: [usize; 3], n: [usize; 3], votes: &mut [u8], stop: &dyn Fn() -> bool) -> Option<()> {
+fn fill_axis(
+    crossings: &[Crossing],
+    axis: usize,
+    lo: [usize; 3],
+    n: [usize; 3],
+    votes: &mut [u8],
+    stop: &dyn Fn() -> bool,
+) -> Option<()> {
     let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
     let stride = [1, n[0], n[0] * n[1]];
     let inside_bit = INSIDE << axis;

@@ -11,7 +11,10 @@ pub struct Scratch(pub PathBuf);
 impl Scratch {
     /// `group` and `name` make the directory unique among the tests.
     pub fn new(group: &str, name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("voltrack-test-{group}-{}-{name}", std::process::id()));
+        let dir = std::env::temp_dir().join(format!(
+            "voltrack-test-{group}-{}-{name}",
+            std::process::id()
+        ));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         Scratch(dir)
@@ -48,11 +51,21 @@ impl Drop for Scratch {
 
 /// A sequence voxelised in memory from one mesh per frame, on the common grid
 /// of their bounding box (frame f named `frame{f}.obj`).
-pub fn voxel_sequence(meshes: &[voltrack::TriangleMesh], resolution: usize) -> voltrack::voxel::VoxelSequence {
-    let bounds = meshes.iter().map(|m| m.bounding_box()).reduce(|a, b| a.union(&b)).unwrap();
+pub fn voxel_sequence(
+    meshes: &[voltrack::TriangleMesh],
+    resolution: usize,
+) -> voltrack::voxel::VoxelSequence {
+    let bounds = meshes
+        .iter()
+        .map(|m| m.bounding_box())
+        .reduce(|a, b| a.union(&b))
+        .unwrap();
     let grid = voltrack::model::GridSpec::for_bounds(&bounds, resolution).unwrap();
     voltrack::voxel::VoxelSequence {
-        frames: meshes.iter().map(|m| voltrack::voxel::voxelize(m, &grid).into()).collect(),
+        frames: meshes
+            .iter()
+            .map(|m| voltrack::voxel::voxelize(m, &grid).into())
+            .collect(),
         grid,
         names: (0..meshes.len()).map(|f| format!("frame{f}.obj")).collect(),
         bounds,
@@ -73,31 +86,53 @@ pub fn assert_well_formed(html: &str) -> usize {
         let text = &rest[..open];
         for (i, _) in text.match_indices('&') {
             let entity = &text[i + 1..];
-            let end = entity.find(';').unwrap_or_else(|| panic!("bare & in text: {text}"));
+            let end = entity
+                .find(';')
+                .unwrap_or_else(|| panic!("bare & in text: {text}"));
             let name = &entity[..end];
-            let numeric = name.strip_prefix('#').is_some_and(|n| !n.is_empty() && n.chars().all(|c| c.is_ascii_digit()));
-            assert!(numeric || ["amp", "lt", "gt", "quot", "apos"].contains(&name), "unknown entity &{name}; in {text}");
+            let numeric = name
+                .strip_prefix('#')
+                .is_some_and(|n| !n.is_empty() && n.chars().all(|c| c.is_ascii_digit()));
+            assert!(
+                numeric || ["amp", "lt", "gt", "quot", "apos"].contains(&name),
+                "unknown entity &{name}; in {text}"
+            );
         }
         let close = rest[open..].find('>').expect("unclosed tag") + open;
         let tag = &rest[open + 1..close];
         assert!(!tag.contains('<'), "'<' inside a tag: {tag}");
-        assert_eq!(tag.matches('"').count() % 2, 0, "unbalanced quotes in {tag}");
+        assert_eq!(
+            tag.matches('"').count() % 2,
+            0,
+            "unbalanced quotes in {tag}"
+        );
         if let Some(name) = tag.strip_prefix('/') {
-            assert_eq!(stack.pop().as_deref(), Some(name.trim()), "mismatched </{name}>");
+            assert_eq!(
+                stack.pop().as_deref(),
+                Some(name.trim()),
+                "mismatched </{name}>"
+            );
         } else if !tag.ends_with('/') && !tag.starts_with('!') && !tag.starts_with('?') {
             stack.push(tag.split_whitespace().next().unwrap().to_string());
             elements += 1;
         }
         rest = &rest[close + 1..];
     }
-    assert!(rest.trim().is_empty(), "text after the root element: {rest}");
+    assert!(
+        rest.trim().is_empty(),
+        "text after the root element: {rest}"
+    );
     assert!(stack.is_empty(), "unclosed elements: {stack:?}");
     elements
 }
 
 /// Waits for `child` until `limit` after `started`, then kills it: its exit
 /// code, or what ended it otherwise (a signal, the limit).
-pub fn wait_or_kill(child: &mut std::process::Child, started: std::time::Instant, limit: std::time::Duration) -> Result<i32, String> {
+pub fn wait_or_kill(
+    child: &mut std::process::Child,
+    started: std::time::Instant,
+    limit: std::time::Duration,
+) -> Result<i32, String> {
     loop {
         if let Some(s) = child.try_wait().unwrap() {
             use std::os::unix::process::ExitStatusExt;
@@ -124,7 +159,10 @@ pub fn obj_bytes(m: &voltrack::TriangleMesh) -> Vec<u8> {
 }
 
 /// `m` as PLY in `encoding`.
-pub fn ply_bytes(m: &voltrack::TriangleMesh, encoding: voltrack::export::ply::PlyEncoding) -> Vec<u8> {
+pub fn ply_bytes(
+    m: &voltrack::TriangleMesh,
+    encoding: voltrack::export::ply::PlyEncoding,
+) -> Vec<u8> {
     let mut out = Vec::new();
     voltrack::export::ply::write_ply(&mut out, m, encoding).unwrap();
     out
