@@ -51,7 +51,7 @@ fn main() {
     );
     for (r, n) in [(256, 1000), (512, 2000)]
         .into_iter()
-        .filter(|&(r, _)| only.map_or(true, |o| o == r))
+        .filter(|&(r, _)| only.is_none_or(|o| o == r))
     {
         let clock = Instant::now();
         let seq = voxelize_sequence(

@@ -205,7 +205,7 @@ const MANIFEST_HEAD: &str =
 /// an earlier run stays among the new ones. A link to a folder is followed
 /// (the folder it names is replaced); links inside the old folder are
 /// removed, never followed. An existing folder is replaced only when it
-/// holds nothing but what voltrack wrote there ([`foreign_entry`]).
+/// holds nothing but what voltrack wrote there (`foreign_entry`).
 /// Missing parent folders are created, and removed again on failure.
 pub fn replace_dir(dir: &Path, files: Vec<(String, Fill<'_>)>) -> Result<Vec<PathBuf>> {
     let exists = std::fs::symlink_metadata(dir).is_ok();

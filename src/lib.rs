@@ -64,6 +64,10 @@
 //! # Ok::<(), voltrack::Error>(())
 //! ```
 
+// `!(x > 0.0)` is how a NaN is refused along with the out-of-range values;
+// `x <= 0.0` would let it through.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod checkpoint;
 pub mod deform;
 pub mod error;

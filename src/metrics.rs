@@ -1,6 +1,6 @@
 //! Quality measures of a tracking result (method.md §6, §8), computed as the
 //! reference computes them, and of the dynamic mesh against its input
-//! ([`surface`]).
+//! ([`fit`]).
 
 pub mod coverage;
 pub mod fit;

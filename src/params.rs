@@ -12,7 +12,7 @@ use crate::math::Real;
 pub enum AffinityKind {
     /// The paper's maximum-distance affinity (default).
     Max,
-    /// The earlier IIR-filtered affinity of [8], kept for comparison.
+    /// The earlier IIR-filtered affinity of \[8\], kept for comparison.
     Iir,
 }
 

@@ -351,7 +351,7 @@ struct Measured {
 /// measures the result against `gt.npz`.
 fn convert_and_measure(data: &Path, name: &str, frames: usize, r: usize, n: usize) -> Measured {
     let dir = data.join(name);
-    let all = voltrack::io::discover_frames(&[dir.clone()]).unwrap();
+    let all = voltrack::io::discover_frames(std::slice::from_ref(&dir)).unwrap();
     let inputs: Vec<PathBuf> = all.into_iter().take(frames).collect();
     assert_eq!(inputs.len(), frames, "{name}: fewer frames than asked for");
     let gt = GroundTruth::read(&dir.join("gt.npz"));

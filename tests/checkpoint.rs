@@ -217,7 +217,7 @@ fn a_frame_abandoned_midway_leaves_no_trace_after_resuming() {
                 "damped {damped_guess:?}, stop at poll {after}: the frames reported done are saved"
             );
             assert!(
-                frames >= 1 && frames < FRAMES,
+                (1..FRAMES).contains(&frames),
                 "stopped after {frames} of {FRAMES} frames"
             );
             stopped_in.push(frames);
@@ -479,6 +479,7 @@ fn stop_when_saved(args: &[&str], ckpt: &Path, signal: Option<&str>) -> std::pro
 /// hold either way: finished, it wrote `whole` (then removed for the rerun);
 /// stopped, no output, and after SIGINT exit status 130 and a message that
 /// `interrupted` checks. Returns the arguments to resume with.
+#[allow(clippy::too_many_arguments)]
 fn stop_once_saved(
     mut args: Vec<String>,
     state: &Path,
@@ -767,8 +768,11 @@ fn the_refine_command_killed_or_interrupted_resumes_to_the_same_bytes() {
     }
 }
 
+/// A refinement's positions, removed and kept centers and cells, floats as bits.
+type RefinedBits = (Vec<u64>, Vec<usize>, Vec<usize>, Vec<Vec<[u64; 4]>>);
+
 /// Everything a refinement returns but its timing, floats as bits.
-fn refined_bits(r: &RefineResult) -> (Vec<u64>, Vec<usize>, Vec<usize>, Vec<Vec<[u64; 4]>>) {
+fn refined_bits(r: &RefineResult) -> RefinedBits {
     let positions = r
         .trajectories
         .positions

@@ -1140,11 +1140,11 @@ fn point_cache_header_counts_and_positions() {
     );
     assert_eq!(bytes.len(), 32 + 12 * points * samples);
     for (f, frame) in mesh.frames.to_vec().unwrap().iter().enumerate() {
-        for v in 0..points {
+        for (v, position) in frame.iter().enumerate().take(points) {
             for k in 0..3 {
                 assert_eq!(
                     f32_at(&bytes, 32 + 12 * (f * points + v) + 4 * k),
-                    frame[v][k] as f32,
+                    position[k] as f32,
                     "frame {f}, vertex {v}"
                 );
             }

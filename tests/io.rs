@@ -25,7 +25,7 @@ fn directories_sort_naturally_and_skip_other_files() {
     for n in ["mesh_10.obj", "mesh_2.obj", "mesh_1.obj", "notes.txt"] {
         write(&d, n, TRI);
     }
-    let names: Vec<String> = discover_frames(&[d.clone()])
+    let names: Vec<String> = discover_frames(std::slice::from_ref(&d))
         .unwrap()
         .iter()
         .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
@@ -207,7 +207,7 @@ fn a_sequence_is_named_after_its_folder_or_its_frames() {
     for f in 1..=12 {
         write(&seq, &format!("scan_2024_{f:04}.obj"), TRI);
     }
-    assert_eq!(named(&[seq.clone()]), "Dancer take 2");
+    assert_eq!(named(std::slice::from_ref(&seq)), "Dancer take 2");
     assert_eq!(
         named(&[PathBuf::from(format!("{}/", seq.display()))]),
         "Dancer take 2"

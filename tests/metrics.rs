@@ -235,7 +235,7 @@ fn pcac_routes_agree_with_each_other_on_the_same_motion() {
         let r0 = centers / (3 * frames) + 1;
         for r in [r0, r0 + 1, r0 + 3] {
             let repeated: Vec<Vec<Point3>> = (0..frames)
-                .flat_map(|f| std::iter::repeat(t.frame(f).to_vec()).take(r))
+                .flat_map(|f| std::iter::repeat_n(t.frame(f).to_vec(), r))
                 .collect();
             let tr = Trajectories::from_frames(repeated);
             assert!(tr.centers < 3 * tr.frames);

@@ -26,7 +26,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-mod common;
+// The CLI, included above, brings the shared helpers with it.
+use cli::test_support as common;
 use common::Scratch;
 
 const BIN: &str = env!("CARGO_BIN_EXE_voltrack");

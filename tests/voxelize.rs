@@ -214,7 +214,7 @@ fn occupancy_runs_give_back_the_voxels() {
             state ^= state << 13;
             state ^= state >> 7;
             state ^= state << 17;
-            state % 3 == 0
+            state.is_multiple_of(3)
         })
         .collect();
     // The last case's gaps need every byte of the encoding.

@@ -6,8 +6,7 @@ mod plot;
 mod report;
 #[cfg(test)]
 #[path = "../../tests/common/mod.rs"]
-#[allow(dead_code)]
-mod test_support;
+pub(crate) mod test_support;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};

@@ -80,7 +80,7 @@ impl Axis {
         }
     }
     /// Its range also covers 0.
-    pub fn from_zero(mut self) -> Self {
+    pub fn starting_at_zero(mut self) -> Self {
         self.from_zero = true;
         self
     }

@@ -164,7 +164,7 @@ fn plots_for_the_report() {
     let svg = line_plot(
         "zero",
         &Axis::linear("frame").integer(),
-        &Axis::linear("s").from_zero(),
+        &Axis::linear("s").starting_at_zero(),
         &narrow,
     );
     assert_eq!(

@@ -47,6 +47,7 @@ pub struct ReportInput<'a> {
 impl<'a> ReportInput<'a> {
     /// A report of `conversion` with its own stage timings, naming no
     /// output file or command line (set those fields when known).
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         conversion: &'a Conversion,
         measurements: &'a Measurements,
@@ -381,7 +382,7 @@ fn fit_html(input: &ReportInput) -> String {
     let svg = line_plot(
         "Distance between the result and the input, per frame",
         &Axis::linear("frame").integer(),
-        &Axis::linear("distance (% of the bounding-box diagonal)").from_zero(),
+        &Axis::linear("distance (% of the bounding-box diagonal)").starting_at_zero(),
         &series,
     );
     let mut h = String::from("<section id=\"fit\">\n<h2>Fit of the result to the input</h2>\n");
@@ -495,7 +496,7 @@ fn coverage_html(input: &ReportInput) -> String {
         &line_plot(
             "Input volume no tracked cell reaches, per frame",
             &Axis::linear("frame").integer(),
-            &Axis::linear("% of the frame's occupied volume").from_zero(),
+            &Axis::linear("% of the frame's occupied volume").starting_at_zero(),
             &[Series::new("lost volume", lost), Series::new("flagged above", limit).color(1).dashed()],
         ),
         &format!(
@@ -518,7 +519,7 @@ fn coverage_html(input: &ReportInput) -> String {
         &line_plot(
             "Surface far from the other surface, per frame",
             &Axis::linear("frame").integer(),
-            &Axis::linear("largest connected region (% of the surface)").from_zero(),
+            &Axis::linear("largest connected region (% of the surface)").starting_at_zero(),
             &[
                 Series::new("input far from the result", far(|x| x.far_input)),
                 Series::new("result far from the input", far(|x| x.far_result)).color(2),
@@ -545,7 +546,7 @@ fn coverage_html(input: &ReportInput) -> String {
         &line_plot(
             "Fit to the input against the sequence's usual, per frame",
             &Axis::linear("frame").integer(),
-            &Axis::linear("p95 distance (% of the diagonal)").from_zero(),
+            &Axis::linear("p95 distance (% of the diagonal)").starting_at_zero(),
             &[Series::new("both directions, p95", p95), Series::new("flagged above", fit_limit).color(1).dashed()],
         ),
         &format!(
@@ -702,7 +703,7 @@ fn tracking_html(input: &ReportInput) -> String {
         &line_plot(
             "Deviation from uniformity (DFU) per frame",
             &Axis::linear("frame").integer(),
-            &Axis::linear("DFU = std / mean of voxels per cell").from_zero(),
+            &Axis::linear("DFU = std / mean of voxels per cell").starting_at_zero(),
             &series,
         ),
         "How unevenly the centers share the volume in each frame: the standard deviation of the number of voxels per \
@@ -737,7 +738,7 @@ fn energy_html(refined: &voltrack::refine::Refinement) -> String {
         &if log {
             Axis::log("energy Ê (log scale)")
         } else {
-            Axis::linear("energy Ê").from_zero()
+            Axis::linear("energy Ê").starting_at_zero()
         },
         &series,
     );
@@ -796,7 +797,7 @@ fn time_html(input: &ReportInput) -> String {
         &line_plot(
             "Tracking time per frame",
             &Axis::linear("frame").integer(),
-            &Axis::linear("seconds").from_zero(),
+            &Axis::linear("seconds").starting_at_zero(),
             &series,
         ),
         &format!(
@@ -820,7 +821,7 @@ fn time_html(input: &ReportInput) -> String {
         &line_plot(
             "Tracking iterations per frame",
             &Axis::linear("frame").integer(),
-            &Axis::linear("iterations until converged").from_zero(),
+            &Axis::linear("iterations until converged").starting_at_zero(),
             &[Series::new("iterations", per_frame(|t| t.iterations as f64))],
         ),
         &format!(

@@ -25,8 +25,12 @@
 //! mesh's point nearest to it (barycentric b_jk in its triangle), n_j that
 //! triangle's normal and w_j 1 when the match is compatible (near enough,
 //! facing the same way) else 0:
-//!   s Σ_edges ik w_ik |(y_i − y_k) − R_i (X_i − X_k)|² (both directions)
+//!
+//! ```text
+//! s Σ_edges ik w_ik |(y_i − y_k) − R_i (X_i − X_k)|² (both directions)
 //!   + Σ_j w_j ((n_j·(s_j(y) − q_j))² + μ |s_j(y) − q_j|²) + ε Σ_i |y_i − Y_i|²,
+//! ```
+//!
 //! where Y is the blended position and ε a small anchor that keeps a part
 //! no input vertex pulls where blending put it. Each round fits the
 //! rotations to the current y, matches the input vertices (see
@@ -464,7 +468,7 @@ fn fit_frame(
             .collect();
         let reweigh_now = params.bend_strain > 0.0
             && round >= reweigh_from
-            && (round - reweigh_from) % SEARCH_EVERY == 0;
+            && (round - reweigh_from).is_multiple_of(SEARCH_EVERY);
         if reweigh_now {
             reweigh(edges, offsets, &y, &matrices, params, joints, &mut weights);
         }
@@ -693,6 +697,7 @@ fn refine_rotation(a: &Matrix3, q: &mut UnitQuaternion) {
 /// semi-definite terms plus the anchor. Stops when the preconditioned
 /// residual r·M⁻¹r, about Σ_v diagonal_v |step_v|², falls to what steps of
 /// `tolerance` at every vertex would give.
+#[allow(clippy::too_many_arguments)]
 fn solve(
     edges: &Edges,
     weights: Option<&PerVertex<Real>>,

@@ -7,13 +7,13 @@
 //! Tropp, 2011) over the displacement matrix, which is only ever read frame by
 //! frame: the work grows linearly with the frame count, and the memory with
 //! (vertices + frames) × the components sketched, which
-//! [`BasisChoice::Auto`] caps ([`AUTO_MAX_COMPONENTS`]); no frames × frames
+//! [`BasisChoice::Auto`] caps (`AUTO_MAX_COMPONENTS`); no frames × frames
 //! nor vertices × frames matrix is formed.
 //!
 //! Every target is a linear combination of the frames' displacements from
 //! frame 0, `target_j = Σ_g mix_j(g) · (frame_g − frame_0)`, so anything known
 //! per frame (positions, normals) goes through the same
-//! [`MorphBasis::combine`], and frame 0 is always the base mesh.
+//! `MorphBasis::combine`, and frame 0 is always the base mesh.
 
 use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
@@ -35,7 +35,7 @@ pub enum BasisChoice {
     Components(usize),
     /// [`PerFrame`](Self::PerFrame) up to [`AUTO_PER_FRAME_LIMIT`] frames;
     /// beyond, the fewest principal components (at most
-    /// [`AUTO_MAX_COMPONENTS`]) whose largest vertex error stays within the
+    /// `AUTO_MAX_COMPONENTS`) whose largest vertex error stays within the
     /// tolerance, or per-frame targets again when no such basis needs fewer
     /// targets.
     Auto,

@@ -139,7 +139,7 @@ pub struct GltfExportReport {
 /// the first frame's texture are carried over; normals as `options.normals`
 /// says (the base mesh's loaded normals are not used: they would not match
 /// the recomputed ones of the other frames). Progress is reported under
-/// [`Stage::Export`](crate::Stage::Export); a stop request returns
+/// [`Stage::Export`]; a stop request returns
 /// [`Error::Interrupted`] and writes nothing.
 pub fn write_dynamic_glb(
     path: &Path,
@@ -1328,7 +1328,7 @@ fn glb_with(
                     let normals = anim
                         .has_normals()
                         .then(|| b.deferred_vec3(k, true, vertices, None));
-                    let positions = b.deferred_vec3(k, false, vertices, Some(bounds[k].clone()));
+                    let positions = b.deferred_vec3(k, false, vertices, bounds.get(k).cloned());
                     json::mesh::MorphTarget {
                         positions: Some(positions),
                         normals,

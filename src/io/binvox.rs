@@ -50,7 +50,9 @@ pub fn read_binvox(path: &Path, bytes: &[u8]) -> Result<(GridSpec, Occupancy)> {
         match words.first().copied() {
             Some("dim") => {
                 let d = nums(3)?;
-                if d.iter().any(|&x| x < 1.0 || x > 4096.0 || x.fract() != 0.0) {
+                if d.iter()
+                    .any(|&x| !(1.0..=4096.0).contains(&x) || x.fract() != 0.0)
+                {
                     return Err(Error::parse(
                         path,
                         Some(n),

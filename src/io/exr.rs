@@ -55,7 +55,7 @@ pub fn read_trajectories_exr(path: &Path) -> Result<(Trajectories, TrajectoryMet
     let mut metadata = TrajectoryMetadata::default();
     let meta = layer.attributes.other.iter().chain(&image.attributes.other);
     for (name, value) in meta {
-        if name.to_string() != METADATA_ATTRIBUTE {
+        if name != METADATA_ATTRIBUTE {
             continue;
         }
         let AttributeValue::Text(text) = value else {

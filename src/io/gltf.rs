@@ -316,7 +316,7 @@ fn check_accessor(
             .checked_mul(count - 1)
             .and_then(|b| b.checked_add(size))
             .and_then(|b| b.checked_add(offset));
-        if !end.is_some_and(|end| end <= view.length()) {
+        if end.is_none_or(|end| end > view.length()) {
             return Err(bad(format!(
                 "{count} elements from byte {offset} do not fit in buffer view {} of {} bytes",
                 view.index(),
@@ -324,10 +324,10 @@ fn check_accessor(
             )));
         }
         let held = buffers.get(view.buffer().index()).map_or(0, Vec::len);
-        if !view
+        if view
             .offset()
             .checked_add(view.length())
-            .is_some_and(|end| end <= held)
+            .is_none_or(|end| end > held)
         {
             return Err(bad(format!(
                 "buffer view {} reaches beyond its buffer of {held} bytes",

@@ -536,7 +536,7 @@ mod tests {
         assert_eq!(
             sorted(&names),
             [
-                format!("f_9.obj"),
+                "f_9.obj".to_string(),
                 format!("f_{big}.obj"),
                 format!("f_{bigger}.obj"),
                 format!("f_{longer}.obj")

@@ -4,7 +4,7 @@
 //! A part the tracking lost shows in one of three ways, each checked on
 //! its own in every frame, however well the rest of the frame fits (a lost
 //! limb is a few percent of the surface, so no frame-wide figure shows it):
-//! - input volume that no tracked cell reaches ([`super::coverage`]): the
+//! - input volume that no tracked cell reaches ([`super::coverage()`]): the
 //!   part's centers left, and the cells nearest to it stretch across it;
 //! - a connected region of the input's surface far from the result
 //!   ([`super::FrameFit::far_input`]): the mesh's part is elsewhere;

@@ -96,7 +96,7 @@ impl TriangleMesh {
         Aabb::from_points(&self.positions)
     }
 
-    /// [`weld_by_position`] of the vertices, and the triangles over the
+    /// `weld_by_position` of the vertices, and the triangles over the
     /// welded indices (copies then keep no triangle of their own).
     pub fn welded(&self) -> (Vec<u32>, Vec<[u32; 3]>) {
         let weld = weld_by_position(&self.positions);

@@ -175,7 +175,7 @@ fn cofactor(a: &[[Real; 4]; 4], r: usize, c: usize) -> Real {
     let det = m(0, 0) * (m(1, 1) * m(2, 2) - m(1, 2) * m(2, 1))
         - m(0, 1) * (m(1, 0) * m(2, 2) - m(1, 2) * m(2, 0))
         + m(0, 2) * (m(1, 0) * m(2, 1) - m(1, 1) * m(2, 0));
-    if (r + c) % 2 == 0 {
+    if (r + c).is_multiple_of(2) {
         det
     } else {
         -det

@@ -348,7 +348,7 @@ pub fn convert(
     })
 }
 
-/// [`crate::metrics::coverage`] of the final trajectories, logging the
+/// [`crate::metrics::coverage()`] of the final trajectories, logging the
 /// frames it flags.
 pub fn check_coverage(
     traj: &Trajectories,

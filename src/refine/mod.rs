@@ -121,7 +121,7 @@ pub fn refine_with_checkpoints(
     log::info!(
         "the cells of {} of {frames} frames kept between evaluations (budget {:.0} MiB)",
         cells.cached_frames(),
-        budget as f64 / (1u64 << 20) as f64
+        budget / (1u64 << 20) as f64
     );
     let per_batch = params.max_iterations.max(1);
     let steps = params.batches * per_batch;

@@ -26,6 +26,7 @@
 //!   voxel look again. With o's list in hand, a voxel of o needs only two
 //!   terms: the centers in the list moved at most their own largest move, and
 //!   every center outside it is at least r_K(o) - |v - o| away anyway.
+//!
 //! Ties are broken by the lower center index, so the result does not depend
 //! on the number of threads. The shortcuts are tested against a linear scan.
 //!
@@ -412,7 +413,6 @@ impl CenterIndex {
                     * (1.0 + 1e-9)
                     + Real::MIN_POSITIVE;
                 query
-                    .clone()
                     .within(reach2)
                     .execute()
                     .into_iter()
@@ -888,8 +888,8 @@ impl Assignment {
                 sum: [0; 3],
             };
             for (_, c, _) in group {
-                for d in 0..3 {
-                    block.sum[d] += c[d] as i64;
+                for (sum, &x) in block.sum.iter_mut().zip(c.iter()) {
+                    *sum += x as i64;
                 }
             }
             let n = block.count as Real;

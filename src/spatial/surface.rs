@@ -117,7 +117,7 @@ pub struct SurfaceIndex {
 
 impl SurfaceIndex {
     /// Indexes the triangles of `positions`. Indices must be in range (as
-    /// [`TriangleMesh::validate`] checks).
+    /// [`crate::model::TriangleMesh::validate`] checks).
     pub fn new(positions: &[Point3], triangles: &[[u32; 3]]) -> Self {
         let corners: Vec<[Point3; 3]> = triangles
             .iter()

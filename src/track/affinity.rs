@@ -153,7 +153,7 @@ impl Affinity {
         &self.lists[i]
     }
 
-    /// Weighted index pairs for the rigid fits ([`super::rigid::RigidFits`]).
+    /// Weighted index pairs for the rigid fits ([`crate::model::RigidFits`]).
     pub fn pairs(&self, i: usize) -> impl Iterator<Item = (usize, Real)> + Clone + '_ {
         self.lists[i].iter().map(|n| (n.j as usize, n.w))
     }

@@ -297,7 +297,7 @@ fn check_extents(paths: &[&Path], boxes: &[Aabb], max_ratio: f64) -> Result<()> 
     let diag: Vec<f64> = boxes.iter().map(Aabb::diagonal).collect();
     if let Some(i) = diag.iter().position(|&d| !(d > 0.0 && d.is_finite())) {
         return Err(Error::mesh(
-            &paths[i],
+            paths[i],
             format!(
                 "the bounding box's diagonal is {} (all vertices coincide, or overflow)",
                 diag[i]

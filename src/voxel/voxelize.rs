@@ -247,7 +247,7 @@ fn fill_axis(
     let mut columns = 0usize;
     while start < crossings.len() {
         columns += 1;
-        if columns % STOP_EVERY == 0 && stop() {
+        if columns.is_multiple_of(STOP_EVERY) && stop() {
             return None;
         }
         let column = crossings[start].column as usize;
