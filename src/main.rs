@@ -4,7 +4,7 @@
 mod cli;
 
 fn main() {
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
+    cli::init_logging();
     match cli::run() {
         Ok(()) => {}
         Err(err) => {

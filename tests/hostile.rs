@@ -1571,3 +1571,99 @@ fn messages_say_what_is_wrong() {
     );
     assert!(!stderr.contains("about 2"), "{stderr}");
 }
+
+/// OBJ as tools write it: a comment after the data, a line continued by
+/// `\`, a `usemtl` naming nothing. Each reads as the plain file does, and
+/// an error after a continued line still names its own line.
+#[test]
+fn obj_comments_continuations_and_bare_usemtl_read_as_written() {
+    let plain = read_obj(Path::new("plain.obj"), TETRA_OBJ.as_bytes()).unwrap();
+    let variants = [
+        TETRA_OBJ.replace("v 1 0 0\n", "v 1 0 0 # the x axis\n"),
+        TETRA_OBJ.replace("v 1 0 0\n", "v 1 \\\n 0 0\n"),
+        TETRA_OBJ.replace("f 1 2 3\n", "f 1 \\\r\n 2 \\\n 3\n"),
+        format!("usemtl\n{TETRA_OBJ}"),
+        format!("usemtl   # none\n{TETRA_OBJ}"),
+    ];
+    for text in &variants {
+        let mesh = read_obj(Path::new("variant.obj"), text.as_bytes())
+            .unwrap_or_else(|e| panic!("{text:?}: {e}"));
+        assert_eq!(mesh.positions, plain.positions, "{text:?}");
+        assert_eq!(mesh.triangles, plain.triangles, "{text:?}");
+    }
+    read_err(
+        "continued.obj",
+        format!("v 0 \\\n0 \\\n0\n{}f 1 2 9\n", &TETRA_OBJ[8..]).as_bytes(),
+        &["continued.obj:11:", "only 4 vertices"],
+    );
+    read_err(
+        "huge.obj",
+        b"v 0 0 0\nv 1e39 0 0\nv 0 1 0\nf 1 2 3\n",
+        &["huge.obj:2:", "1e39", "32-bit float"],
+    );
+}
+
+/// A tetrahedron, one `v` or `f` per line, its first line `v 0 0 0`.
+const TETRA_OBJ: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+
+/// glTF buffer URIs that are not files beside the glTF are refused, naming
+/// the URI; a percent-encoded name is decoded.
+#[test]
+fn gltf_buffer_uris_are_files_beside_the_gltf() {
+    let dir = Scratch::new("hostile", "gltf-uris");
+    let positions: [f32; 9] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+    let buffer: Vec<u8> = positions.iter().flat_map(|c| c.to_le_bytes()).collect();
+    std::fs::write(dir.join("my buffer.bin"), &buffer).unwrap();
+    let gltf = |uri: &str| {
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+            "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+            "buffers":[{{"uri":"{uri}","byteLength":36}}],
+            "bufferViews":[{{"buffer":0,"byteLength":36}}],
+            "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}]}}"#
+        )
+    };
+    let path = dir.join("a.gltf");
+    let read_uri = |uri: &str| {
+        let text = gltf(uri);
+        std::fs::write(&path, &text).unwrap();
+        read_gltf(&path, text.as_bytes()).map_err(|e| e.to_string())
+    };
+    let mesh = read_uri("my%20buffer.bin").expect("a percent-encoded name");
+    assert_eq!(mesh.positions.len(), 3);
+    for (uri, needle) in [
+        ("http://example.com/b.bin", "'http:' URI"),
+        ("file:///etc/passwd", "'file:' URI"),
+        ("/etc/passwd", "absolute path"),
+        ("a.gltf", "the glTF file itself"),
+        ("../missing.bin", "missing.bin"),
+        ("bad%zzname", "percent-encoding"),
+    ] {
+        let e = read_uri(uri).expect_err(uri);
+        assert!(
+            e.contains("a.gltf")
+                && e.contains(&format!("buffer URI '{uri}'"))
+                && e.contains(needle),
+            "{uri}: {e}"
+        );
+    }
+}
+
+/// A frame is read by more than one pass; its warnings are printed once.
+#[test]
+fn a_frame_read_twice_warns_once() {
+    let dir = Scratch::new("hostile", "warn-once");
+    let mut frame = b"usemtl\n".to_vec();
+    frame.extend(obj(&bar(0)));
+    bar_sequence(&dir, 3, 0, ("frame_0.obj", frame));
+    let o = run(&dir, &args("convert", "seq", "x.glb", &[]));
+    let stderr = text(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    assert_eq!(
+        stderr
+            .matches("frame_0.obj:1: 'usemtl' names no material")
+            .count(),
+        1,
+        "{stderr}"
+    );
+}

@@ -11,6 +11,52 @@ pub(crate) mod test_support;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use options::{ConvertArgs, InputArgs, OutputFormat, RefineArgs, TrackArgs};
+
+/// The log as env_logger writes it (`RUST_LOG`, warnings by default), but
+/// each warning only once: a frame is read by more than one pass, and its
+/// warnings (a missing texture, a bare `usemtl`) would repeat with every
+/// read.
+struct WarnOnce {
+    inner: env_logger::Logger,
+    seen: std::sync::Mutex<std::collections::HashSet<String>>,
+}
+
+impl log::Log for WarnOnce {
+    fn enabled(&self, metadata: &log::Metadata) -> bool {
+        self.inner.enabled(metadata)
+    }
+
+    fn log(&self, record: &log::Record) {
+        if !self.inner.matches(record) {
+            return;
+        }
+        if record.level() <= log::Level::Warn {
+            let mut seen = self.seen.lock().unwrap_or_else(|e| e.into_inner());
+            if !seen.insert(record.args().to_string()) {
+                return;
+            }
+        }
+        self.inner.log(record);
+    }
+
+    fn flush(&self) {
+        self.inner.flush();
+    }
+}
+
+/// Installs [`WarnOnce`] as the logger.
+pub fn init_logging() {
+    let inner =
+        env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).build();
+    let max = inner.filter();
+    let logger = Box::leak(Box::new(WarnOnce {
+        inner,
+        seen: Default::default(),
+    }));
+    if log::set_logger(logger).is_ok() {
+        log::set_max_level(max);
+    }
+}
 use std::path::{Path, PathBuf};
 use voltrack::checkpoint::Checkpointing;
 use voltrack::io::FrameFiles;

@@ -374,17 +374,57 @@ fn load_uri(path: &Path, uri: &str) -> Result<Vec<u8>> {
         return decode_base64(payload)
             .ok_or_else(|| Error::parse(path, None, "invalid base64 in a data URI"));
     }
-    let file = path.parent().unwrap_or(Path::new("")).join(uri);
-    // Only a regular file: a URI naming /dev/zero or a FIFO must not hang.
-    let meta = std::fs::metadata(&file).map_err(|e| Error::io(&file, e))?;
-    if !meta.is_file() || meta.len() > MAX_BUFFER_BYTES {
-        return Err(Error::parse(
-            path,
-            None,
-            format!("buffer URI {uri}: not a regular file of at most {MAX_BUFFER_BYTES} bytes"),
+    let bad = |why: String| Error::parse(path, None, format!("buffer URI '{uri}': {why}"));
+    // A scheme (`http:`, `file:`) has a letter first and a colon before any
+    // slash; a relative reference's first segment has no colon.
+    let scheme = uri
+        .split_once(':')
+        .filter(|(s, _)| s.starts_with(|c: char| c.is_ascii_alphabetic()) && !s.contains('/'));
+    if let Some((scheme, _)) = scheme {
+        return Err(bad(format!(
+            "a '{scheme}:' URI; voltrack reads buffers from files named relative to the glTF file, or from data: URIs"
+        )));
+    }
+    let relative = percent_decode(uri).ok_or_else(|| bad("invalid percent-encoding".into()))?;
+    if relative.starts_with('/') || relative.starts_with('\\') {
+        return Err(bad(
+            "an absolute path; glTF names its buffers relative to the glTF file".into(),
         ));
     }
-    std::fs::read(&file).map_err(|e| Error::io(&file, e))
+    let file = path.parent().unwrap_or(Path::new("")).join(&relative);
+    let meta = std::fs::metadata(&file).map_err(|e| bad(format!("{}: {e}", file.display())))?;
+    let canonical = |p: &Path| std::fs::canonicalize(p).ok();
+    if canonical(&file).is_some() && canonical(&file) == canonical(path) {
+        return Err(bad("names the glTF file itself".into()));
+    }
+    // Only a regular file: a URI naming /dev/zero or a FIFO must not hang.
+    if !meta.is_file() || meta.len() > MAX_BUFFER_BYTES {
+        return Err(bad(format!(
+            "{} is not a regular file of at most {MAX_BUFFER_BYTES} bytes",
+            file.display()
+        )));
+    }
+    std::fs::read(&file).map_err(|e| bad(format!("{}: {e}", file.display())))
+}
+
+/// `uri` with its `%XX` escapes decoded (glTF URIs are percent-encoded:
+/// `my%20buffer.bin`); None when an escape is malformed or the result is
+/// not UTF-8.
+fn percent_decode(uri: &str) -> Option<String> {
+    let bytes = uri.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' {
+            let hex = std::str::from_utf8(bytes.get(i + 1..i + 3)?).ok()?;
+            out.push(u8::from_str_radix(hex, 16).ok()?);
+            i += 3;
+        } else {
+            out.push(bytes[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8(out).ok()
 }
 
 fn decode_base64(s: &str) -> Option<Vec<u8>> {

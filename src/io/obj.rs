@@ -16,6 +16,7 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     // tobj splits lines at LF only, and takes a byte-order mark for part of
     // the first word (a first `v` line missed shifts every face by one).
     let bytes = &*super::lone_cr_to_lf(super::strip_bom(bytes));
+    let bytes = &*normalise(path, bytes);
     check_lines(path, bytes)?;
     let options = tobj::LoadOptions {
         // One index per vertex, as glTF needs; polygons are triangulated
@@ -104,14 +105,18 @@ pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
             let tex = path.parent().unwrap_or(Path::new("")).join(tex.trim());
             if !tex.is_file() {
                 log::warn!(
-                    "{}: texture {} not found; exporting without it",
+                    "{}: texture {} not found; ignored",
                     path.display(),
                     tex.display()
                 );
             } else if crate::model::mesh::embeddable_image(&tex).is_none() {
                 // glTF carries PNG and JPEG; finding out at export would come
                 // after the whole conversion.
-                log::warn!("{}: texture {} is neither PNG nor JPEG, which glTF carries; exporting without it", path.display(), tex.display());
+                log::warn!(
+                    "{}: texture {} is neither PNG nor JPEG; ignored",
+                    path.display(),
+                    tex.display()
+                );
             } else {
                 mesh.texture = Some(tex);
             }
@@ -183,6 +188,16 @@ fn check_lines(path: &Path, bytes: &[u8]) -> Result<()> {
                         counts[0]
                     )));
                 }
+                if let Some(c) = numbers[..3]
+                    .iter()
+                    .map(|&c| c / w)
+                    .find(|c| c.abs() > f32::MAX as f64)
+                {
+                    return Err(err(format!(
+                        "vertex {}: coordinate {c:e} is beyond ±3.4e38, the largest a 32-bit float (glTF's, most PLY files') holds",
+                        counts[0]
+                    )));
+                }
             }
             Some("vt") => counts[1] += 1,
             Some("vn") => counts[2] += 1,
@@ -240,6 +255,68 @@ fn check_lines(path: &Path, bytes: &[u8]) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// OBJ text as tobj and [`check_lines`] read it, with each line at its own
+/// number still: a line ending in `\` is joined with the next (the line
+/// after a joined one is left empty), a comment that starts a word is
+/// removed (`v 1 2 3 # note`: tobj would read the comment as numbers), and a
+/// `usemtl` naming no material, which tobj refuses without saying where, is
+/// dropped with a warning (its faces take the default material, which
+/// voltrack ignores anyway). Borrowed when no line changes.
+fn normalise<'a>(path: &Path, bytes: &'a [u8]) -> std::borrow::Cow<'a, [u8]> {
+    let lines: Vec<&[u8]> = bytes.split(|&b| b == b'\n').collect();
+    let mut out: Option<Vec<u8>> = None;
+    let mut joined = 0; // lines joined into the one being written
+    for (n, &raw) in lines.iter().enumerate() {
+        let mut line = raw.strip_suffix(b"\r").unwrap_or(raw);
+        if let Some(hash) =
+            (1..line.len()).find(|&i| line[i] == b'#' && line[i - 1].is_ascii_whitespace())
+        {
+            line = &line[..hash];
+        }
+        let words = || {
+            line.split(|b| b.is_ascii_whitespace())
+                .filter(|w| !w.is_empty())
+        };
+        let bare_usemtl = words().next() == Some(b"usemtl") && words().nth(1).is_none();
+        if bare_usemtl {
+            log::warn!(
+                "{}:{}: 'usemtl' names no material; ignored",
+                path.display(),
+                n + 1
+            );
+            line = b"";
+        }
+        let trimmed = line.trim_ascii_end();
+        let continues = trimmed.ends_with(b"\\") && n + 1 < lines.len();
+        if continues {
+            line = &trimmed[..trimmed.len() - 1];
+        }
+        let last = n + 1 == lines.len();
+        if out.is_none() && (line.len() != raw.len() || continues || joined > 0) {
+            // The first change: copy the lines before it as they were.
+            let start = raw.as_ptr() as usize - bytes.as_ptr() as usize;
+            out = Some(bytes[..start].to_vec());
+        }
+        let Some(out) = out.as_mut() else { continue };
+        out.extend_from_slice(line);
+        if continues {
+            out.push(b' ');
+            joined += 1;
+        } else {
+            for _ in 0..=joined {
+                if !last {
+                    out.push(b'\n');
+                }
+            }
+            joined = 0;
+        }
+    }
+    match out {
+        Some(out) => std::borrow::Cow::Owned(out),
+        None => std::borrow::Cow::Borrowed(bytes),
+    }
 }
 
 /// tobj's error in words.
