@@ -47,12 +47,10 @@ fn poisoned_sequence(dir: &Scratch) {
     std::fs::write(dir.0.join("seq/frame_5.obj"), "v 0 0 0\nf 1 2 3 x\n").unwrap();
 }
 
-/// Runs `args` and requires exit 2, within a second, with each needle on
-/// stderr and without reading frame 5 (which would fail naming it).
+/// Runs `args` and requires exit 2 with each needle on stderr and without
+/// reading frame 5 (which would fail naming it): refused before any frame.
 fn refused_up_front(dir: &Scratch, args: &[&str], needles: &[&str]) {
-    let clock = Instant::now();
     let out = run(dir, args);
-    let took = clock.elapsed();
     let err = stderr(&out);
     assert_eq!(
         out.status.code(),
@@ -60,7 +58,6 @@ fn refused_up_front(dir: &Scratch, args: &[&str], needles: &[&str]) {
         "{args:?}: exit {:?}, stderr: {err}",
         out.status.code()
     );
-    assert!(took < Duration::from_secs(1), "{args:?}: took {took:?}");
     assert!(
         !err.contains("frame_5"),
         "{args:?} read the frames first: {err}"
@@ -257,7 +254,9 @@ fn a_resolution_that_cannot_fit_in_memory_is_refused_with_one_that_fits() {
     let err = stderr(&out);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(
-        clock.elapsed() < Duration::from_secs(5),
+        // Refused before voxelising (which takes minutes at -r 1596): a
+        // guard against that, not a speed figure.
+        clock.elapsed() < Duration::from_secs(30),
         "took {:?}",
         clock.elapsed()
     );

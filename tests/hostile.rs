@@ -655,7 +655,9 @@ fn headers_asking_for_absurd_sizes_fail_at_once() {
         let start = Instant::now();
         let r = read_no_panic(name, bytes, name);
         assert!(
-            start.elapsed() < Duration::from_secs(2),
+            // A guard against a reader that allocates or loops by what the
+            // header claims (minutes), not a speed figure.
+            start.elapsed() < Duration::from_secs(30),
             "{name} took {:?}",
             start.elapsed()
         );
@@ -742,7 +744,9 @@ fn gltf_node_graphs_that_are_not_trees() {
         gltf_with_nodes(&format!("[{}]", layers.join(","))).as_bytes(),
         &["more than one parent"],
     );
-    assert!(start.elapsed() < Duration::from_secs(2));
+    // 2^40 paths through the diamonds if walked naively: a guard, not a
+    // speed figure.
+    assert!(start.elapsed() < Duration::from_secs(30));
 }
 
 /// A one-triangle glTF with `positions` and `indices` as its two accessors
