@@ -194,8 +194,30 @@ fn convert_to_glb_with_a_compact_basis() {
     let (frames, targets, interpolation) = glb_summary(&dir.join("b.glb"));
     assert_eq!(frames, FRAMES + 1);
     assert!((3..=6).contains(&targets), "{targets}");
-    assert_eq!(interpolation, gltf::animation::Interpolation::Linear);
+    // Held like per-frame targets unless asked otherwise.
+    assert_eq!(interpolation, gltf::animation::Interpolation::Step);
     assert_eq!(dir.files(), ["b.glb"]);
+}
+
+/// `--interpolation linear` blends captures, per-frame and compact alike;
+/// an output without a glTF animation refuses it before any work.
+#[test]
+fn interpolation_is_one_choice_for_every_glb() {
+    let dir = Scratch::new("cli", "interpolation");
+    for (name, extra) in [("p.glb", &[][..]), ("b.glb", &["--basis", "3"][..])] {
+        let mut args = vec!["--interpolation", "linear"];
+        args.extend(extra);
+        ok(&dir, &convert_args(name, &args));
+        let (_, _, interpolation) = glb_summary(&dir.join(name));
+        assert_eq!(
+            interpolation,
+            gltf::animation::Interpolation::Linear,
+            "{name}"
+        );
+    }
+    let out = run(&dir, &convert_args("c.exr", &["--interpolation", "step"]));
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--interpolation"));
 }
 
 /// Issue 23: `--compress` writes a smaller GLB that requires the meshopt and

@@ -218,6 +218,17 @@ fn check_ignored(cli: &Cli, matches: &clap::ArgMatches) -> Result<()> {
                 return refuse(format!("--fps times an animation, but the output is {}, which has no frame rate: drop it", format.name()));
             }
         }
+        if given("interpolation") {
+            if let Ok(
+                format @ (OutputFormat::Exr
+                | OutputFormat::ObjSequence
+                | OutputFormat::Pc2
+                | OutputFormat::Vat),
+            ) = args.format()
+            {
+                return refuse(format!("--interpolation chooses the glTF animation's samplers, but the output is {}, which has none: drop it", format.name()));
+            }
+        }
         let conform = [
             "conform_stiffness",
             "conform_bend_strain",
@@ -793,6 +804,9 @@ fn convert(args: ConvertArgs) -> Result<()> {
             "format": format.name(),
             "name": named.then_some(&name),
             "fps": timed.then_some(args.fps),
+            "interpolation": (format == OutputFormat::Glb).then(|| {
+                clap::ValueEnum::to_possible_value(&args.interpolation).map(|v| v.get_name().to_string())
+            }),
             "frames": conv.mesh.frames.len(),
             "vertices": conv.mesh.base.positions.len(),
             "triangles": conv.mesh.base.triangles.len(),

@@ -4,7 +4,7 @@
 use anyhow::Result;
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
-use voltrack::export::gltf::{BasisChoice, GltfExportOptions};
+use voltrack::export::gltf::{BasisChoice, GltfExportOptions, Interpolation};
 use voltrack::export::vat::VatOptions;
 use voltrack::params::{
     AffinityKind, Blending, ConformParams, DeformParams, RefineParams, TrackParams,
@@ -270,6 +270,15 @@ impl OutputFormat {
     }
 }
 
+/// glTF's samplers for the morph weights (see `GltfExportOptions::interpolation`).
+#[derive(Clone, Copy, ValueEnum)]
+pub enum InterpolationArg {
+    /// Each capture held for 1/fps: a player shows the captures and nothing else
+    Step,
+    /// Consecutive captures blended: smoother at display rates above the capture rate, but the poses between captures are blends
+    Linear,
+}
+
 #[derive(Clone, Copy, ValueEnum)]
 pub enum BlendArg {
     Dq,
@@ -308,6 +317,9 @@ pub struct ConvertArgs {
     /// Frames per second of the animation (range: 0.001..=100000)
     #[arg(long, default_value_t = GltfExportOptions::default().fps)]
     pub fps: f32,
+    /// How players go from one capture to the next in a .glb, per-frame targets and --basis alike
+    #[arg(long, value_enum, default_value = "step")]
+    pub interpolation: InterpolationArg,
     /// Compact glTF: K principal components as morph targets [default: one target per frame up to 256 frames; beyond, the fewest components (at most 128) that keep every vertex within 0.1 % of the diagonal, else one target per frame] (range: 1..=100000)
     #[arg(long)]
     pub basis: Option<usize>,
@@ -455,6 +467,10 @@ impl ConvertArgs {
                 .basis
                 .map_or(BasisChoice::Auto, BasisChoice::Components),
             compress: self.compress,
+            interpolation: match self.interpolation {
+                InterpolationArg::Step => Interpolation::Step,
+                InterpolationArg::Linear => Interpolation::Linear,
+            },
             ..Default::default()
         }
     }

@@ -55,6 +55,14 @@ pub struct GltfExportOptions {
     /// empty: `frame_0001`, `frame_0002`, … by index, as also where the
     /// names are not one per frame or not distinct.
     pub frame_names: Vec<String>,
+    /// How players go from one capture to the next, the same for per-frame
+    /// targets and a compact basis. [`Interpolation::Step`] (default) holds
+    /// each capture for 1/fps: a player shows what was captured and nothing
+    /// else. [`Interpolation::Linear`] blends consecutive captures, smoother
+    /// where the display rate is above the capture rate; the poses between
+    /// captures are then blends (a limb moving fast is drawn shorter
+    /// between two captures), not captures.
+    pub interpolation: Interpolation,
 }
 
 impl Default for GltfExportOptions {
@@ -64,6 +72,7 @@ impl Default for GltfExportOptions {
             name: crate::model::DEFAULT_NAME.into(),
             basis: BasisChoice::Auto,
             max_basis_error: 0.001,
+            interpolation: Interpolation::Step,
             normals: true,
             compress: false,
             frame_names: Vec::new(),
@@ -188,8 +197,15 @@ pub fn write_dynamic_glb(
     } else {
         stored_deltas(frames, &basis, normals.as_ref(), progress)?
     };
-    let animation =
-        (basis.targets() > 0).then(|| morph_animation(deltas, frames.len(), &basis, options.fps));
+    let animation = (basis.targets() > 0).then(|| {
+        morph_animation(
+            deltas,
+            frames.len(),
+            &basis,
+            options.fps,
+            options.interpolation,
+        )
+    });
     let scene = SceneInfo {
         name: options.name.clone(),
         timing: Some(Timing {
@@ -385,15 +401,15 @@ fn name_targets_after_frames(basis: &mut MorphBasis, names: &[String]) {
 }
 
 /// The morph animation of `basis` with its targets' `deltas`: weights keyed
-/// at f / fps (STEP for per-frame targets, each frame shown as captured;
-/// LINEAR for a compact basis, whose weights vary smoothly), and the last
-/// frame's weights again at F / fps: without that key the clip ends where
-/// the last frame begins, and a looping player never shows it.
+/// at f / fps with `interpolation`, and the last frame's weights again at
+/// F / fps: without that key the clip ends where the last frame begins, and
+/// a looping player never shows it.
 fn morph_animation<'a>(
     deltas: MorphDeltas<'a>,
     frames: usize,
     basis: &MorphBasis,
     fps: f32,
+    interpolation: Interpolation,
 ) -> MorphAnimation<'a> {
     MorphAnimation {
         deltas,
@@ -406,11 +422,7 @@ fn morph_animation<'a>(
         times: (0..=frames)
             .map(|f| (f as f64 / fps as f64) as f32)
             .collect(),
-        interpolation: if basis.components.is_some() {
-            Interpolation::Linear
-        } else {
-            Interpolation::Step
-        },
+        interpolation,
         target_names: basis.names.clone(),
     }
 }
@@ -494,10 +506,14 @@ fn to_f32(v: &Vector3) -> [f32; 3] {
     [v.x as f32, v.y as f32, v.z as f32]
 }
 
-/// How morph weights are interpolated between keyframes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// How morph weights are interpolated between keyframes (glTF's STEP and
+/// LINEAR samplers; see [`GltfExportOptions::interpolation`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Interpolation {
+    /// Each keyframe held until the next.
+    #[default]
     Step,
+    /// Consecutive keyframes blended.
     Linear,
 }
 
