@@ -24,6 +24,11 @@ this script asserts, against the rate and count it reads from the file itself:
   (x, y, z) -> (x, -z, y), within 1e-5 of the captures' bounding-box
   diagonal.
 
+With --refused, each file must instead be refused (a file the importer
+cannot read: a --compress GLB where Blender's importer lacks
+EXT_meshopt_compression) with a message that says what to do, the scene's
+objects and timing untouched.
+
 Prints one JSON line per file and exits 1 on the first failure.
 """
 
@@ -197,6 +202,26 @@ def check_file(path, frame_start, expect_name, samples, operator):
     return result
 
 
+def check_refused(path):
+    """A file this Blender's importer cannot read (a --compress GLB on
+    Blender 3.4): the add-on refuses it with a message saying what to do,
+    and leaves the scene as it was, objects and timing."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    timing = lambda: (scene.render.fps, scene.render.fps_base, scene.frame_start, scene.frame_end)
+    before, objects = timing(), len(bpy.data.objects)
+    try:
+        vi.import_voltrack(bpy.context, path, 0)
+    except vi.VoltrackError as e:
+        message = str(e)
+    else:
+        raise CheckFailed("imported; want a refusal")
+    check("--compress" in message and ".pc2" in message, f"the refusal does not say what to do: {message}")
+    check(timing() == before, f"the scene's timing changed: {before} -> {timing()}")
+    check(len(bpy.data.objects) == objects, "objects were added")
+    return {"file": os.path.abspath(path), "refused": message}
+
+
 def main():
     argv = sys.argv[sys.argv.index("--") + 1 :] if "--" in sys.argv else []
     parser = argparse.ArgumentParser(prog="blender -b --python check_import.py --")
@@ -205,7 +230,17 @@ def main():
     parser.add_argument("--expect-name")
     parser.add_argument("--samples", type=int, default=0, help="captures compared (0: all)")
     parser.add_argument("--operator", action="store_true", help="import through the registered File > Import operator")
+    parser.add_argument("--refused", action="store_true", help="each file must be refused, the scene left alone")
     args = parser.parse_args(argv)
+    if args.refused:
+        for path in args.files:
+            try:
+                result = check_refused(os.path.abspath(path))
+            except CheckFailed as e:
+                print(f"FAIL {path}: {e}", flush=True)
+                sys.exit(1)
+            print("PASS " + json.dumps(result), flush=True)
+        return
     for path in args.files:
         try:
             result = check_file(os.path.abspath(path), args.frame_start, args.expect_name, args.samples, args.operator)

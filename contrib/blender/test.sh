@@ -20,6 +20,7 @@ for ext in glb pc2; do
     "$voltrack" convert fixtures/bending_bar -r 48 -n 120 --fps 29.97 -o "$out/bar.$ext" >/dev/null
 done
 "$voltrack" convert fixtures/bending_bar -r 48 -n 120 -o "$out/bar30.glb" >/dev/null
+"$voltrack" convert fixtures/bending_bar -r 48 -n 120 --compress -o "$out/bar_compress.glb" >/dev/null
 blender --version | head -n 1
 run() { blender -b --factory-startup --python-exit-code 1 --python "$@" 2>&1; }
 # The headless command the README gives prints one JSON line per import.
@@ -34,10 +35,18 @@ trap 'rm -f "$log"' EXIT
 status=0
 run contrib/blender/check_import.py -- "$out/bar.glb" "$out/bar.pc2" "$out/bar30.glb" --expect-name bending_bar >"$log" || status=$?
 run contrib/blender/check_import.py -- "$out/bar.glb" "$out/bar.pc2" --frame-start 1 --operator --expect-name bending_bar >>"$log" || status=$?
+# A --compress file: imported where the importer reads EXT_meshopt_compression,
+# else refused before the scene is touched.
+reads_meshopt='import sys; sys.path.insert(0, "contrib/blender"); import voltrack_import as v; sys.exit(0 if "EXT_meshopt_compression" in (v.importer_extensions() or ()) else 3)'
+if blender -b --factory-startup --python-exit-code 1 --python-expr "$reads_meshopt" >/dev/null 2>&1; then
+    run contrib/blender/check_import.py -- "$out/bar_compress.glb" >>"$log" || status=$?
+else
+    run contrib/blender/check_import.py -- "$out/bar_compress.glb" --refused >>"$log" || status=$?
+fi
 grep -E '^(PASS|FAIL)' "$log" || true
-if [ "$status" -ne 0 ] || grep -q '^FAIL' "$log" || [ "$(grep -c '^PASS' "$log")" -ne 5 ]; then
+if [ "$status" -ne 0 ] || grep -q '^FAIL' "$log" || [ "$(grep -c '^PASS' "$log")" -ne 6 ]; then
     echo "contrib/blender/test.sh: FAILED" >&2
     cat "$log" >&2
     exit 1
 fi
-echo "contrib/blender/test.sh: 5 imports checked"
+echo "contrib/blender/test.sh: 6 imports checked"

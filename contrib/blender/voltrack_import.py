@@ -260,18 +260,62 @@ def _snap_action_keys(action, import_fps, file_fps, frame_start):
     return off
 
 
+def importer_extensions():
+    """The glTF extensions Blender's importer reads (its `extensions_managed`,
+    read off its source, since it is only built inside an import), or None
+    when they cannot be found out."""
+    try:
+        import inspect
+
+        from io_scene_gltf2.io.imp import gltf2_io_gltf
+
+        source = inspect.getsource(gltf2_io_gltf.glTFImporter.__init__)
+    except Exception:
+        return None
+    listed = re.search(r"extensions_managed\s*=\s*\[(.*?)\]", source, re.S)
+    return set(re.findall(r"['\"]([A-Za-z0-9_]+)['\"]", listed.group(1))) if listed else None
+
+
+def unreadable_extensions(doc, readable):
+    """The extensions `doc` requires that are not in `readable` (a set, or
+    None for unknown: then none)."""
+    if readable is None:
+        return []
+    return [e for e in doc.get("extensionsRequired", []) if e not in readable]
+
+
 def import_glb(context, path, frame_start=0):
     doc, binary = read_glb(path)
     fps, frames, source = glb_timing(doc, binary)
-    scene = context.scene
-    set_scene_timing(scene, fps, frames, frame_start)
-    import_fps = scene.render.fps  # what the importer multiplies key times by
     if not _importer("io_scene_gltf2", "gltf"):
         raise VoltrackError("Blender's glTF importer (add-on io_scene_gltf2) is not available")
+    # Before the scene is touched: Blender 3.4's importer, for one, stops
+    # with a traceback on EXT_meshopt_compression (`voltrack convert --compress`).
+    missing = unreadable_extensions(doc, importer_extensions())
+    if missing:
+        version = ".".join(str(v) for v in bpy.app.version)
+        raise VoltrackError(
+            f"{path} requires {', '.join(missing)}, which Blender {version}'s glTF importer cannot read "
+            "(a `voltrack convert --compress` file); for Blender, convert without --compress, "
+            "or to a .pc2 (-o NAME.pc2). The scene was not changed."
+        )
+    scene = context.scene
+    previous = (scene.render.fps, scene.render.fps_base, scene.frame_start, scene.frame_end, scene.frame_current)
+    set_scene_timing(scene, fps, frames, frame_start)
+    import_fps = scene.render.fps  # what the importer multiplies key times by
     before = set(bpy.data.objects)
-    result = bpy.ops.import_scene.gltf(filepath=path, import_shading="SMOOTH")
+    try:
+        result = bpy.ops.import_scene.gltf(filepath=path, import_shading="SMOOTH")
+    except RuntimeError as e:
+        result, failure = set(), str(e).strip().splitlines()[-1:]
+    else:
+        failure = []
     if "FINISHED" not in result:
-        raise VoltrackError(f"Blender's glTF importer failed on {path}")
+        scene.render.fps, scene.render.fps_base = previous[0], previous[1]
+        scene.frame_start, scene.frame_end = previous[2], previous[3]
+        scene.frame_set(previous[4])
+        why = f": {failure[0]}" if failure else ""
+        raise VoltrackError(f"Blender's glTF importer failed on {path}{why}; the scene's timing was restored")
     new = [o for o in bpy.data.objects if o not in before]
     meshes = [o for o in new if o.type == "MESH"]
     if not meshes:
