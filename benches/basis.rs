@@ -1,6 +1,7 @@
 //! Time of the compact morph basis (issue 22): `Auto` and `Components(16)` on
 //! a synthetic deforming torus of 5,000 vertices at 250 to 2,000 frames,
-//! seconds per frame count. The cost should grow about linearly in F.
+//! seconds per frame count. The cost should grow about linearly in F; so
+//! should `Components(F)`'s, a K far above the motion's rank.
 //! Then `Auto` on the same motion with noise no small basis fits (it falls
 //! back to per-frame targets): seconds, and the peak memory the call adds
 //! (Linux), which should not grow with F.
@@ -45,9 +46,9 @@ fn main() {
         if in_file { "in a file" } else { "in memory" }
     );
     println!(
-        "| frames | Auto s | Auto components | Components(16) s | s per 1000 frames (Auto, 16) |"
+        "| frames | Auto s | Auto components | Components(16) s | s per 1000 frames (Auto, 16) | Components(F) s | its components |"
     );
-    println!("|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|");
     let positions = |f: usize, noise: Real| {
         let mut frames = PositionFrames::new(
             base.positions.len(),
@@ -91,12 +92,23 @@ fn main() {
         )
         .expect("16 components");
         let k16_s = clock.elapsed().as_secs_f64();
+        // `--basis F`: a K far above the motion's rank (issue 49, item 13).
+        let clock = Instant::now();
+        let (all, _) = choose(
+            &frames,
+            BasisChoice::Components(f),
+            tolerance,
+            Default::default(),
+        )
+        .expect("F components");
+        let all_s = clock.elapsed().as_secs_f64();
         println!(
-            "| {f} | {auto_s:.2} | {} | {k16_s:.2} | {:.2}, {:.2} |",
+            "| {f} | {auto_s:.2} | {} | {k16_s:.2} | {:.2}, {:.2} | {all_s:.2} | {} |",
             auto.components
                 .map_or("per frame".into(), |k| k.to_string()),
             1000.0 * auto_s / f as f64,
-            1000.0 * k16_s / f as f64
+            1000.0 * k16_s / f as f64,
+            all.components.map_or("per frame".into(), |k| k.to_string()),
         );
     }
     println!();

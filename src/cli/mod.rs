@@ -682,6 +682,12 @@ fn convert(args: ConvertArgs) -> Result<()> {
                     ));
                 }
             }
+            if let (Some(k), None) = (args.basis, report.basis) {
+                notes.push(format!(
+                    "--basis {k}: that many components need no fewer morph targets than one per frame ({}); wrote one per frame, which is exact",
+                    conv.mesh.frames.len().saturating_sub(1)
+                ));
+            }
             if report.compressed {
                 let basis = report.basis.map_or(String::new(), |k| {
                     format!(

@@ -59,6 +59,10 @@ const OVERSAMPLING: usize = 10;
 /// left out are still told apart.
 const POWER_ITERATIONS: usize = 2;
 
+/// Components a [`BasisChoice::Components`] of more than this sketches
+/// first; every further round doubles it, up to the number asked for.
+const COMPONENTS_FIRST: usize = 32;
+
 /// Components [`BasisChoice::Auto`] sketches first; every further round
 /// doubles it, up to [`AUTO_MAX_COMPONENTS`].
 const AUTO_FIRST_COMPONENTS: usize = 8;
@@ -262,11 +266,32 @@ pub fn choose(
             "a compact basis needs at least one component".into(),
         )),
         BasisChoice::Components(k) => {
-            let pca = Pca::new(frames, k.saturating_add(OVERSAMPLING), &mut passes)?;
+            // A sketch costs passes over the frames as wide as it is, so a
+            // K far above the motion's rank (`--basis 1000` on a rank-30
+            // take) would cost what K does: sketch a few first, and double
+            // until the sketch shows the rank or reaches K.
+            let mut wanted = k.min(COMPONENTS_FIRST);
+            let pca = loop {
+                let pca = Pca::new(frames, wanted.saturating_add(OVERSAMPLING), &mut passes)?;
+                if wanted >= k || pca.rank().is_some() {
+                    break pca;
+                }
+                wanted = wanted.saturating_mul(2).min(k);
+            };
             let k = k.min(pca.usable());
+            let basis = pca.basis(k);
+            // Never more targets than one per frame, which are exact.
+            if basis.targets() >= frames.len().saturating_sub(1) {
+                log::info!(
+                    "{k} components take {} targets, no fewer than one per frame: per-frame targets instead",
+                    basis.targets()
+                );
+                passes.finish();
+                return Ok(exact());
+            }
             let error = pca.errors(frames, k..=k, &mut passes)?[0];
             passes.finish();
-            Ok((pca.basis(k), error))
+            Ok((basis, error))
         }
         BasisChoice::Auto if frames.len() <= AUTO_PER_FRAME_LIMIT => Ok(exact()),
         BasisChoice::Auto => {
@@ -910,6 +935,45 @@ mod tests {
             })
             .collect();
         PositionFrames::from(frames)
+    }
+
+    #[test]
+    fn a_k_far_above_the_rank_gives_the_rank_and_never_more_targets_than_frames() {
+        // Rank 5 asked for 250 components: the five, exact, from a sketch
+        // that stopped at its first round (the rank shows within it).
+        let frames = random_motion(5);
+        let (basis, error) = choose(
+            &frames,
+            BasisChoice::Components(250),
+            1e-6,
+            Progress::none(),
+        )
+        .unwrap();
+        assert_eq!(basis.components, Some(5));
+        assert!(error.max < 1e-9, "{error:?}");
+        let (first, _) = choose(
+            &frames,
+            BasisChoice::Components(COMPONENTS_FIRST),
+            1e-6,
+            Progress::none(),
+        )
+        .unwrap();
+        assert_eq!(
+            basis, first,
+            "the same sketch as asking for the first round's width"
+        );
+        // Rank 160 asked for 200: 160 components would take more targets
+        // than one per frame (299), so one per frame, exact.
+        let frames = random_motion(160);
+        let (basis, error) = choose(
+            &frames,
+            BasisChoice::Components(200),
+            1e-6,
+            Progress::none(),
+        )
+        .unwrap();
+        assert_eq!(basis, MorphBasis::per_frame(300));
+        assert_eq!(error.max, 0.0);
     }
 
     #[test]
