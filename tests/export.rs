@@ -1782,27 +1782,61 @@ fn compressed_glb_decodes_to_every_frame_within_the_reported_error() {
         let (off, len) = (at(&idx_ext["byteOffset"]), at(&idx_ext["byteLength"]));
         let indices: Vec<u32> =
             meshopt::decode_index_buffer(&bin[off..off + len], at(&idx_ext["count"])).unwrap();
-        assert_eq!(
-            indices,
-            mesh.base
-                .triangles
-                .iter()
-                .flatten()
-                .copied()
-                .collect::<Vec<u32>>()
-        );
+        // The file holds the vertices in its own order (for the codecs):
+        // each of its vertices is the mesh's vertex at its place in frame 0,
+        // one to one, and its triangles are the mesh's through that match.
+        let frames = mesh.frames.to_vec().unwrap();
+        let world = |q: [f64; 3]| [0, 1, 2].map(|k| q[k] * s[k] + t[k]);
+        let original: Vec<usize> = positions
+            .iter()
+            .map(|&q| {
+                let w = world(q);
+                (0..frames[0].len())
+                    .min_by(|&a, &b| {
+                        let da =
+                            (frames[0][a] - voltrack::math::Point3::new(w[0], w[1], w[2])).norm();
+                        let db =
+                            (frames[0][b] - voltrack::math::Point3::new(w[0], w[1], w[2])).norm();
+                        da.total_cmp(&db)
+                    })
+                    .unwrap()
+            })
+            .collect();
+        let mut seen = original.clone();
+        seen.sort();
+        seen.dedup();
+        assert_eq!(seen.len(), original.len(), "{basis:?}: not one to one");
+        let sorted = |t: [usize; 3]| {
+            let mut t = t;
+            t.sort();
+            t
+        };
+        let mut ours: Vec<[usize; 3]> = indices
+            .chunks_exact(3)
+            .map(|t| sorted([0, 1, 2].map(|c| original[t[c] as usize])))
+            .collect();
+        let mut theirs: Vec<[usize; 3]> = mesh
+            .base
+            .triangles
+            .iter()
+            .map(|t| sorted(t.map(|v| v as usize)))
+            .collect();
+        ours.sort();
+        theirs.sort();
+        assert_eq!(ours, theirs, "{basis:?}: the triangles differ");
         // Every frame: base + Σ w · delta at its keyed weights, then the node transform.
         let read = Glb::read_weights(&json, &bin);
         let (mut max, mut sum, mut n) = (0.0f64, 0.0f64, 0usize);
-        for (f, frame) in mesh.frames.to_vec().unwrap().iter().enumerate() {
-            for (v, p) in frame.iter().enumerate() {
-                let mut q = positions[v];
+        for (f, frame) in frames.iter().enumerate() {
+            for (i, &v) in original.iter().enumerate() {
+                let p = frame[v];
+                let mut q = positions[i];
                 for (w, target) in read[f].iter().zip(&targets) {
                     for k in 0..3 {
-                        q[k] += *w as f64 * target[v][k];
+                        q[k] += *w as f64 * target[i][k];
                     }
                 }
-                let world = [0, 1, 2].map(|k| q[k] * s[k] + t[k]);
+                let world = world(q);
                 let e = ((world[0] - p.x).powi(2)
                     + (world[1] - p.y).powi(2)
                     + (world[2] - p.z).powi(2))

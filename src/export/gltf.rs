@@ -291,6 +291,56 @@ fn quantised_error(
     Ok((max, if n > 0 { sum / n as Real } else { 0.0 }))
 }
 
+/// The order a compressed file holds its vertices and triangles in, as
+/// gltfpack writes them: triangles ordered for the vertex cache
+/// (meshoptimizer's), then vertices in the order those triangles first use
+/// them (vertices no triangle uses last, as they were). meshoptimizer's
+/// index codec encodes each triangle against the ones just before it and its
+/// vertex codec each vertex against the one before, so both pay for
+/// locality. The order is the file's own: the vertices are the same, and
+/// the captures' positions, compared through it, unchanged.
+struct CodecOrder {
+    /// The original index of each vertex, in the file's order.
+    vertices: Vec<u32>,
+    /// The triangles in the file's order, in the file's vertex indices.
+    triangles: Vec<[u32; 3]>,
+}
+
+impl CodecOrder {
+    fn new(mesh: &TriangleMesh) -> Self {
+        let n = mesh.positions.len();
+        let flat: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+        let cached = meshopt::optimize_vertex_cache(&flat, n);
+        let mut new_index = vec![u32::MAX; n];
+        let mut vertices = Vec::with_capacity(n);
+        for &v in &cached {
+            if new_index[v as usize] == u32::MAX {
+                new_index[v as usize] = vertices.len() as u32;
+                vertices.push(v);
+            }
+        }
+        for v in 0..n {
+            if new_index[v] == u32::MAX {
+                new_index[v] = vertices.len() as u32;
+                vertices.push(v as u32);
+            }
+        }
+        let triangles = cached
+            .chunks_exact(3)
+            .map(|t| [t[0], t[1], t[2]].map(|v| new_index[v as usize]))
+            .collect();
+        CodecOrder {
+            vertices,
+            triangles,
+        }
+    }
+
+    /// Per-vertex `data` in the file's order.
+    fn apply<T: Copy>(&self, data: &[T]) -> Vec<T> {
+        self.vertices.iter().map(|&v| data[v as usize]).collect()
+    }
+}
+
 /// Where a mesh far from the origin for its size (a capture in map
 /// coordinates, [`Aabb::too_far_for_f32`](crate::model::mesh::Aabb::too_far_for_f32))
 /// is written from: the centre of its bounds, as f32 (what the node's
@@ -1218,6 +1268,12 @@ fn glb_with(
         .compress
         .then(|| Quantizer::new(&mesh.positions, animation))
         .transpose()?;
+    let order = scene.compress.then(|| CodecOrder::new(mesh));
+    // Every per-vertex array of the file in the order it is written.
+    let ordered = |data: Vec<[f32; 3]>| match &order {
+        Some(o) => o.apply(&data),
+        None => data,
+    };
     let origin = if scene.compress {
         None
     } else {
@@ -1236,21 +1292,23 @@ fn glb_with(
         })
         .collect();
     let mut attributes = BTreeMap::new();
-    let position_accessor = match &quantizer {
-        Some(q) => b.short3(
-            &mesh
-                .positions
-                .iter()
-                .map(|p| q.position(p))
-                .collect::<Vec<_>>(),
+    let position_accessor = match (&quantizer, &order) {
+        (Some(q), Some(o)) => b.short3(
+            &o.apply(
+                &mesh
+                    .positions
+                    .iter()
+                    .map(|p| q.position(p))
+                    .collect::<Vec<_>>(),
+            ),
             true,
         )?,
-        None => b.vec3(&positions, true, array),
+        _ => b.vec3(&positions, true, array),
     };
     attributes.insert(Valid(json::mesh::Semantic::Positions), position_accessor);
     if let Some(n) = &mesh.normals {
         let acc = if scene.compress {
-            b.byte3(n)?
+            b.byte3(&ordered(n.clone()))?
         } else {
             b.vec3(n, false, array)
         };
@@ -1258,6 +1316,10 @@ fn glb_with(
     }
     for (set, uv) in [(0, mesh.uvs.as_deref()), (1, extras.uv1)] {
         let Some(uv) = uv else { continue };
+        let uv = match &order {
+            Some(o) => std::borrow::Cow::Owned(o.apply(uv)),
+            None => std::borrow::Cow::Borrowed(uv),
+        };
         let bytes = f32_bytes(uv.iter().flatten().copied());
         let view = b.data_view(&bytes, 8, MeshoptMode::Attributes, array)?;
         let acc = b.accessor_in(
@@ -1270,8 +1332,8 @@ fn glb_with(
         );
         attributes.insert(Valid(json::mesh::Semantic::TexCoords(set)), acc);
     }
-    let idx: Vec<u8> = mesh
-        .triangles
+    let triangles = order.as_ref().map_or(&mesh.triangles, |o| &o.triangles);
+    let idx: Vec<u8> = triangles
         .iter()
         .flatten()
         .flat_map(|i| i.to_le_bytes())
@@ -1321,18 +1383,17 @@ fn glb_with(
             let target = match &quantizer {
                 Some(q) => {
                     let normals = if anim.has_normals() {
-                        Some(b.byte3(&anim.normals(k)?)?)
+                        Some(b.byte3(&ordered(anim.normals(k)?.into_owned()))?)
                     } else {
                         None
                     };
-                    let positions = b.short3(
-                        &anim
-                            .positions(k)?
-                            .iter()
-                            .map(|v| q.delta(v))
-                            .collect::<Vec<_>>(),
-                        true,
-                    )?;
+                    let deltas: Vec<[i16; 3]> =
+                        anim.positions(k)?.iter().map(|v| q.delta(v)).collect();
+                    let deltas = match &order {
+                        Some(o) => o.apply(&deltas),
+                        None => deltas,
+                    };
+                    let positions = b.short3(&deltas, true)?;
                     json::mesh::MorphTarget {
                         positions: Some(positions),
                         normals,
