@@ -319,9 +319,9 @@ impl CodecOrder {
                 vertices.push(v);
             }
         }
-        for v in 0..n {
-            if new_index[v] == u32::MAX {
-                new_index[v] = vertices.len() as u32;
+        for (v, index) in new_index.iter_mut().enumerate() {
+            if *index == u32::MAX {
+                *index = vertices.len() as u32;
                 vertices.push(v as u32);
             }
         }
