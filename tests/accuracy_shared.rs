@@ -34,18 +34,22 @@ use voltrack::math::{Point3, Real};
 use voltrack::params::{ConformParams, DeformParams, RefineParams, TrackParams};
 use voltrack::voxel::VoxelParams;
 
-/// `../shared/data` beside the clone, or None (with a note) when it is missing.
+/// `../shared/data` beside the clone. Its absence fails the test, which
+/// would otherwise pass having checked nothing, unless
+/// `VOLTRACK_SKIP_SHARED=1` says so on purpose (a clone without the data):
+/// then None, with a note.
 fn shared_data(test: &str) -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
     if dir.is_dir() {
-        Some(dir)
-    } else {
-        println!(
-            "{test}: skipped, {} not found (CI has it beside the clone)",
-            dir.display()
-        );
-        None
+        return Some(dir);
     }
+    assert!(
+        std::env::var("VOLTRACK_SKIP_SHARED").is_ok_and(|v| v == "1"),
+        "{test}: {} not found (CI has it beside the clone); set VOLTRACK_SKIP_SHARED=1 to skip these tests",
+        dir.display()
+    );
+    eprintln!("{test}: skipped (VOLTRACK_SKIP_SHARED=1)");
+    None
 }
 
 /// Reading `gt.npz`: a zip archive of `.npy` files, stored or deflated.
