@@ -109,8 +109,8 @@ pub struct TrackParams {
     /// Why: near the end of a run its updates have shrunk everywhere but
     /// in a few places where centers creep along for dozens of iterations
     /// more, and the screening compares regions, which those few centers
-    /// barely change; waiting for the last of them cost about a third of
-    /// the dropped runs' iterations (docs/measurements.md). 0 waits for
+    /// barely change; waiting for the last of them costs many of the
+    /// dropped runs' iterations (figures in docs/measurements.md). 0 waits for
     /// every center. Default 0.01; in [0, 1).
     pub screening_unsettled: Real,
     /// With several guesses, their runs up to the screening (and the
@@ -118,8 +118,8 @@ pub struct TrackParams {
     /// each block as a whole by its voxels' centroid, instead of single
     /// voxels; the kept run goes on to `threshold` on the voxels. A cell of
     /// blocks has its voxels' exact count and centroid, and a block edge of
-    /// 2 leaves about a sixth as many elements to assign: the tracking takes
-    /// a little over half the time. Not the default: the screened runs stop
+    /// 2 leaves far fewer elements to assign, so the tracking is faster
+    /// (docs/measurements.md). Not the default: the screened runs stop
     /// where blocks, not voxels, balance, and the correspondence comes out
     /// a little worse on every shared sequence, the galloping trotter's
     /// legs clearly worse (docs/measurements.md). For long captures where
@@ -128,8 +128,8 @@ pub struct TrackParams {
     /// ω of the tracking iterations: each step moves a center ω times the
     /// way to the paper's update (p + β x̄) / (1 + β); convergence is judged
     /// on that update's length whatever ω, so the iterations stop where the
-    /// paper's would, in fewer steps above 1. Not the default: ω = 1.5 took
-    /// a third fewer iterations but tracked every shared sequence a little
+    /// paper's would, in fewer steps above 1. Not the default: above 1 it
+    /// took fewer iterations but tracked every shared sequence a little
     /// worse and the galloping trotter's legs clearly worse
     /// (docs/measurements.md). Default 1 (the paper's iteration); in (0, 2).
     pub tracking_over_relaxation: Real,

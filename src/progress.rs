@@ -1,7 +1,10 @@
 //! Progress reporting: the library never prints; it calls back, and the CLI
 //! turns the calls into progress bars (or nothing when piped).
 
-/// A pipeline stage, for progress reports and timings.
+/// A phase of a conversion, for progress reports and timings: the five
+/// stages of the crate root's list, with reading the frames (`Read`) and the
+/// deformation's conform step (`Conform`) and measuring the result (`Fit`)
+/// reported on their own.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Stage {

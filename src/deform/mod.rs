@@ -1,4 +1,4 @@
-//! Stage 5: the first-frame mesh deformed by the center trajectories into one
+//! Stage 4: the first-frame mesh deformed by the center trajectories into one
 //! mesh with one connectivity for all frames (method.md §10).
 //!
 //! Every frame-0 vertex binds to its nearest centers, but only to those

@@ -1,4 +1,4 @@
-//! Stage 6: writing results (glTF, OBJ, PLY, binvox, EXR, vertex-animation
+//! Stage 5: writing results (glTF, OBJ, PLY, binvox, EXR, vertex-animation
 //! textures). Every writer goes through [`crate::files::write_atomic`] (or
 //! [`crate::files::write_atomic_all`] for files that belong together), so a
 //! failure never leaves a half-written file behind.

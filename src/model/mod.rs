@@ -1,6 +1,9 @@
 //! The data every stage shares: triangle meshes, the common voxel grid and a
 //! frame's occupancy, center trajectories and rigid motions, and the frames
-//! of a sequence as a [`FrameSource`]. Nothing here reads or writes a file.
+//! of a sequence as a [`FrameSource`]. Nothing here reads an input or
+//! writes an output: [`positions`] may keep a long sequence's frames in a
+//! temporary file of its own, and [`mesh`] looks at a texture's first bytes
+//! to tell whether glTF can carry it.
 
 pub mod frames;
 pub mod grid;

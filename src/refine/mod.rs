@@ -1,4 +1,4 @@
-//! Stage 4: removing irregular centers in batches, each followed by the
+//! Stage 3: removing irregular centers in batches, each followed by the
 //! temporally global optimisation (method.md §6-§7).
 
 pub mod affinity;
