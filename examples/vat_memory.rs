@@ -4,9 +4,9 @@
 //! it costs: `/usr/bin/time -v cargo run --release --example vat_memory --
 //! 1044 /tmp/vat/anim.exr` (frames, output; the .glb and .json go beside it).
 
-use voltrack::deform::DynamicMesh;
 use voltrack::export::vat::{write_vat, VatOptions};
 use voltrack::math::{Point3, Real, Vector3};
+use voltrack::model::DynamicMesh;
 use voltrack::model::PositionFrames;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -90,6 +90,6 @@ pub mod track;
 pub mod voxel;
 
 pub use error::{Error, Result};
-pub use model::{Aabb, TriangleMesh};
+pub use model::{Aabb, DynamicMesh, TriangleMesh};
 pub use model::{Frame, FrameSource};
 pub use progress::{Progress, Stage};

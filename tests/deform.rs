@@ -1,11 +1,11 @@
 //! Deforming the first-frame mesh by center trajectories.
 
 use voltrack::deform::{
-    bind, conform, conform_frame, deform, smooth_bindings, Binding, DualQuaternion, DynamicMesh,
+    bind, conform, conform_frame, deform, smooth_bindings, Binding, DualQuaternion,
 };
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
 use voltrack::model::positions::PositionFrames;
-use voltrack::model::{Rigid, Trajectories};
+use voltrack::model::{DynamicMesh, Rigid, Trajectories};
 use voltrack::params::{Blending, ConformParams, DeformParams};
 use voltrack::refine::SparseAffinity;
 use voltrack::spatial::surface::SurfaceIndex;

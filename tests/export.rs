@@ -4,11 +4,11 @@
 
 use gltf::animation::Interpolation;
 use std::path::{Path, PathBuf};
-use voltrack::deform::DynamicMesh;
 use voltrack::export::gltf::{write_dynamic_glb, BasisChoice, GltfExportOptions, GltfExportReport};
 use voltrack::export::vat::{write_vat, VatOptions};
 use voltrack::fixtures;
 use voltrack::math::{Point3, Real, Rotation3, Vector3};
+use voltrack::model::DynamicMesh;
 use voltrack::model::PositionFrames;
 use voltrack::Progress;
 

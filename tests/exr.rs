@@ -4,11 +4,11 @@
 //! file, and no temporary file left behind.
 
 use std::path::Path;
-use voltrack::deform::DynamicMesh;
 use voltrack::export::exr::write_trajectories_exr;
 use voltrack::export::vat::{write_vat, VatOptions};
 use voltrack::io::exr::read_trajectories_exr;
 use voltrack::math::{Point3, Real};
+use voltrack::model::DynamicMesh;
 use voltrack::model::Trajectories;
 use voltrack::model::TrajectoryMetadata;
 

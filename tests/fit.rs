@@ -2,12 +2,12 @@
 //! the HTML document built from a whole conversion of the bending bar.
 
 use std::path::{Path, PathBuf};
-use voltrack::deform::DynamicMesh;
 use voltrack::fixtures::{bending_bar_motion, BENDING_BAR_FRAMES};
 use voltrack::io::FrameFiles;
 use voltrack::math::Real;
 use voltrack::metrics::fit::FarDistances;
 use voltrack::metrics::{fit_to_input, DistanceSummary};
+use voltrack::model::DynamicMesh;
 use voltrack::{Aabb, Error, Progress};
 
 fn fixture_frames() -> Vec<PathBuf> {

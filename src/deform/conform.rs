@@ -55,11 +55,11 @@
 //! first round on, times its own frame's weight. The bend then gathers at
 //! the edges that bend through the take.
 
-use super::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Matrix3, Point3, Real, Rotation3, UnitQuaternion, Vector3};
 use crate::model::mesh::{Aabb, TriangleMesh};
 use crate::model::rotation_from_covariance;
+use crate::model::DynamicMesh;
 use crate::model::FrameSource;
 use crate::params::ConformParams;
 use crate::progress::{Counter, Progress, Stage};

@@ -17,22 +17,12 @@ pub use conform::{conform, conform_frame};
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
 use crate::model::mesh::TriangleMesh;
-use crate::model::{PositionFrames, Rigid, Trajectories};
+use crate::model::{DynamicMesh, PositionFrames, Rigid, Trajectories};
 use crate::params::{Blending, DeformParams};
 use crate::refine::SparseAffinity;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 use std::num::NonZeroUsize;
-
-/// One connectivity, animated: `base` is the first frame as loaded (vertex
-/// order, UVs, normals, texture), `frames.get(f)?[v]` vertex v's position in
-/// frame f (frame 0 equals `base.positions`). A long sequence's frames are
-/// kept in a temporary file ([`DeformParams::memory`]).
-#[derive(Debug)]
-pub struct DynamicMesh {
-    pub base: TriangleMesh,
-    pub frames: PositionFrames,
-}
 
 /// A vertex's centers and their normalised weights.
 #[derive(Clone, Debug, PartialEq)]

@@ -15,10 +15,10 @@
 //! per frame (positions, normals) goes through the same
 //! `MorphBasis::combine`, and frame 0 is always the base mesh.
 
-use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Real, Vector3};
 use crate::model::rng::SplitMix64;
+use crate::model::DynamicMesh;
 use crate::model::PositionFrames;
 use crate::progress::{Progress, Stage};
 use nalgebra::DMatrix;

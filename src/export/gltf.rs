@@ -8,10 +8,10 @@
 pub use super::basis::BasisChoice;
 use super::basis::{self, MorphBasis};
 use super::normals::FrameNormals;
-use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real, Vector3};
 use crate::model::mesh::TriangleMesh;
+use crate::model::DynamicMesh;
 use crate::model::PositionFrames;
 use crate::progress::{Counter, Progress, Stage};
 use gltf_json as json;

@@ -1,9 +1,9 @@
 //! Wavefront OBJ writing: one mesh, or every frame of a dynamic mesh.
 
-use crate::deform::DynamicMesh;
 use crate::error::Result;
 use crate::math::{Point3, Vector3};
 use crate::model::mesh::TriangleMesh;
+use crate::model::DynamicMesh;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

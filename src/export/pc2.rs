@@ -4,10 +4,10 @@
 use super::basis::check_frames;
 use super::normals::FrameNormals;
 use super::obj::write_named_obj;
-use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::files::write_atomic_all;
 use crate::model::mesh::TriangleMesh;
+use crate::model::DynamicMesh;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::Path;

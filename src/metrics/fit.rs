@@ -19,9 +19,9 @@
 //!   error and f32 rounding in the GLB are not included;
 //! - figures are in percent of the diagonal, evaluate.py prints fractions.
 
-use crate::deform::DynamicMesh;
 use crate::error::{Error, Result};
 use crate::math::{Point3, Real};
+use crate::model::DynamicMesh;
 use crate::model::{FrameSource, TriangleMesh};
 use crate::progress::{Progress, Stage};
 use crate::spatial::surface::SurfaceIndex;

@@ -5,6 +5,7 @@
 //! temporary file of its own, and [`mesh`] looks at a texture's first bytes
 //! to tell whether glTF can carry it.
 
+pub mod dynamic;
 pub mod frames;
 pub mod grid;
 pub mod mesh;
@@ -14,6 +15,7 @@ pub mod rigid;
 pub(crate) mod rng;
 pub mod trajectories;
 
+pub use dynamic::DynamicMesh;
 pub use frames::{Frame, FrameSource};
 pub use grid::{GridSpec, Occupancy, OccupancyRuns, GRID_MARGIN, MAX_RESOLUTION};
 pub use mesh::{Aabb, TriangleMesh};

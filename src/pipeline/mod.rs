@@ -1,12 +1,13 @@
 //! The stages strung together, as the commands use them: each function takes
 //! its inputs and options and returns a result the CLI prints or writes.
 
-use crate::deform::{conform, deform, DynamicMesh};
+use crate::deform::{conform, deform};
 use crate::error::{Error, Result, Saved};
 use crate::math::Real;
 use crate::metrics::{fit_outliers, fit_to_input, Coverage, FitOutliers, SequenceFit};
 use crate::model::mesh::TriangleMesh;
 use crate::model::metadata::GridRecord;
+use crate::model::DynamicMesh;
 use crate::model::FrameSource;
 use crate::model::{GridSpec, Trajectories, TrajectoryMetadata};
 use crate::params::{ConformParams, CoverageParams, DeformParams, RefineParams, TrackParams};
