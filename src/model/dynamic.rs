@@ -6,7 +6,7 @@ use super::{PositionFrames, TriangleMesh};
 /// order, UVs, normals, texture), `frames.get(f)?[v]` vertex v's position in
 /// frame f (frame 0 equals `base.positions`). A long sequence's frames are
 /// kept in a temporary file ([`crate::params::DeformParams::memory`]). Made
-/// by [`crate::deform::deform`], read by the exporters and the metrics.
+/// by the deform stage, read by the exporters and the metrics.
 #[derive(Debug)]
 pub struct DynamicMesh {
     pub base: TriangleMesh,
