@@ -1264,16 +1264,17 @@ fn glb_with(
     b.root.asset.generator = Some(format!("voltrack {}", env!("CARGO_PKG_VERSION")));
     b.root.asset.extras = extras.asset;
     let array = Some(json::buffer::Target::ArrayBuffer);
-    let quantizer = scene
+    // A compressed file's quantisation and the order of its vertices: every
+    // per-vertex array goes through both.
+    let packing = scene
         .compress
-        .then(|| Quantizer::new(&mesh.positions, animation))
+        .then(|| {
+            Ok((
+                Quantizer::new(&mesh.positions, animation)?,
+                CodecOrder::new(mesh),
+            ))
+        })
         .transpose()?;
-    let order = scene.compress.then(|| CodecOrder::new(mesh));
-    // Every per-vertex array of the file in the order it is written.
-    let ordered = |data: Vec<[f32; 3]>| match &order {
-        Some(o) => o.apply(&data),
-        None => data,
-    };
     let origin = if scene.compress {
         None
     } else {
@@ -1292,8 +1293,8 @@ fn glb_with(
         })
         .collect();
     let mut attributes = BTreeMap::new();
-    let position_accessor = match (&quantizer, &order) {
-        (Some(q), Some(o)) => b.short3(
+    let position_accessor = match &packing {
+        Some((q, o)) => b.short3(
             &o.apply(
                 &mesh
                     .positions
@@ -1303,21 +1304,20 @@ fn glb_with(
             ),
             true,
         )?,
-        _ => b.vec3(&positions, true, array),
+        None => b.vec3(&positions, true, array),
     };
     attributes.insert(Valid(json::mesh::Semantic::Positions), position_accessor);
     if let Some(n) = &mesh.normals {
-        let acc = if scene.compress {
-            b.byte3(&ordered(n.clone()))?
-        } else {
-            b.vec3(n, false, array)
+        let acc = match &packing {
+            Some((_, o)) => b.byte3(&o.apply(n))?,
+            None => b.vec3(n, false, array),
         };
         attributes.insert(Valid(json::mesh::Semantic::Normals), acc);
     }
     for (set, uv) in [(0, mesh.uvs.as_deref()), (1, extras.uv1)] {
         let Some(uv) = uv else { continue };
-        let uv = match &order {
-            Some(o) => std::borrow::Cow::Owned(o.apply(uv)),
+        let uv = match &packing {
+            Some((_, o)) => std::borrow::Cow::Owned(o.apply(uv)),
             None => std::borrow::Cow::Borrowed(uv),
         };
         let bytes = f32_bytes(uv.iter().flatten().copied());
@@ -1332,7 +1332,9 @@ fn glb_with(
         );
         attributes.insert(Valid(json::mesh::Semantic::TexCoords(set)), acc);
     }
-    let triangles = order.as_ref().map_or(&mesh.triangles, |o| &o.triangles);
+    let triangles = packing
+        .as_ref()
+        .map_or(&mesh.triangles, |(_, o)| &o.triangles);
     let idx: Vec<u8> = triangles
         .iter()
         .flatten()
@@ -1362,7 +1364,7 @@ fn glb_with(
     if let Some(anim) = animation {
         let mut t = Vec::with_capacity(anim.targets());
         // POSITION needs its bounds in the JSON, before the deltas are written.
-        let bounds: Vec<_> = match quantizer {
+        let bounds: Vec<_> = match packing {
             Some(_) => Vec::new(),
             None => {
                 let counter = Counter::new(progress, Stage::Export, anim.targets());
@@ -1380,20 +1382,16 @@ fn glb_with(
             }
         };
         for k in 0..anim.targets() {
-            let target = match &quantizer {
-                Some(q) => {
+            let target = match &packing {
+                Some((q, o)) => {
                     let normals = if anim.has_normals() {
-                        Some(b.byte3(&ordered(anim.normals(k)?.into_owned()))?)
+                        Some(b.byte3(&o.apply(&anim.normals(k)?))?)
                     } else {
                         None
                     };
                     let deltas: Vec<[i16; 3]> =
                         anim.positions(k)?.iter().map(|v| q.delta(v)).collect();
-                    let deltas = match &order {
-                        Some(o) => o.apply(&deltas),
-                        None => deltas,
-                    };
-                    let positions = b.short3(&deltas, true)?;
+                    let positions = b.short3(&o.apply(&deltas), true)?;
                     json::mesh::MorphTarget {
                         positions: Some(positions),
                         normals,
@@ -1439,8 +1437,8 @@ fn glb_with(
     let node = b.root.push(json::Node {
         mesh: Some(mesh_index),
         name: Some(scene.name.clone()),
-        translation: quantizer.map(|q| q.center).or(origin),
-        scale: quantizer.map(|q| [q.scale; 3]),
+        translation: packing.as_ref().map(|(q, _)| q.center).or(origin),
+        scale: packing.as_ref().map(|(q, _)| [q.scale; 3]),
         ..Default::default()
     });
     let scene_index = b.root.push(json::Scene {

@@ -394,7 +394,7 @@ fn load_uri(path: &Path, uri: &str) -> Result<Vec<u8>> {
     let file = path.parent().unwrap_or(Path::new("")).join(&relative);
     let meta = std::fs::metadata(&file).map_err(|e| bad(format!("{}: {e}", file.display())))?;
     let canonical = |p: &Path| std::fs::canonicalize(p).ok();
-    if canonical(&file).is_some() && canonical(&file) == canonical(path) {
+    if canonical(&file).is_some_and(|f| Some(f) == canonical(path)) {
         return Err(bad("names the glTF file itself".into()));
     }
     // Only a regular file: a URI naming /dev/zero or a FIFO must not hang.

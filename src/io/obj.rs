@@ -305,10 +305,9 @@ fn normalise<'a>(path: &Path, bytes: &'a [u8]) -> std::borrow::Cow<'a, [u8]> {
             out.push(b' ');
             joined += 1;
         } else {
-            for _ in 0..=joined {
-                if !last {
-                    out.push(b'\n');
-                }
+            // This line's end, and one empty line for each joined into it.
+            if !last {
+                out.extend(std::iter::repeat_n(b'\n', joined + 1));
             }
             joined = 0;
         }
