@@ -116,7 +116,19 @@ pub type Fill<'a> = Box<dyn FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Re
 /// cache and its mesh) as one: each through its temporary file, renamed into
 /// place only once all are complete. On failure none is left, not even one
 /// already renamed.
+///
+/// Between the renames a journal beside the first file lists them
+/// ([`SET_JOURNAL`]): a run killed there leaves its complete temporaries and
+/// the journal, and the next write of a set into the same folder first
+/// renames the rest into place ([`finish_interrupted_sets`]), so the set on
+/// disk is the old one or the new one, not a mix, once voltrack has run
+/// there again. Several renames cannot be one step on a POSIX file system;
+/// the journal is how databases make them one.
 pub fn write_atomic_all(files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
+    let mut dirs: Vec<PathBuf> = files.iter().map(|(p, _)| folder_of(p)).collect();
+    dirs.sort();
+    dirs.dedup();
+    dirs.iter().for_each(|d| finish_interrupted_sets(d));
     let mut written: Vec<(PathBuf, &Path)> = Vec::with_capacity(files.len());
     let discard = |temps: &[(PathBuf, &Path)]| {
         temps
@@ -148,14 +160,38 @@ pub fn write_atomic_all(files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
             return Err(e);
         }
     }
+    let pairs: Vec<(PathBuf, PathBuf)> = written
+        .iter()
+        .zip(&targets)
+        .map(|((tmp, _), target)| (tmp.clone(), target.clone()))
+        .collect();
+    let journal = match (pairs.len() > 1).then(|| write_journal(&pairs)) {
+        Some(Err(e)) => {
+            discard(&written);
+            return Err(e);
+        }
+        Some(Ok(journal)) => Some(journal),
+        None => None,
+    };
     for (k, ((tmp, path), target)) in written.iter().zip(&targets).enumerate() {
+        #[cfg(test)]
+        if k == 1 && tests::KILL_BETWEEN_RENAMES.with(|c| c.get()) {
+            // What a kill here leaves: the journal, one file renamed.
+            return Err(Error::write(path, "killed between the renames (test)"));
+        }
         if let Err(e) = std::fs::rename(tmp, target) {
             discard(&written[k..]);
             targets[..k]
                 .iter()
                 .for_each(|done| drop(std::fs::remove_file(done)));
+            if let Some(j) = &journal {
+                let _ = std::fs::remove_file(j);
+            }
             return Err(Error::write(path, e));
         }
+    }
+    if let Some(j) = &journal {
+        let _ = std::fs::remove_file(j);
     }
     targets.iter().for_each(|t| remove_stale(t));
     // Devices last: what went to them cannot be taken back.
@@ -163,6 +199,129 @@ pub fn write_atomic_all(files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
         write_through(&device, fill).map_err(|e| Error::write(path, e))?;
     }
     Ok(())
+}
+
+/// The journal [`write_atomic_all`] keeps while it renames a set into
+/// place: `.NAME.PID.set` beside the set's first file, holding this line and
+/// then each temporary and its target, paths separated by NUL bytes.
+pub const SET_JOURNAL: &str = "voltrack set of files being renamed into place";
+
+/// The folder `path` is in ("." for a bare name).
+fn folder_of(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// Writes the journal of `pairs` (temporary, target; at least one) and
+/// returns its path.
+fn write_journal(pairs: &[(PathBuf, PathBuf)]) -> Result<PathBuf> {
+    let first = &pairs[0].1;
+    let (dir, name) = check_writable(first)?;
+    let journal = dir.join(format!(
+        ".{}.{}.set",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let tmp = journal.with_extension("set.partial");
+    let filled = fill_temporary(&tmp, |w| {
+        w.write_all(SET_JOURNAL.as_bytes())?;
+        w.write_all(b"\n")?;
+        for (a, b) in pairs {
+            for p in [a, b] {
+                w.write_all(&path_bytes(p))?;
+                w.write_all(b"\0")?;
+            }
+        }
+        Ok(())
+    })
+    .and_then(|()| std::fs::rename(&tmp, &journal));
+    if let Err(e) = filled {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(Error::write(first, e));
+    }
+    Ok(journal)
+}
+
+#[cfg(unix)]
+fn path_bytes(p: &Path) -> Vec<u8> {
+    use std::os::unix::ffi::OsStrExt;
+    p.as_os_str().as_bytes().to_vec()
+}
+
+#[cfg(not(unix))]
+fn path_bytes(p: &Path) -> Vec<u8> {
+    p.to_string_lossy().into_owned().into_bytes()
+}
+
+#[cfg(unix)]
+fn bytes_path(b: &[u8]) -> PathBuf {
+    use std::os::unix::ffi::OsStrExt;
+    PathBuf::from(std::ffi::OsStr::from_bytes(b))
+}
+
+#[cfg(not(unix))]
+fn bytes_path(b: &[u8]) -> PathBuf {
+    PathBuf::from(String::from_utf8_lossy(b).into_owned())
+}
+
+/// Completes the sets of files that runs killed between their renames left
+/// in `dir` ([`write_atomic_all`]'s journals whose process is gone): the
+/// temporaries still there are renamed into place, then the journal is
+/// removed. A journal of a process still running is left alone.
+pub(crate) fn finish_interrupted_sets(dir: &Path) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file = entry.file_name().to_string_lossy().into_owned();
+        let Some(pid) = file
+            .strip_prefix('.')
+            .and_then(|f| f.strip_suffix(".set"))
+            .and_then(|f| f.rsplit_once('.'))
+            .and_then(|(_, pid)| pid.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if pid == std::process::id() || process_alive(pid) {
+            continue;
+        }
+        let journal = entry.path();
+        let Ok(text) = std::fs::read(&journal) else {
+            continue;
+        };
+        let Some(body) = text
+            .strip_prefix(SET_JOURNAL.as_bytes())
+            .and_then(|b| b.strip_prefix(b"\n"))
+        else {
+            continue;
+        };
+        let paths: Vec<PathBuf> = body
+            .split(|&b| b == 0)
+            .filter(|p| !p.is_empty())
+            .map(bytes_path)
+            .collect();
+        for pair in paths.chunks_exact(2) {
+            let (tmp, target) = (&pair[0], &pair[1]);
+            // Only voltrack's own temporaries are moved, never another file
+            // a changed journal might name.
+            let ours = tmp.file_name().is_some_and(|n| {
+                let n = n.to_string_lossy();
+                n.starts_with('.') && n.ends_with(".partial")
+            });
+            if ours && std::fs::symlink_metadata(tmp).is_ok_and(|m| m.is_file()) {
+                match std::fs::rename(tmp, target) {
+                    Ok(()) => log::info!(
+                        "completed {}, which an interrupted run left half renamed into place",
+                        target.display()
+                    ),
+                    Err(e) => log::warn!("could not complete {}: {e}", target.display()),
+                }
+            }
+        }
+        let _ = std::fs::remove_file(&journal);
+    }
 }
 
 /// Checks, before any work, that `path` names a file in an existing
@@ -291,8 +450,10 @@ fn remove_stale(target: &Path) {
             continue;
         };
         let Some(Ok(pid)) = rest
-            .strip_suffix(".partial")
+            .strip_suffix(".set.partial")
+            .or_else(|| rest.strip_suffix(".partial"))
             .or_else(|| rest.strip_suffix(".old"))
+            .or_else(|| rest.strip_suffix(".set"))
             .map(str::parse::<u32>)
         else {
             continue;
@@ -420,9 +581,11 @@ pub(crate) fn foreign_entry(dir: &Path) -> Option<PathBuf> {
         .map(|(_, path)| path)
 }
 
-/// voltrack's temporaries: `.NAME.PID.partial` files and folders, probes.
+/// voltrack's temporaries: `.NAME.PID.partial` files and folders, the
+/// journals of sets being renamed (`.NAME.PID.set`), probes.
 fn is_temporary(name: &str) -> bool {
-    (name.starts_with('.') && name.ends_with(".partial")) || name.starts_with(".voltrack-probe.")
+    (name.starts_with('.') && (name.ends_with(".partial") || name.ends_with(".set")))
+        || name.starts_with(".voltrack-probe.")
 }
 
 /// Whether the file at `path` starts with `mark`.
@@ -474,4 +637,127 @@ where
     fill(&mut w)?;
     w.flush()?;
     w.get_ref().sync_all()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::cell::Cell;
+
+    thread_local! {
+        /// Makes [`write_atomic_all`] stop after its first rename, as a kill
+        /// there would.
+        pub(super) static KILL_BETWEEN_RENAMES: Cell<bool> = const { Cell::new(false) };
+    }
+
+    fn fill(text: &'static str) -> Fill<'static> {
+        Box::new(move |w| w.write_all(text.as_bytes()))
+    }
+
+    fn folder(name: &str) -> PathBuf {
+        let dir =
+            std::env::temp_dir().join(format!("voltrack-files-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    /// Renames what a run of process `pid` left to look like that process's.
+    fn as_if_from(dir: &Path, pid: u32) {
+        let me = format!(".{}.", std::process::id());
+        for e in std::fs::read_dir(dir).unwrap().flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            if name.contains(&me) {
+                let renamed = name.replace(&me, &format!(".{pid}."));
+                std::fs::rename(e.path(), dir.join(renamed)).unwrap();
+            }
+        }
+        // The journal names the temporaries by path: rewrite it the same way.
+        for e in std::fs::read_dir(dir).unwrap().flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            if name.ends_with(".set") {
+                let text = std::fs::read(e.path()).unwrap();
+                let fixed = String::from_utf8(text)
+                    .unwrap()
+                    .replace(&me, &format!(".{pid}."));
+                std::fs::write(e.path(), fixed).unwrap();
+            }
+        }
+    }
+
+    /// A process id that no process has now.
+    fn gone_pid() -> u32 {
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        child.wait().unwrap();
+        pid
+    }
+
+    fn names(dir: &Path) -> Vec<String> {
+        let mut n: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect();
+        n.sort();
+        n
+    }
+
+    #[test]
+    fn a_set_is_written_whole_and_leaves_no_journal() {
+        let dir = folder("whole");
+        let (a, b) = (dir.join("x.pc2"), dir.join("x.obj"));
+        write_atomic_all(vec![(&a, fill("new pc2")), (&b, fill("new obj"))]).unwrap();
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "new pc2");
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), "new obj");
+        assert_eq!(names(&dir), ["x.obj", "x.pc2"]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_set_killed_between_its_renames_is_completed_by_the_next_write() {
+        #[cfg(target_os = "linux")]
+        {
+            let dir = folder("killed");
+            let (a, b) = (dir.join("x.pc2"), dir.join("x.obj"));
+            std::fs::write(&a, "old pc2").unwrap();
+            std::fs::write(&b, "old obj").unwrap();
+            KILL_BETWEEN_RENAMES.with(|c| c.set(true));
+            let killed = write_atomic_all(vec![(&a, fill("new pc2")), (&b, fill("new obj"))]);
+            KILL_BETWEEN_RENAMES.with(|c| c.set(false));
+            assert!(killed.is_err());
+            // Half old, half new, as a kill leaves it; the journal says what is left.
+            assert_eq!(std::fs::read_to_string(&a).unwrap(), "new pc2");
+            assert_eq!(std::fs::read_to_string(&b).unwrap(), "old obj");
+            as_if_from(&dir, gone_pid());
+            // Any later set written there (here another take's) completes it first.
+            let (c, d) = (dir.join("y.pc2"), dir.join("y.obj"));
+            write_atomic_all(vec![(&c, fill("y pc2")), (&d, fill("y obj"))]).unwrap();
+            assert_eq!(std::fs::read_to_string(&a).unwrap(), "new pc2");
+            assert_eq!(std::fs::read_to_string(&b).unwrap(), "new obj");
+            assert_eq!(names(&dir), ["x.obj", "x.pc2", "y.obj", "y.pc2"]);
+            std::fs::remove_dir_all(&dir).unwrap();
+        }
+    }
+
+    #[test]
+    fn a_journal_of_a_running_process_or_naming_other_files_moves_nothing() {
+        let dir = folder("journal");
+        let (a, b) = (dir.join("x.pc2"), dir.join("x.obj"));
+        std::fs::write(&a, "user's").unwrap();
+        let pairs = vec![(b.clone(), a.clone())];
+        let journal = write_journal(&pairs).unwrap();
+        // This process is running: left alone.
+        finish_interrupted_sets(&dir);
+        assert!(journal.exists());
+        // A journal of a gone process naming a file that is not a temporary of
+        // voltrack's: that file is not moved, the journal goes.
+        std::fs::write(&b, "other").unwrap();
+        as_if_from(&dir, gone_pid());
+        finish_interrupted_sets(&dir);
+        assert_eq!(std::fs::read_to_string(&a).unwrap(), "user's");
+        assert_eq!(std::fs::read_to_string(&b).unwrap(), "other");
+        assert_eq!(names(&dir), ["x.obj", "x.pc2"]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
