@@ -302,19 +302,33 @@ fn the_memory_estimate_is_not_below_what_a_run_holds() {
     let meshes: Vec<_> = (0..3).map(voltrack::fixtures::bending_bar).collect();
     let grid = voltrack::model::GridSpec::for_bounds(&bar_bounds(), 64).unwrap();
     let refs: Vec<_> = meshes.iter().collect();
-    let estimate = voltrack::voxel::MemoryEstimate::of(&refs, &grid, 1).total(f64::INFINITY);
-    let occupied: usize = meshes
+    let full = voltrack::voxel::MemoryEstimate::of(&refs, &grid, 1);
+    // The sequence's voxels and the kept assignments.
+    let estimate = full.bytes + full.kept_cells;
+    let occupied: Vec<usize> = meshes
         .iter()
         .map(|m| voltrack::voxel::voxelize(m, &grid).len())
-        .sum();
+        .collect();
+    let all: usize = occupied.iter().sum();
     assert!(
-        estimate >= 16.0 * occupied as f64,
-        "estimate {estimate} for {occupied} voxels"
+        estimate >= 16.0 * all as f64,
+        "estimate {estimate} for {all} voxels"
     );
     assert!(
-        estimate <= 64.0 * occupied as f64 + 1e6,
-        "estimate {estimate} for {occupied} voxels"
+        estimate <= 64.0 * all as f64 + 1e6,
+        "estimate {estimate} for {all} voxels"
     );
+    // The tracker's cells of the largest frame: about 175 bytes a voxel
+    // measured (docs/measurements.md), so at least that.
+    let largest = *occupied.iter().max().unwrap() as f64;
+    assert!(
+        full.tracking >= 175.0 * largest && full.tracking <= 512.0 * largest,
+        "tracking {} for {largest} voxels",
+        full.tracking
+    );
+    // The result's mesh in every frame, 12 bytes a vertex at the least.
+    let vertices = (meshes[0].positions.len() * meshes.len()) as f64;
+    assert!(full.mesh_stages >= 12.0 * vertices);
 }
 
 #[cfg(unix)]

@@ -13,12 +13,39 @@ use crate::params::{kept_cell_share, KEPT_CELL_BYTES_PER_VOXEL, KEPT_CELL_FRAMES
 /// voxels, so this is generous for captures).
 const BYTES_PER_VOXEL: f64 = 2.0;
 
+/// Bytes per occupied voxel of the largest frame that the tracker holds
+/// while it tracks a frame: each guess's run keeps its own cells (owner,
+/// distance bounds, runner-ups: about 40 bytes a voxel), and the previous
+/// frame's stay. About 175 were measured with the default guesses
+/// (docs/measurements.md); 256 bounds them.
+const TRACK_BYTES_PER_VOXEL: f64 = 256.0;
+
+/// Bytes per vertex of frame 0 and frame that the mesh stages hold at most:
+/// the result's positions (12), their normals and morph deltas as the
+/// export builds them (24), the conform and fit passes' per-frame copies,
+/// with room to spare (a bound, not a guess).
+const MESH_BYTES_PER_VERTEX_FRAME: f64 = 64.0;
+
+/// Bytes per vertex of the largest frame that each thread holds while it
+/// reads a frame again (voxelising, the fit pass): the file's parsed
+/// buffers, the mesh and a search tree over its triangles.
+const READ_BYTES_PER_VERTEX: f64 = 256.0;
+
+/// Working memory of the stages whatever the input's size: the thread
+/// pool's stacks and the allocator's per-thread arenas, the tracker's and
+/// refinement's tables, the export's buffers. 48 MiB: a run at
+/// `-r 64` on the shared captures peaks at about 25 MiB above what it held
+/// once the frames were read (docs/measurements.md).
+const WORKING_BYTES: f64 = 48.0 * (1u64 << 20) as f64;
+
 /// What the memory estimate needs of a frame's mesh.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrameExtent {
     pub bounds: Aabb,
     /// The enclosed volume (absolute signed volume).
     pub volume: f64,
+    /// Vertices of the mesh.
+    pub vertices: usize,
 }
 
 /// The estimate for one sequence on one grid.
@@ -31,6 +58,13 @@ pub struct MemoryEstimate {
     /// largest frames); they take no more than [`crate::params::KEPT_CELL_SHARE`] of the
     /// memory allowed ([`crate::params::RefineParams::cell_memory`]).
     pub kept_cells: f64,
+    /// Bytes the tracker's cells take while it tracks the largest frame;
+    /// they are gone before the kept assignments are made, so the run needs
+    /// the larger of the two.
+    pub tracking: f64,
+    /// Bytes the stages take whatever the resolution: the result's mesh over
+    /// every frame, the frames read again, the stages' working memory.
+    pub mesh_stages: f64,
 }
 
 impl MemoryEstimate {
@@ -43,6 +77,7 @@ impl MemoryEstimate {
             .map(|m| FrameExtent {
                 bounds: m.bounding_box(),
                 volume: m.signed_volume().abs(),
+                vertices: m.positions.len(),
             })
             .collect();
         Self::of_frames(&extents, grid, threads)
@@ -68,16 +103,27 @@ impl MemoryEstimate {
         voxels.sort_by(|a, b| b.total_cmp(a));
         let kept_cells =
             voxels.iter().take(KEPT_CELL_FRAMES).sum::<f64>() * KEPT_CELL_BYTES_PER_VOXEL as f64;
+        // The result has frame 0's vertices in every frame.
+        let result = frames.first().map_or(0, |f| f.vertices) as f64 * frames.len() as f64;
+        let largest_mesh = frames.iter().map(|f| f.vertices).max().unwrap_or(0) as f64;
         MemoryEstimate {
             bytes: held + largest_box * threads.max(1) as f64,
             kept_cells,
+            tracking: voxels.first().copied().unwrap_or(0.0) * TRACK_BYTES_PER_VOXEL,
+            mesh_stages: WORKING_BYTES
+                + result * MESH_BYTES_PER_VERTEX_FRAME
+                + largest_mesh * READ_BYTES_PER_VERTEX * threads.max(1) as f64,
         }
     }
 
     /// Bytes the run needs under a limit of `limit` bytes, the kept
-    /// assignments included.
+    /// assignments and the mesh stages included.
     pub fn total(&self, limit: f64) -> f64 {
-        self.bytes + self.kept_cells.min(kept_cell_share(limit))
+        self.bytes
+            + self.mesh_stages
+            + self
+                .tracking
+                .max(self.kept_cells.min(kept_cell_share(limit)))
     }
 
     /// Fails when the estimate exceeds `limit` bytes, naming the largest
@@ -87,11 +133,29 @@ impl MemoryEstimate {
         if bytes <= limit {
             return Ok(());
         }
-        // The kept assignments take at most their share whatever the
-        // resolution; the rest grows as its cube.
-        let kept = self.kept_cells.min(kept_cell_share(limit));
-        let fits =
-            (resolution as f64 * ((0.9 * limit - kept) / self.bytes).cbrt()).floor() as usize;
+        // The voxels' bytes grow as the resolution cubed, the mesh stages'
+        // do not; the largest resolution whose estimate keeps a tenth of the
+        // limit spare (the estimate grows with the resolution).
+        let at = |r: usize| {
+            let s = (r as f64 / resolution as f64).powi(3);
+            MemoryEstimate {
+                bytes: self.bytes * s,
+                kept_cells: self.kept_cells * s,
+                tracking: self.tracking * s,
+                mesh_stages: self.mesh_stages,
+            }
+            .total(limit)
+        };
+        let (mut lo, mut hi) = (1, resolution);
+        while lo < hi {
+            let mid = (lo + hi).div_ceil(2);
+            if at(mid) <= 0.9 * limit {
+                lo = mid;
+            } else {
+                hi = mid - 1;
+            }
+        }
+        let fits = if at(lo) <= 0.9 * limit { lo } else { 0 };
         let fits = if fits >= 2 {
             format!("the largest resolution that fits is about {fits}")
         } else {
@@ -108,7 +172,7 @@ impl MemoryEstimate {
 
 /// `bytes` in the largest of GiB, MiB and KiB that keeps it at 1 or more,
 /// with two significant digits at least (never "0.0 GiB").
-fn size(bytes: f64) -> String {
+pub(crate) fn size(bytes: f64) -> String {
     let (value, unit) = [(30, "GiB"), (20, "MiB"), (10, "KiB")]
         .into_iter()
         .map(|(shift, unit)| (bytes / (1u64 << shift) as f64, unit))
@@ -119,6 +183,13 @@ fn size(bytes: f64) -> String {
     } else {
         format!("{value:.1} {unit}")
     }
+}
+
+/// Memory the process holds now (its resident set), if known (Linux).
+pub(crate) fn resident_memory() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    Some(line.split_whitespace().nth(1)?.parse::<f64>().ok()? * 1024.0)
 }
 
 /// Memory the process can still get now, if known (Linux): the system's
