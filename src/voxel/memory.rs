@@ -15,9 +15,8 @@ const BYTES_PER_VOXEL: f64 = 2.0;
 
 /// Bytes per occupied voxel of the largest frame that the tracker holds
 /// while it tracks a frame: each guess's run keeps its own cells (owner,
-/// distance bounds, runner-ups: about 40 bytes a voxel), and the previous
-/// frame's stay. About 175 were measured with the default guesses
-/// (docs/measurements.md); 256 bounds them.
+/// distance bounds, runner-ups), and the previous frame's stay; a bound on
+/// what the default guesses were measured to take (docs/measurements.md).
 const TRACK_BYTES_PER_VOXEL: f64 = 256.0;
 
 /// Bytes per vertex of frame 0 and frame that the mesh stages hold at most:
@@ -33,9 +32,9 @@ const READ_BYTES_PER_VERTEX: f64 = 256.0;
 
 /// Working memory of the stages whatever the input's size: the thread
 /// pool's stacks and the allocator's per-thread arenas, the tracker's and
-/// refinement's tables, the export's buffers. 48 MiB: a run at
-/// `-r 64` on the shared captures peaks at about 25 MiB above what it held
-/// once the frames were read (docs/measurements.md).
+/// refinement's tables, the export's buffers: a bound on what runs at a low
+/// resolution with the default number of centers were measured to take
+/// (docs/measurements.md; it grows with the number of centers).
 const WORKING_BYTES: f64 = 48.0 * (1u64 << 20) as f64;
 
 /// What the memory estimate needs of a frame's mesh.
