@@ -581,11 +581,11 @@ pub(crate) fn foreign_entry(dir: &Path) -> Option<PathBuf> {
         .map(|(_, path)| path)
 }
 
-/// voltrack's temporaries: `.NAME.PID.partial` files and folders, the
-/// journals of sets being renamed (`.NAME.PID.set`), probes.
+/// voltrack's temporaries: `.NAME.PID.partial` files and folders, probes.
+/// (The journals of sets, `.NAME.PID.set`, are never written inside a
+/// folder voltrack fills.)
 fn is_temporary(name: &str) -> bool {
-    (name.starts_with('.') && (name.ends_with(".partial") || name.ends_with(".set")))
-        || name.starts_with(".voltrack-probe.")
+    (name.starts_with('.') && name.ends_with(".partial")) || name.starts_with(".voltrack-probe.")
 }
 
 /// Whether the file at `path` starts with `mark`.

@@ -404,6 +404,22 @@ fn blending_keeps_a_seam_closed() {
             .collect(),
     };
     let dm = deform(&mesh, &traj, &omega, &DeformParams::default()).unwrap();
+    // Asked to stop, it stops between frames.
+    struct Stop;
+    impl voltrack::progress::ProgressSink for Stop {
+        fn report(&self, _: voltrack::Stage, _: usize, _: usize) {}
+        fn cancelled(&self) -> bool {
+            true
+        }
+    }
+    let stopped = voltrack::deform::deform_with(
+        &mesh,
+        &traj,
+        &omega,
+        &DeformParams::default(),
+        voltrack::Progress(Some(&Stop)),
+    );
+    assert!(matches!(stopped, Err(voltrack::Error::Interrupted { .. })));
     for frame in &dm.frames.to_vec().unwrap() {
         let gap = seam
             .iter()

@@ -277,3 +277,81 @@ fn kept_and_fresh_assignments_and_gradients_in_a_file_give_the_same_optimisation
         );
     }
 }
+
+/// Asks the work to stop once it has been asked `after` times whether to.
+struct StopAfter {
+    after: usize,
+    asked: std::sync::atomic::AtomicUsize,
+}
+
+impl voltrack::progress::ProgressSink for StopAfter {
+    fn report(&self, _: voltrack::Stage, _: usize, _: usize) {}
+    fn cancelled(&self) -> bool {
+        self.asked
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+            >= self.after
+    }
+}
+
+#[test]
+fn a_stop_request_ends_the_optimisation_within_an_evaluation_and_keeps_accepted_steps() {
+    let seq = two_bodies(6, 40);
+    let tracked = track(
+        &seq,
+        &TrackParams {
+            centers: 40,
+            ..Default::default()
+        },
+        Default::default(),
+    )
+    .unwrap();
+    let p = RefineParams {
+        max_iterations: 10,
+        ..Default::default()
+    };
+    let scale = p.length_scale(&seq.bounds);
+    let run = |after: usize| {
+        let sink = StopAfter {
+            after,
+            asked: 0.into(),
+        };
+        let mut traj = tracked.trajectories.clone();
+        let mut cells =
+            SequenceCells::new(&seq, usize::MAX).stopping_with(voltrack::Progress(Some(&sink)));
+        let omega = global_affinity(
+            &traj,
+            &seq,
+            &mut cells,
+            p.rho_gp * scale,
+            p.rho_gm * scale,
+            p.mu,
+        );
+        let mut accepted = Vec::new();
+        let history = optimise(&mut traj, &seq.grid, &mut cells, &omega, &p, |_, now, _| {
+            accepted = now.positions.clone();
+            true
+        })
+        .unwrap();
+        let asked = sink.asked.load(std::sync::atomic::Ordering::Relaxed);
+        (traj, history, accepted, asked)
+    };
+    // Stopped at once: nothing evaluated, the trajectories untouched.
+    let (traj, history, _, _) = run(0);
+    assert!(history.is_empty());
+    assert_eq!(traj.positions, tracked.trajectories.positions);
+    // Stopped part way: the trajectories are those of the last accepted step.
+    let (full, full_history, _, asked) = run(usize::MAX);
+    let (traj, history, accepted, _) = run(asked / 2);
+    assert!(
+        history.len() < full_history.len(),
+        "{} steps of {}",
+        history.len(),
+        full_history.len()
+    );
+    if history.len() > 1 {
+        assert_eq!(traj.positions, accepted);
+    } else {
+        assert_eq!(traj.positions, tracked.trajectories.positions);
+    }
+    assert_ne!(full.positions, tracked.trajectories.positions);
+}

@@ -19,6 +19,7 @@ use crate::math::{Point3, Real};
 use crate::model::mesh::TriangleMesh;
 use crate::model::{DynamicMesh, PositionFrames, Rigid, Trajectories};
 use crate::params::{Blending, DeformParams};
+use crate::progress::Progress;
 use crate::refine::SparseAffinity;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
@@ -110,6 +111,18 @@ pub fn deform(
     omega: &SparseAffinity,
     params: &DeformParams,
 ) -> Result<DynamicMesh> {
+    deform_with(mesh, traj, omega, params, Progress::none())
+}
+
+/// [`deform`], returning [`Error::Interrupted`] between frames once
+/// `progress` asks to stop.
+pub fn deform_with(
+    mesh: &TriangleMesh,
+    traj: &Trajectories,
+    omega: &SparseAffinity,
+    params: &DeformParams,
+    progress: Progress,
+) -> Result<DynamicMesh> {
     if params.neighbors == 0 {
         return Err(Error::InvalidParameter(
             "the number of centers each vertex follows must be at least 1".into(),
@@ -134,6 +147,9 @@ pub fn deform(
     let mut frames = PositionFrames::new(mesh.positions.len(), traj.frames, params.memory)?;
     frames.push(mesh.positions.clone())?;
     for f in 1..traj.frames {
+        if progress.cancelled() {
+            return Err(Error::Interrupted { saved: None });
+        }
         frames.push(move_vertices(
             &mesh.positions,
             &bindings,

@@ -1,7 +1,7 @@
 //! The stages strung together, as the commands use them: each function takes
 //! its inputs and options and returns a result the CLI prints or writes.
 
-use crate::deform::{conform, deform};
+use crate::deform::{conform, deform_with};
 use crate::error::{Error, Result, Saved};
 use crate::math::Real;
 use crate::metrics::{fit_outliers, fit_to_input, Coverage, FitOutliers, SequenceFit};
@@ -329,7 +329,9 @@ pub fn convert(
         &sequence,
         options.refine.as_ref(),
         &options.deform,
-    )?;
+        progress,
+    )
+    .map_err(|e| finished_saved(e, checkpoint, &sequence, options.refine.as_ref()))?;
     progress.report(Stage::Deform, 1, 1);
     seconds.push((Stage::Deform, clock.elapsed().as_secs_f64()));
     let clock = Instant::now();
@@ -400,22 +402,28 @@ fn finished_saved(
 /// Deforms `first` (frame 0 as loaded) by trajectories tracked on `seq`,
 /// with the global affinity ω of the final trajectories (its ρ_gp, ρ_gm and
 /// μ from `refine_params`, or their defaults when refinement was skipped).
+/// Returns [`Error::Interrupted`] soon after `progress` asks to stop.
 pub fn deform_sequence(
     first: &TriangleMesh,
     traj: &Trajectories,
     seq: &VoxelSequence,
     refine_params: Option<&RefineParams>,
     deform_params: &DeformParams,
+    progress: Progress,
 ) -> Result<DynamicMesh> {
     let rp = refine_params.cloned().unwrap_or_default();
     let scale = rp.length_scale(&seq.bounds);
+    let mut cells = SequenceCells::single_pass(seq).stopping_with(progress);
     let omega = global_affinity(
         traj,
         seq,
-        &mut SequenceCells::single_pass(seq),
+        &mut cells,
         rp.rho_gp * scale,
         rp.rho_gm * scale,
         rp.mu,
     );
-    deform(first, traj, &omega, deform_params)
+    if cells.cancelled() {
+        return Err(Error::Interrupted { saved: None });
+    }
+    deform_with(first, traj, &omega, deform_params, progress)
 }

@@ -14,6 +14,7 @@
 use crate::math::{Point3, Real};
 use crate::model::Trajectories;
 use crate::params::{KEPT_CELL_BYTES_PER_VOXEL, KEPT_CELL_FRAMES};
+use crate::progress::Progress;
 use crate::spatial::cells::{Assignment, CellStats, CenterIndex, NO_OWNER};
 use crate::voxel::VoxelSequence;
 use rayon::prelude::*;
@@ -43,6 +44,9 @@ pub struct SequenceCells<'a> {
     /// rebuilding them for every frame at every evaluation was most of the
     /// refinement's time.
     indices: Vec<Option<CenterIndex>>,
+    /// Asked before each frame's update: once it asks to stop, updates
+    /// skip their frames' work (see [`SequenceCells::cancelled`]).
+    progress: Progress<'a>,
 }
 
 impl<'a> SequenceCells<'a> {
@@ -76,7 +80,22 @@ impl<'a> SequenceCells<'a> {
             frames: (0..kept).map(|_| None).collect(),
             last: vec![Vec::new(); kept],
             indices: (0..kept).map(|_| None).collect(),
+            progress: Progress::none(),
         }
+    }
+
+    /// These cells, whose updates stop doing their frames' work once
+    /// `progress` asks to stop: a pass over a long sequence then ends within
+    /// a frame's update. The sums such an update returns are not the cells';
+    /// callers check [`cancelled`](Self::cancelled) after every update.
+    pub fn stopping_with(mut self, progress: Progress<'a>) -> Self {
+        self.progress = progress;
+        self
+    }
+
+    /// Whether the updates were asked to stop.
+    pub fn cancelled(&self) -> bool {
+        self.progress.cancelled()
     }
 
     /// How many frames keep their assignment between updates.
@@ -120,7 +139,13 @@ impl<'a> SequenceCells<'a> {
         range: Range<usize>,
         with_moments: bool,
     ) -> Vec<CellStats> {
-        let seq = self.seq;
+        let (seq, progress) = (self.seq, self.progress);
+        let n = traj.centers;
+        let skipped = || CellStats {
+            count: vec![0; n],
+            sum: vec![[0; 3]; n],
+            second: with_moments.then(|| vec![[0; 6]; n]),
+        };
         let fresh = |f: usize| {
             Assignment::new(
                 &seq.grid,
@@ -136,6 +161,9 @@ impl<'a> SequenceCells<'a> {
             .zip(self.indices[kept.clone()].par_iter_mut())
             .enumerate()
             .map(|(k, ((cells, last), index))| {
+                if progress.cancelled() {
+                    return skipped();
+                }
                 let now = traj.frame(kept.start + k - offset);
                 // A change in the number of centers invalidates the bounds.
                 if cells.is_none() || last.len() != now.len() {
@@ -160,7 +188,12 @@ impl<'a> SequenceCells<'a> {
             .collect();
         let rest: Vec<CellStats> = (range.start.max(kept.end)..range.end)
             .into_par_iter()
-            .map(|f| fresh(f).update(&CenterIndex::new(traj.frame(f - offset)), &[], with_moments))
+            .map(|f| {
+                if progress.cancelled() {
+                    return skipped();
+                }
+                fresh(f).update(&CenterIndex::new(traj.frame(f - offset)), &[], with_moments)
+            })
             .collect();
         stats.extend(rest);
         stats

@@ -44,12 +44,14 @@ pub fn evaluate(
     beta_hat: Real,
     memory: usize,
 ) -> Result<Evaluation> {
-    evaluate_moved(traj, None, grid, cells, omega, beta_hat, memory)
+    evaluate_moved(traj, None, grid, cells, omega, beta_hat, memory)?
+        .ok_or(crate::Error::Interrupted { saved: None })
 }
 
 /// [`evaluate`] at `traj` moved by −λ `step` (`moved` = (step, λ)), as if
 /// at the trajectories `p − step · λ`, which are made a block of frames at a
 /// time: the line search then holds no second copy of all trajectories.
+/// None when `cells` were asked to stop ([`SequenceCells::cancelled`]).
 fn evaluate_moved(
     traj: &Trajectories,
     moved: Option<(&FrameStore<Vector3>, Real)>,
@@ -58,7 +60,7 @@ fn evaluate_moved(
     omega: &SparseAffinity,
     beta_hat: Real,
     memory: usize,
-) -> Result<Evaluation> {
+) -> Result<Option<Evaluation>> {
     let (frames, n) = (traj.frames, traj.centers);
     let mut gradient = FrameStore::new(n, frames, memory)?;
     let mut per_frame: Vec<(Real, Real)> = Vec::with_capacity(frames);
@@ -90,6 +92,9 @@ fn evaluate_moved(
             }
         };
         let stats = cells.update_frames(traj, offset, start..end, false);
+        if cells.cancelled() {
+            return Ok(None);
+        }
         // The motions A^f this block's frames need (f - 1 to f, f from
         // `first`), of which only what they predict is kept: forward[k] is
         // A^f(c^{f-1}), backward[k] is (A^f)⁻¹(c^f), f = first + k.
@@ -154,20 +159,23 @@ fn evaluate_moved(
         smooth += s;
         data += d;
     }
-    Ok(Evaluation {
+    Ok(Some(Evaluation {
         energy: smooth + beta_hat * data,
         smooth,
         data,
         gradient,
-    })
+    }))
 }
 
 /// Gradient descent with λ (`params.lambda`) halved until the energy drops
 /// (at most `params.max_halvings` times); stops after
 /// `params.max_iterations`, when no halving helps, or when `on_iteration`
 /// (called with the iterations done, the trajectories and the history so
-/// far, to report or save them) returns false. Returns the energy before
-/// and after every accepted step. The energy weighs the centroid term by
+/// far, to report or save them) returns false, or at once when `cells` are
+/// asked to stop ([`SequenceCells::stopping_with`]; the trajectories are
+/// then those of the last accepted step). Returns the energy before
+/// and after every accepted step (none when stopped before the first
+/// evaluation ended). The energy weighs the centroid term by
 /// `params.beta_hat`; the gradients are kept as [`evaluate`] says
 /// (`params.memory`); errors are their temporary files'.
 pub fn optimise(
@@ -186,7 +194,12 @@ pub fn optimise(
         memory,
         ..
     } = *params;
-    let mut current = evaluate(traj, grid, cells, omega, beta_hat, memory)?;
+    // Cells asked to stop end the optimisation where it is: the
+    // trajectories change only by accepted steps.
+    let Some(mut current) = evaluate_moved(traj, None, grid, cells, omega, beta_hat, memory)?
+    else {
+        return Ok(Vec::new());
+    };
     let mut history = vec![Iteration {
         energy: current.energy,
         smooth: current.smooth,
@@ -197,7 +210,7 @@ pub fn optimise(
         let mut lambda = lambda0;
         let mut accepted = None;
         for _ in 0..=max_halvings {
-            let e = evaluate_moved(
+            let Some(e) = evaluate_moved(
                 traj,
                 Some((&current.gradient, lambda)),
                 grid,
@@ -205,7 +218,10 @@ pub fn optimise(
                 omega,
                 beta_hat,
                 memory,
-            )?;
+            )?
+            else {
+                return Ok(history);
+            };
             if e.energy < current.energy {
                 accepted = Some(e);
                 break;

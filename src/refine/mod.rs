@@ -117,7 +117,7 @@ pub fn refine_with_checkpoints(
     let budget = params.cell_memory.unwrap_or_else(|| {
         crate::voxel::available_memory().map_or((1u64 << 30) as f64, crate::params::kept_cell_share)
     });
-    let mut cells = SequenceCells::new(seq, budget as usize);
+    let mut cells = SequenceCells::new(seq, budget as usize).stopping_with(progress);
     log::info!(
         "the cells of {} of {frames} frames kept between evaluations (budget {:.0} MiB)",
         cells.cached_frames(),
@@ -164,6 +164,12 @@ pub fn refine_with_checkpoints(
                     params.rho_gm * scale,
                     params.mu,
                 );
+                if cells.cancelled() {
+                    // ω is not whole; the state before this batch's removal
+                    // is what the last save holds, and a resumed run starts
+                    // the batch again from it.
+                    return Err(interrupted(b));
+                }
                 log::info!(
                     "batch {}: removed {n_rem}, ω keeps {:.1} neighbours per center",
                     b + 1,

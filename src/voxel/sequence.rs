@@ -168,6 +168,7 @@ pub fn voxelize_sequence(
     if let Some(limit) = params.max_memory.or_else(super::available_memory) {
         let estimate =
             super::MemoryEstimate::of_frames(&extents, &grid, rayon::current_num_threads());
+        let held = super::memory::resident_memory().unwrap_or(0.0);
         let mib = |b: f64| b / (1u64 << 20) as f64;
         log::debug!(
             "memory estimate in MiB: voxels {:.1}, tracking {:.1}, kept cells {:.1} (at most {:.1} under this limit), mesh stages {:.1}, held now {:.1}",
@@ -176,10 +177,9 @@ pub fn voxelize_sequence(
             mib(estimate.kept_cells),
             mib(crate::params::kept_cell_share(limit)),
             mib(estimate.mesh_stages),
-            mib(super::memory::resident_memory().unwrap_or(0.0)),
+            mib(held),
         );
         let size = super::memory::size;
-        let held = super::memory::resident_memory().unwrap_or(0.0);
         log::info!(
             "estimated memory: {} of {} allowed, on top of {} held now: a peak of at most {}",
             size(estimate.total(limit)),
