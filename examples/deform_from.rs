@@ -45,7 +45,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         params.blending = Blending::Linear;
     }
     let first = seq.first_mesh.as_ref().ok_or("no mesh")?;
-    let mesh = voltrack::pipeline::deform_sequence(first, &traj, &seq, Some(&refine), &params)?;
+    let mesh = voltrack::pipeline::deform_sequence(
+        first,
+        &traj,
+        &seq,
+        Some(&refine),
+        &params,
+        voltrack::Progress::none(),
+    )?;
     let defaults = ConformParams::default();
     let conform = ConformParams {
         iterations: env("VOLTRACK_CONFORM_ITERATIONS").map_or(defaults.iterations, |i| i as usize),
