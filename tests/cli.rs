@@ -230,12 +230,26 @@ fn convert_to_a_compressed_glb() {
         &convert_args("p.glb", &["--json", "--no-refine"]),
     ));
     assert_eq!(plain["basis"]["compressed"], false);
-    let stdout = ok(&dir, &convert_args("c.glb", &["--compress", "--no-refine"]));
+    let per_frame = ["--compress", "--basis", "per-frame", "--no-refine"];
+    let stdout = ok(&dir, &convert_args("c.glb", &per_frame));
     assert!(stdout.contains("compressed (KHR_mesh_quantization + EXT_meshopt_compression): reconstruction error max"), "{stdout}");
+    // By default the fewest components within the result's own fit.
     let summary = json(&ok(
         &dir,
         &convert_args("c.glb", &["--json", "--compress", "--no-refine"]),
     ));
+    assert_eq!(summary["basis"]["chosen_by"], "fit", "{summary}");
+    let error = 100.0
+        * summary["basis"]["reconstruction_error_mean"]
+            .as_f64()
+            .unwrap();
+    assert!(
+        error <= 1.05 * summary["fit_percent"]["mean"].as_f64().unwrap(),
+        "{summary}"
+    );
+    let mut args = vec!["--json"];
+    args.extend(per_frame);
+    let summary = json(&ok(&dir, &convert_args("c.glb", &args)));
     let basis = &summary["basis"];
     assert_eq!(basis["compressed"], true, "{basis}");
     let error = basis["reconstruction_error_max"].as_f64().unwrap();
@@ -381,6 +395,27 @@ fn convert_prints_a_json_summary() {
         &convert_args("b.glb", &["--json", "--basis", "2"]),
     ));
     assert_eq!(summary["basis"]["components"].as_u64(), Some(2));
+    assert_eq!(summary["basis"]["chosen_by"], "components");
+    // --basis auto: the fewest components within the result's own fit to
+    // the input, or one target per frame where none needs fewer.
+    let summary = json(&ok(
+        &dir,
+        &convert_args("d.glb", &["--json", "--basis", "auto"]),
+    ));
+    assert_eq!(summary["basis"]["chosen_by"], "fit");
+    if summary["basis"]["components"].as_u64().is_some() {
+        let fit = summary["fit_percent"]["mean"].as_f64().unwrap();
+        let error = 100.0
+            * summary["basis"]["reconstruction_error_mean"]
+                .as_f64()
+                .unwrap();
+        assert!(error <= 1.05 * fit, "{summary}");
+    } else {
+        assert_eq!(
+            summary["basis"]["reconstruction_error_max"].as_f64(),
+            Some(0.0)
+        );
+    }
     // Trajectories carry neither a name nor a frame rate.
     let summary = json(&ok(
         &dir,
@@ -396,7 +431,7 @@ fn convert_prints_a_json_summary() {
     );
     assert_eq!(
         dir.files(),
-        ["anim.obj", "anim.pc2", "b.glb", "c.exr", "x.glb", "x.html"]
+        ["anim.obj", "anim.pc2", "b.glb", "c.exr", "d.glb", "x.glb", "x.html"]
     );
 }
 

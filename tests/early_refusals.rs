@@ -93,6 +93,7 @@ fn parameters_that_used_to_fail_late_or_panic_are_refused_before_reading() {
         (&["--cell-memory", "0"], &["memory for kept cells"]),
         (&["--cell-memory", "nan"], &["memory for kept cells"]),
         (&["--screening-block", "9"], &["screening block"]),
+        (&["--basis", "many"], &["'many'", "auto"]),
     ];
     for (extra, needles) in cases {
         let mut args = vec!["convert", "seq", "-o", "x.glb"];
@@ -122,6 +123,7 @@ fn conflicting_flags_are_refused() {
         &["--format", "exr", "-o", "x.glb"],
         &["--vat", "-o", "x.glb"],
         &["--basis", "4", "-o", "x.pc2"],
+        &["--basis", "auto", "-o", "x.pc2"],
     ] {
         let mut args = vec!["convert", "seq"];
         args.extend_from_slice(&SMALL);

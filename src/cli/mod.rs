@@ -10,7 +10,7 @@ pub(crate) mod test_support;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use options::{ConvertArgs, InputArgs, OutputFormat, RefineArgs, TrackArgs};
+use options::{BasisArg, ConvertArgs, InputArgs, OutputFormat, RefineArgs, TrackArgs};
 
 /// The log as env_logger writes it (`RUST_LOG`, warnings by default), but
 /// each warning only once: a frame is read by more than one pass, and its
@@ -59,7 +59,9 @@ pub fn init_logging() {
 }
 use std::path::{Path, PathBuf};
 use voltrack::checkpoint::Checkpointing;
+use voltrack::export::gltf::BasisChoice;
 use voltrack::io::FrameFiles;
+use voltrack::math::Real;
 use voltrack::params::CoverageParams;
 use voltrack::pipeline::{self, Quality};
 use voltrack::Stage;
@@ -658,14 +660,57 @@ fn convert(args: ConvertArgs) -> Result<()> {
                         .into_owned()
                 })
                 .collect();
-            let gltf = voltrack::export::gltf::GltfExportOptions {
+            let mut gltf = voltrack::export::gltf::GltfExportOptions {
                 frame_names,
                 ..args.gltf_options(name.clone())
             };
+            // The fit is measured before every GLB is written; without it a
+            // bounded basis would be bounded by zero: per-frame targets.
+            let fit = measured
+                .as_ref()
+                .map(|m| &m.fit)
+                .or(fit_only.as_ref().map(|f| &f.0));
+            let fit_summary = fit.map(|f| (f.summary(), f.diagonal));
+            let bounded = matches!(gltf.basis, BasisChoice::Bounded { .. });
+            if let (true, Some((s, diagonal))) = (bounded, fit_summary) {
+                gltf.basis = BasisChoice::Bounded {
+                    mean: s.mean / 100.0 * diagonal,
+                    max: s.max / 100.0 * diagonal,
+                };
+            }
             let report =
                 voltrack::export::gltf::write_dynamic_glb(out, &conv.mesh, &gltf, bars.progress())?;
+            // The basis' error in percent of the fit's diagonal, as the fit.
+            let animation = conv.mesh.frames.bounds()?.diagonal();
+            let as_fit = |e: Real| {
+                fit_summary.map_or(100.0 * e, |(_, d)| {
+                    100.0 * e * animation / d.max(Real::MIN_POSITIVE)
+                })
+            };
+            if let (Some(k), Some((s, _))) = (report.basis, fit_summary) {
+                let (mean, max) = (
+                    as_fit(report.reconstruction_error_mean),
+                    as_fit(report.reconstruction_error_max),
+                );
+                if bounded {
+                    notes.push(format!(
+                        "--basis auto: {k} components, the fewest whose error (mean {mean:.4} %, max {max:.4} %) stays within the result's own fit to the input (mean {:.4} %, max {:.4} %)",
+                        s.mean, s.max
+                    ));
+                } else if mean > s.mean || max > s.max {
+                    notes.push(format!(
+                        "warning: the compact basis of {k} components adds more error (mean {mean:.4} %, max {max:.4} %) than the result has against the input (mean {:.4} %, max {:.4} %); --basis auto picks the fewest components within it",
+                        s.mean, s.max
+                    ));
+                }
+            }
+            if bounded && report.basis.is_none() {
+                notes.push(
+                    "--basis auto: no compact basis within the result's own fit to the input needs fewer morph targets than one per frame; wrote one per frame".into(),
+                );
+            }
             if let Some(k) = report.basis {
-                if args.basis.is_none() {
+                if args.basis.is_none() && !bounded {
                     notes.push(format!(
                         "{} frames is past {} (where three.js and mobile GPUs fail with one morph target per frame): \
                          wrote a compact basis instead; --basis K chooses it yourself",
@@ -673,7 +718,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
                         voltrack::export::basis::AUTO_PER_FRAME_LIMIT
                     ));
                 }
-                if !report.compressed {
+                if !report.compressed && !bounded {
                     notes.push(format!(
                         "compact basis of {k} components ({} morph targets): reconstruction error max {:.4} %, mean {:.4} % of the diagonal",
                         report.targets,
@@ -682,7 +727,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
                     ));
                 }
             }
-            if let (Some(k), None) = (args.basis, report.basis) {
+            if let (Some(BasisArg::Components(k)), None) = (args.basis, report.basis) {
                 notes.push(format!(
                     "--basis {k}: that many components need no fewer morph targets than one per frame ({}); wrote one per frame, which is exact",
                     conv.mesh.frames.len().saturating_sub(1)
@@ -830,6 +875,13 @@ fn convert(args: ConvertArgs) -> Result<()> {
                 "targets": r.targets,
                 "components": r.basis,
                 "compressed": r.compressed,
+                "chosen_by": match args.basis {
+                    Some(BasisArg::Components(_)) => "components",
+                    Some(BasisArg::PerFrame) => "per-frame",
+                    Some(BasisArg::Auto) => "fit",
+                    None if args.compress => "fit",
+                    None => "length",
+                },
                 "reconstruction_error_max": r.reconstruction_error_max,
                 "reconstruction_error_mean": r.reconstruction_error_mean,
             })),

@@ -270,6 +270,31 @@ impl OutputFormat {
     }
 }
 
+/// `--basis`: a number of components, or chosen by the result's fit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BasisArg {
+    /// The fewest components within the result's own fit to the input
+    /// ([`BasisChoice::Bounded`]).
+    Auto,
+    /// One target per frame (exact), also with `--compress`.
+    PerFrame,
+    Components(usize),
+}
+
+fn parse_basis(text: &str) -> Result<BasisArg, String> {
+    if text.eq_ignore_ascii_case("auto") {
+        return Ok(BasisArg::Auto);
+    }
+    if text.eq_ignore_ascii_case("per-frame") {
+        return Ok(BasisArg::PerFrame);
+    }
+    text.parse::<usize>()
+        .map(BasisArg::Components)
+        .map_err(|_| {
+            format!("'{text}' is neither a whole number of components, 'auto' nor 'per-frame'")
+        })
+}
+
 /// glTF's samplers for the morph weights (see `GltfExportOptions::interpolation`).
 #[derive(Clone, Copy, ValueEnum)]
 pub enum InterpolationArg {
@@ -320,9 +345,9 @@ pub struct ConvertArgs {
     /// How players go from one capture to the next in a .glb, per-frame targets and --basis alike
     #[arg(long, value_enum, default_value = "step")]
     pub interpolation: InterpolationArg,
-    /// Compact glTF: K principal components as morph targets [default: one target per frame up to 256 frames; beyond, the fewest components (at most 128) that keep every vertex within 0.1 % of the diagonal, else one target per frame] (range: 1..=100000)
-    #[arg(long)]
-    pub basis: Option<usize>,
+    /// Compact glTF: K principal components as morph targets; 'auto': the fewest components whose error, mean and largest, stays within the result's own fit to the input (the default with --compress); 'per-frame': one target per frame, exact [default: one target per frame up to 256 frames; beyond, the fewest components (at most 128) that keep every vertex within 0.1 % of the diagonal, else one target per frame] (range: 1..=100000, auto or per-frame)
+    #[arg(long, value_parser = parse_basis)]
+    pub basis: Option<BasisArg>,
     /// Compressed glTF for the web: quantised positions, normals and morph deltas (KHR_mesh_quantization) encoded by meshoptimizer (EXT_meshopt_compression); viewers need a meshopt decoder (three.js: MeshoptDecoder). Prints the positions' error
     #[arg(long)]
     pub compress: bool,
@@ -463,9 +488,20 @@ impl ConvertArgs {
         GltfExportOptions {
             fps: self.fps,
             name,
-            basis: self
-                .basis
-                .map_or(BasisChoice::Auto, BasisChoice::Components),
+            // Bounded by the fit once it is known (`with_fit_bounds`).
+            basis: match self.basis {
+                Some(BasisArg::Components(k)) => BasisChoice::Components(k),
+                Some(BasisArg::PerFrame) => BasisChoice::PerFrame,
+                Some(BasisArg::Auto) => BasisChoice::Bounded {
+                    mean: 0.0,
+                    max: 0.0,
+                },
+                None if self.compress => BasisChoice::Bounded {
+                    mean: 0.0,
+                    max: 0.0,
+                },
+                None => BasisChoice::Auto,
+            },
             compress: self.compress,
             interpolation: match self.interpolation {
                 InterpolationArg::Step => Interpolation::Step,

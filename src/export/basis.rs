@@ -26,7 +26,7 @@ use rayon::prelude::*;
 use std::ops::RangeInclusive;
 
 /// Which morph basis encodes an animation.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum BasisChoice {
     /// One target per frame after the first: exact, F − 1 targets.
     PerFrame,
@@ -39,6 +39,14 @@ pub enum BasisChoice {
     /// tolerance, or per-frame targets again when no such basis needs fewer
     /// targets.
     Auto,
+    /// At any length, the fewest principal components (at most
+    /// `AUTO_MAX_COMPONENTS`) whose reconstruction error, over every vertex
+    /// of every frame, is at most `mean` on average and `max` at most (scene
+    /// units); per-frame targets when no such basis needs fewer targets.
+    /// What `--basis auto` and `--compress` use, with the result's own fit to
+    /// the input as the bounds: the basis adds no more error than the result
+    /// already has.
+    Bounded { mean: Real, max: Real },
 }
 
 /// Longest sequence [`BasisChoice::Auto`] encodes with one target per frame
@@ -294,7 +302,15 @@ pub fn choose(
             Ok((basis, error))
         }
         BasisChoice::Auto if frames.len() <= AUTO_PER_FRAME_LIMIT => Ok(exact()),
-        BasisChoice::Auto => {
+        // One target per frame is the fewest there can be.
+        BasisChoice::Bounded { .. } if frames.len() <= 2 => Ok(exact()),
+        BasisChoice::Auto | BasisChoice::Bounded { .. } => {
+            // Auto bounds the largest error by `tolerance`; Bounded its own.
+            let (max, mean) = match choice {
+                BasisChoice::Bounded { mean, max } => (max, Some(mean)),
+                _ => (tolerance, None),
+            };
+            let within = |e: &BasisError| e.max <= max && mean.is_none_or(|m| e.mean <= m);
             let moving = frames.len() - 1;
             let mut wanted = AUTO_FIRST_COMPONENTS;
             let choice = loop {
@@ -302,8 +318,8 @@ pub fn choose(
                 // Past F − 2 components per-frame targets are no more, past
                 // `sufficient` the error is within tolerance for certain, past
                 // the rank nothing is left to add.
-                let mut limit = moving - 1;
-                if let Some(k) = pca.sufficient(tolerance) {
+                let mut limit = moving.saturating_sub(1);
+                if let Some(k) = pca.sufficient(max.min(mean.unwrap_or(max))) {
                     limit = limit.min(k);
                 }
                 if let Some(rank) = pca.rank() {
@@ -313,7 +329,7 @@ pub fn choose(
                 // The largest error need not fall monotonically with k, so
                 // every k is measured (one pass, whatever the range).
                 let errors = pca.errors(frames, 0..=end, &mut passes)?;
-                if let Some(k) = errors.iter().position(|e| e.max <= tolerance) {
+                if let Some(k) = errors.iter().position(within) {
                     let basis = pca.basis(k);
                     break if basis.targets() < moving {
                         (basis, errors[k])
@@ -880,6 +896,31 @@ mod tests {
                     all[want]
                 );
             }
+            // Bounded, at any length: the fewest components within both
+            // bounds; a mean bound halfway between 5 and 6 components' gives 6.
+            let mean = 0.5 * (all[5].mean + all[6].mean);
+            let max = 2.0 * all[6].max;
+            let (basis, error) = choose(
+                &frames,
+                BasisChoice::Bounded { mean, max },
+                0.0,
+                Progress::none(),
+            )
+            .unwrap();
+            assert_eq!(basis.components, Some(6), "{count} frames");
+            assert!(error.mean <= mean && error.max <= max, "{error:?}");
+            // Nothing but the exact frames is within a zero bound.
+            let (basis, _) = choose(
+                &frames,
+                BasisChoice::Bounded {
+                    mean: 0.0,
+                    max: 0.0,
+                },
+                0.0,
+                Progress::none(),
+            )
+            .unwrap();
+            assert_eq!(basis, MorphBasis::per_frame(count));
         }
     }
 

@@ -101,6 +101,13 @@ impl GltfExportOptions {
                 1..=crate::params::MAX_ITERATIONS,
             )?;
         }
+        if let BasisChoice::Bounded { mean, max } = self.basis {
+            if ![mean, max].iter().all(|b| b.is_finite() && *b >= 0.0) {
+                return Err(Error::InvalidParameter(format!(
+                    "the basis error bounds must be non-negative lengths, not {mean} (mean) and {max} (largest)"
+                )));
+            }
+        }
         if !(self.max_basis_error.is_finite() && self.max_basis_error >= 0.0) {
             return Err(Error::InvalidParameter(format!(
                 "the basis error bound must be a non-negative fraction, not {}",
