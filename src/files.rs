@@ -120,7 +120,7 @@ pub type Fill<'a> = Box<dyn FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Re
 /// Between the renames a journal beside the first file lists them
 /// ([`SET_JOURNAL`]): a run killed there leaves its complete temporaries and
 /// the journal, and the next write of a set into the same folder first
-/// renames the rest into place ([`finish_interrupted_sets`]), so the set on
+/// renames the rest into place (`finish_interrupted_sets`), so the set on
 /// disk is the old one or the new one, not a mix, once voltrack has run
 /// there again. Several renames cannot be one step on a POSIX file system;
 /// the journal is how databases make them one.
