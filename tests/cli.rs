@@ -1310,3 +1310,38 @@ fn morph_targets_are_named_after_the_input_files() {
     let want: Vec<String> = (2..=FRAMES).map(|f| format!("walk_{f:04}")).collect();
     assert_eq!(names, want);
 }
+
+/// Issue 48: `convert -h` shows what users need first, the tuning
+/// parameters after, under headings.
+#[test]
+fn convert_help_puts_the_output_options_first_and_groups_the_rest() {
+    let dir = Scratch::new("cli", "help");
+    let help = ok(&dir, &["convert", "-h"]);
+    let at = |needle: &str| {
+        help.find(needle)
+            .unwrap_or_else(|| panic!("{needle} not in:\n{help}"))
+    };
+    let headings = [
+        "Vertex-animation texture:",
+        "Tracking:",
+        "Refinement:",
+        "Mesh:",
+    ];
+    let first_heading = headings.iter().map(|h| at(h)).min().unwrap();
+    for user in [
+        "--output",
+        "--fps",
+        "--basis",
+        "--compress",
+        "--report",
+        "--json",
+    ] {
+        assert!(
+            at(user) < first_heading,
+            "{user} after the headings:\n{help}"
+        );
+    }
+    assert!(at("Tracking:") < at("--rho-p") && at("--rho-p") < at("Refinement:"));
+    assert!(at("Refinement:") < at("--beta-hat") && at("--beta-hat") < at("Mesh:"));
+    assert!(at("Mesh:") < at("--conform-stiffness"));
+}

@@ -320,25 +320,6 @@ pub struct ConvertArgs {
     /// Output format [default: from the extension; a directory means an OBJ sequence]
     #[arg(long, value_enum)]
     pub format: Option<OutputFormat>,
-    /// Per-vertex animation as an EXR vertex-animation texture, with its mesh (.glb, TEXCOORD_1 addressing the texels) and a JSON sidecar beside it (same as --format vat)
-    #[arg(long, conflicts_with = "format")]
-    pub vat: bool,
-    /// Most vertices per row of the vertex-animation texture: its width; a frame takes as many rows as its vertices need (range: 1..=65536)
-    #[arg(long, value_name = "TEXELS", default_value_t = VatOptions::default().max_width)]
-    pub vat_max_width: usize,
-    /// Largest height of the vertex-animation texture (frames × rows per frame); a longer animation is refused (range: 1..=65536)
-    #[arg(long, value_name = "TEXELS", default_value_t = VatOptions::default().max_height)]
-    pub vat_max_height: usize,
-    /// Vertex-animation texture with power-of-two sides (unused texels zero)
-    #[arg(long)]
-    pub vat_power_of_two: bool,
-    #[command(flatten)]
-    pub track: TrackArgs,
-    /// Skip irregular-center removal and the global optimisation
-    #[arg(long, conflicts_with_all = ["remove", "batches", "no_optimise", "beta_hat", "rho_gp", "rho_gm", "global_iterations"])]
-    pub no_refine: bool,
-    #[command(flatten)]
-    pub refine: RefineArgs,
     /// Frames per second of the animation (range: 0.001..=100000)
     #[arg(long, default_value_t = GltfExportOptions::default().fps)]
     pub fps: f32,
@@ -351,27 +332,6 @@ pub struct ConvertArgs {
     /// Compressed glTF for the web: quantised positions, normals and morph deltas (KHR_mesh_quantization) encoded by meshoptimizer (EXT_meshopt_compression); viewers need a meshopt decoder (three.js: MeshoptDecoder). Prints the positions' error
     #[arg(long)]
     pub compress: bool,
-    /// Centers each vertex follows (range: 1..=64)
-    #[arg(long, default_value_t = DeformParams::default().neighbors)]
-    pub bind_neighbors: usize,
-    /// Rounds of spreading each vertex's center weights to its mesh neighbours (0: off) (range: 0..=1000)
-    #[arg(long, default_value_t = DeformParams::default().smoothing)]
-    pub bind_smoothing: usize,
-    /// Blending of the centers' motions
-    #[arg(long, value_enum, default_value = "dq")]
-    pub blend: BlendArg,
-    /// Rounds of fitting every frame's mesh onto its input surface, keeping its frame-0 edges as far as it can (0: off, the mesh stays as blended) (range: 0..=1000)
-    #[arg(long, default_value_t = ConformParams::default().iterations)]
-    pub conform_iterations: usize,
-    /// Stiffness of that fit: weight of keeping the frame-0 edges against lying on the input surface (range: 0 < s <= 1e6)
-    #[arg(long, default_value_t = ConformParams::default().stiffness)]
-    pub conform_stiffness: f64,
-    /// Strain at which an edge's rigidity weighs half in that fit, so joints bend where they are instead of bending the parts beside them (0: every edge alike) (range: 0 <= s <= 1e6)
-    #[arg(long, default_value_t = ConformParams::default().bend_strain)]
-    pub conform_bend_strain: f64,
-    /// Mean strain, over a first fit of up to 16 frames spread over the take, at which an edge's rigidity weighs half in every frame's fit: joints are where the take bends (0: no first fit, each frame finds its own) (range: 0 <= s <= 1e6)
-    #[arg(long, default_value_t = ConformParams::default().joint_strain)]
-    pub conform_joint_strain: f64,
     /// Also write a self-contained HTML report: fit to the input per frame, PCAC/DFU, irregularity, time per stage
     #[arg(long, value_name = "HTML")]
     pub report: Option<PathBuf>,
@@ -381,6 +341,50 @@ pub struct ConvertArgs {
     /// Print a machine-readable summary on stdout, and nothing else there
     #[arg(long)]
     pub json: bool,
+    /// Per-vertex animation as an EXR vertex-animation texture, with its mesh (.glb, TEXCOORD_1 addressing the texels) and a JSON sidecar beside it (same as --format vat)
+    #[arg(
+        long,
+        conflicts_with = "format",
+        help_heading = "Vertex-animation texture"
+    )]
+    pub vat: bool,
+    /// Most vertices per row of the vertex-animation texture: its width; a frame takes as many rows as its vertices need (range: 1..=65536)
+    #[arg(long, value_name = "TEXELS", default_value_t = VatOptions::default().max_width, help_heading = "Vertex-animation texture")]
+    pub vat_max_width: usize,
+    /// Largest height of the vertex-animation texture (frames × rows per frame); a longer animation is refused (range: 1..=65536)
+    #[arg(long, value_name = "TEXELS", default_value_t = VatOptions::default().max_height, help_heading = "Vertex-animation texture")]
+    pub vat_max_height: usize,
+    /// Vertex-animation texture with power-of-two sides (unused texels zero)
+    #[arg(long, help_heading = "Vertex-animation texture")]
+    pub vat_power_of_two: bool,
+    #[command(flatten, next_help_heading = "Tracking")]
+    pub track: TrackArgs,
+    /// Skip irregular-center removal and the global optimisation
+    #[arg(long, conflicts_with_all = ["remove", "batches", "no_optimise", "beta_hat", "rho_gp", "rho_gm", "global_iterations"], help_heading = "Refinement")]
+    pub no_refine: bool,
+    #[command(flatten, next_help_heading = "Refinement")]
+    pub refine: RefineArgs,
+    /// Centers each vertex follows (range: 1..=64)
+    #[arg(long, default_value_t = DeformParams::default().neighbors, help_heading = "Mesh")]
+    pub bind_neighbors: usize,
+    /// Rounds of spreading each vertex's center weights to its mesh neighbours (0: off) (range: 0..=1000)
+    #[arg(long, default_value_t = DeformParams::default().smoothing, help_heading = "Mesh")]
+    pub bind_smoothing: usize,
+    /// Blending of the centers' motions
+    #[arg(long, value_enum, default_value = "dq", help_heading = "Mesh")]
+    pub blend: BlendArg,
+    /// Rounds of fitting every frame's mesh onto its input surface, keeping its frame-0 edges as far as it can (0: off, the mesh stays as blended) (range: 0..=1000)
+    #[arg(long, default_value_t = ConformParams::default().iterations, help_heading = "Mesh")]
+    pub conform_iterations: usize,
+    /// Stiffness of that fit: weight of keeping the frame-0 edges against lying on the input surface (range: 0 < s <= 1e6)
+    #[arg(long, default_value_t = ConformParams::default().stiffness, help_heading = "Mesh")]
+    pub conform_stiffness: f64,
+    /// Strain at which an edge's rigidity weighs half in that fit, so joints bend where they are instead of bending the parts beside them (0: every edge alike) (range: 0 <= s <= 1e6)
+    #[arg(long, default_value_t = ConformParams::default().bend_strain, help_heading = "Mesh")]
+    pub conform_bend_strain: f64,
+    /// Mean strain, over a first fit of up to 16 frames spread over the take, at which an edge's rigidity weighs half in every frame's fit: joints are where the take bends (0: no first fit, each frame finds its own) (range: 0 <= s <= 1e6)
+    #[arg(long, default_value_t = ConformParams::default().joint_strain, help_heading = "Mesh")]
+    pub conform_joint_strain: f64,
 }
 
 impl ConvertArgs {
