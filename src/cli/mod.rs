@@ -882,8 +882,11 @@ fn convert(args: ConvertArgs) -> Result<()> {
                     None if args.compress => "fit",
                     None => "length",
                 },
-                "reconstruction_error_max": r.reconstruction_error_max,
-                "reconstruction_error_mean": r.reconstruction_error_mean,
+                // Percent of the diagonal, as `fit_percent`.
+                "reconstruction_error_percent": {
+                    "max": 100.0 * r.reconstruction_error_max,
+                    "mean": 100.0 * r.reconstruction_error_mean,
+                },
             })),
             "vat": vat_layout.map(|l| serde_json::json!({"width": l.width, "height": l.height, "rows_per_frame": l.rows_per_frame})),
             "report": args.report,

@@ -243,6 +243,8 @@ pub struct Conversion {
     /// Input volume the final centers' cells do not reach, per frame, at
     /// [`ConvertOptions::coverage`]: frames where a part was lost.
     pub coverage: Coverage,
+    /// Seconds each stage took in this run (a resumed run's, not the
+    /// interrupted one's before it).
     pub seconds: Vec<(Stage, f64)>,
 }
 
@@ -314,8 +316,11 @@ pub fn convert(
     let (trajectories, refined) = match &options.refine {
         Some(p) => {
             let p = &p.clone().within(options.voxel.max_memory);
+            let clock = Instant::now();
             let r = refine_tracked(trajectories, &sequence, p, checkpoint, progress)?;
-            seconds.push((Stage::Refine, r.refinement.seconds));
+            // This run's seconds, as every stage's: a resumed refinement's
+            // earlier ones are in `r.refinement.seconds`.
+            seconds.push((Stage::Refine, clock.elapsed().as_secs_f64()));
             (r.trajectories, Some(r.refinement))
         }
         None => (trajectories, None),

@@ -38,6 +38,7 @@ pub struct Refinement {
     pub kept: Vec<usize>,
     /// Energy history of each batch's optimisation (empty without it).
     pub batches: Vec<Vec<Iteration>>,
+    /// Seconds the refinement took, a resumed run's earlier ones included.
     pub seconds: f64,
 }
 
