@@ -203,7 +203,9 @@ pub fn write_atomic_all(files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
 
 /// The journal [`write_atomic_all`] keeps while it renames a set into
 /// place: `.NAME.PID.set` beside the set's first file, holding this line and
-/// then each temporary and its target, paths separated by NUL bytes.
+/// then each temporary, its target and the target's state before the
+/// renames (its inode, size and modification time, or "absent"), separated
+/// by NUL bytes.
 pub const SET_JOURNAL: &str = "voltrack set of files being renamed into place";
 
 /// The folder `path` is in ("." for a bare name).
@@ -229,8 +231,8 @@ fn write_journal(pairs: &[(PathBuf, PathBuf)]) -> Result<PathBuf> {
         w.write_all(SET_JOURNAL.as_bytes())?;
         w.write_all(b"\n")?;
         for (a, b) in pairs {
-            for p in [a, b] {
-                w.write_all(&path_bytes(p))?;
+            for field in [path_bytes(a), path_bytes(b), file_state(b).into_bytes()] {
+                w.write_all(&field)?;
                 w.write_all(b"\0")?;
             }
         }
@@ -242,6 +244,24 @@ fn write_journal(pairs: &[(PathBuf, PathBuf)]) -> Result<PathBuf> {
         return Err(Error::write(first, e));
     }
     Ok(journal)
+}
+
+/// What a file is now, to tell later whether anything replaced it: "absent",
+/// or its inode, size and modification time.
+fn file_state(path: &Path) -> String {
+    let Ok(meta) = std::fs::symlink_metadata(path) else {
+        return "absent".into();
+    };
+    let modified = meta
+        .modified()
+        .ok()
+        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+        .map_or(0, |d| d.as_nanos());
+    #[cfg(unix)]
+    let inode = std::os::unix::fs::MetadataExt::ino(&meta);
+    #[cfg(not(unix))]
+    let inode = 0u64;
+    format!("{inode}:{}:{modified}", meta.len())
 }
 
 #[cfg(unix)]
@@ -269,7 +289,9 @@ fn bytes_path(b: &[u8]) -> PathBuf {
 /// Completes the sets of files that runs killed between their renames left
 /// in `dir` ([`write_atomic_all`]'s journals whose process is gone): the
 /// temporaries still there are renamed into place, then the journal is
-/// removed. A journal of a process still running is left alone.
+/// removed. A journal of a process still running is left alone, and a
+/// target that changed since the journal was written (a file the user put
+/// there after the kill) is never replaced: its temporary is removed.
 pub(crate) fn finish_interrupted_sets(dir: &Path) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
@@ -297,27 +319,33 @@ pub(crate) fn finish_interrupted_sets(dir: &Path) {
         else {
             continue;
         };
-        let paths: Vec<PathBuf> = body
-            .split(|&b| b == 0)
-            .filter(|p| !p.is_empty())
-            .map(bytes_path)
-            .collect();
-        for pair in paths.chunks_exact(2) {
-            let (tmp, target) = (&pair[0], &pair[1]);
-            // Only voltrack's own temporaries are moved, never another file
-            // a changed journal might name.
+        let fields: Vec<&[u8]> = body.split(|&b| b == 0).filter(|p| !p.is_empty()).collect();
+        for entry in fields.chunks_exact(3) {
+            let (tmp, target) = (bytes_path(entry[0]), bytes_path(entry[1]));
+            let (tmp, target) = (&tmp, &target);
+            // Only voltrack's own temporaries are moved or removed, never
+            // another file a changed journal might name.
             let ours = tmp.file_name().is_some_and(|n| {
                 let n = n.to_string_lossy();
                 n.starts_with('.') && n.ends_with(".partial")
-            });
-            if ours && std::fs::symlink_metadata(tmp).is_ok_and(|m| m.is_file()) {
-                match std::fs::rename(tmp, target) {
-                    Ok(()) => log::info!(
-                        "completed {}, which an interrupted run left half renamed into place",
-                        target.display()
-                    ),
-                    Err(e) => log::warn!("could not complete {}: {e}", target.display()),
-                }
+            }) && std::fs::symlink_metadata(tmp).is_ok_and(|m| m.is_file());
+            if !ours {
+                continue;
+            }
+            if file_state(target).as_bytes() != entry[2] {
+                log::warn!(
+                    "{} changed after a run was interrupted while writing it; left as it is",
+                    target.display()
+                );
+                let _ = std::fs::remove_file(tmp);
+                continue;
+            }
+            match std::fs::rename(tmp, target) {
+                Ok(()) => log::info!(
+                    "completed {}, which an interrupted run left half renamed into place",
+                    target.display()
+                ),
+                Err(e) => log::warn!("could not complete {}: {e}", target.display()),
             }
         }
         let _ = std::fs::remove_file(&journal);
@@ -736,6 +764,29 @@ mod tests {
             assert_eq!(std::fs::read_to_string(&a).unwrap(), "new pc2");
             assert_eq!(std::fs::read_to_string(&b).unwrap(), "new obj");
             assert_eq!(names(&dir), ["x.obj", "x.pc2", "y.obj", "y.pc2"]);
+            std::fs::remove_dir_all(&dir).unwrap();
+        }
+    }
+
+    #[test]
+    fn a_file_put_in_place_after_the_kill_is_not_replaced() {
+        #[cfg(target_os = "linux")]
+        {
+            let dir = folder("replaced");
+            let (a, b) = (dir.join("x.pc2"), dir.join("x.obj"));
+            std::fs::write(&a, "old pc2").unwrap();
+            std::fs::write(&b, "old obj").unwrap();
+            KILL_BETWEEN_RENAMES.with(|c| c.set(true));
+            let killed = write_atomic_all(vec![(&a, fill("new pc2")), (&b, fill("new obj"))]);
+            KILL_BETWEEN_RENAMES.with(|c| c.set(false));
+            assert!(killed.is_err());
+            as_if_from(&dir, gone_pid());
+            // The user's own file where the set's second one was to go.
+            std::fs::remove_file(&b).unwrap();
+            std::fs::write(&b, "the user's").unwrap();
+            finish_interrupted_sets(&dir);
+            assert_eq!(std::fs::read_to_string(&b).unwrap(), "the user's");
+            assert_eq!(names(&dir), ["x.obj", "x.pc2"]);
             std::fs::remove_dir_all(&dir).unwrap();
         }
     }
