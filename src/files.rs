@@ -125,7 +125,7 @@ pub type Fill<'a> = Box<dyn FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Re
 /// there again. Several renames cannot be one step on a POSIX file system;
 /// the journal is how databases make them one.
 pub fn write_atomic_all(files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
-    let mut dirs: Vec<PathBuf> = files.iter().map(|(p, _)| folder_of(p)).collect();
+    let mut dirs: Vec<&Path> = files.iter().map(|(p, _)| folder_of(p)).collect();
     dirs.sort();
     dirs.dedup();
     dirs.iter().for_each(|d| finish_interrupted_sets(d));
@@ -209,10 +209,10 @@ pub fn write_atomic_all(files: Vec<(&Path, Fill<'_>)>) -> Result<()> {
 pub const SET_JOURNAL: &str = "voltrack set of files being renamed into place";
 
 /// The folder `path` is in ("." for a bare name).
-fn folder_of(path: &Path) -> PathBuf {
+fn folder_of(path: &Path) -> &Path {
     match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
     }
 }
 
@@ -221,11 +221,7 @@ fn folder_of(path: &Path) -> PathBuf {
 fn write_journal(pairs: &[(PathBuf, PathBuf)]) -> Result<PathBuf> {
     let first = &pairs[0].1;
     let (dir, name) = check_writable(first)?;
-    let journal = dir.join(format!(
-        ".{}.{}.set",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
+    let journal = own_file(dir, name, "set");
     let tmp = journal.with_extension("set.partial");
     let filled = fill_temporary(&tmp, |w| {
         w.write_all(SET_JOURNAL.as_bytes())?;
@@ -306,7 +302,7 @@ pub(crate) fn finish_interrupted_sets(dir: &Path) {
         else {
             continue;
         };
-        if pid == std::process::id() || process_alive(pid) {
+        if !left_behind(pid) {
             continue;
         }
         let journal = entry.path();
@@ -325,10 +321,10 @@ pub(crate) fn finish_interrupted_sets(dir: &Path) {
             let (tmp, target) = (&tmp, &target);
             // Only voltrack's own temporaries are moved or removed, never
             // another file a changed journal might name.
-            let ours = tmp.file_name().is_some_and(|n| {
-                let n = n.to_string_lossy();
-                n.starts_with('.') && n.ends_with(".partial")
-            }) && std::fs::symlink_metadata(tmp).is_ok_and(|m| m.is_file());
+            let ours = tmp
+                .file_name()
+                .is_some_and(|n| is_partial(&n.to_string_lossy()))
+                && std::fs::symlink_metadata(tmp).is_ok_and(|m| m.is_file());
             if !ours {
                 continue;
             }
@@ -356,10 +352,7 @@ pub(crate) fn finish_interrupted_sets(dir: &Path) {
 /// directory and is not itself a directory; returns the directory and the
 /// file name.
 pub(crate) fn check_writable(path: &Path) -> Result<(&Path, &std::ffi::OsStr)> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
+    let dir = folder_of(path);
     if !dir.is_dir() {
         let why = if dir.exists() {
             "is not a directory"
@@ -422,11 +415,7 @@ pub fn replace_dir(dir: &Path, files: Vec<(String, Fill<'_>)>) -> Result<Vec<Pat
         .collect();
     std::fs::create_dir_all(parent).map_err(|e| Error::write(dir, e))?;
     let remove_created = || created.iter().for_each(|d| drop(std::fs::remove_dir(d)));
-    let staging = parent.join(format!(
-        ".{}.{}.partial",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
+    let staging = own_file(parent, name, "partial");
     let _ = std::fs::remove_dir_all(&staging);
     if let Err(e) = std::fs::create_dir(&staging) {
         remove_created();
@@ -460,14 +449,10 @@ pub fn replace_dir(dir: &Path, files: Vec<(String, Fill<'_>)>) -> Result<Vec<Pat
 /// `.NAME.PID.partial` files and folders and `.NAME.PID.old` folders whose
 /// process is gone (a process still running may be writing them).
 fn remove_stale(target: &Path) {
-    let (Some(dir), Some(name)) = (target.parent(), target.file_name()) else {
+    let Some(name) = target.file_name() else {
         return;
     };
-    let dir = if dir.as_os_str().is_empty() {
-        Path::new(".")
-    } else {
-        dir
-    };
+    let dir = folder_of(target);
     let prefix = format!(".{}.", name.to_string_lossy());
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
@@ -486,7 +471,7 @@ fn remove_stale(target: &Path) {
         else {
             continue;
         };
-        if pid == std::process::id() || process_alive(pid) {
+        if !left_behind(pid) {
             continue;
         }
         let path = entry.path();
@@ -613,7 +598,12 @@ pub(crate) fn foreign_entry(dir: &Path) -> Option<PathBuf> {
 /// (The journals of sets, `.NAME.PID.set`, are never written inside a
 /// folder voltrack fills.)
 fn is_temporary(name: &str) -> bool {
-    (name.starts_with('.') && name.ends_with(".partial")) || name.starts_with(".voltrack-probe.")
+    is_partial(name) || name.starts_with(".voltrack-probe.")
+}
+
+/// A `.NAME.PID.partial` temporary's name.
+fn is_partial(name: &str) -> bool {
+    name.starts_with('.') && name.ends_with(".partial")
 }
 
 /// Whether the file at `path` starts with `mark`.
@@ -649,11 +639,23 @@ pub(crate) fn check_dir_creatable(dir: &Path) -> Result<()> {
 /// rename stays on one file system.
 fn temporary(path: &Path) -> Result<PathBuf> {
     let (dir, name) = check_writable(path)?;
-    Ok(dir.join(format!(
-        ".{}.{}.partial",
+    Ok(own_file(dir, name, "partial"))
+}
+
+/// `dir/.NAME.PID.KIND`: a file this process writes for `name` (a
+/// temporary, a journal), which a later run can tell as left by it.
+fn own_file(dir: &Path, name: &std::ffi::OsStr, kind: &str) -> PathBuf {
+    dir.join(format!(
+        ".{}.{}.{kind}",
         name.to_string_lossy(),
         std::process::id()
-    )))
+    ))
+}
+
+/// Whether what process `pid` left is no longer being written: the process
+/// is gone (and is not this one).
+fn left_behind(pid: u32) -> bool {
+    pid != std::process::id() && !process_alive(pid)
 }
 
 /// Creates `tmp`, fills it and syncs it to disk.
@@ -731,6 +733,20 @@ mod tests {
         n
     }
 
+    #[cfg_attr(not(target_os = "linux"), allow(dead_code))]
+    /// Writes the set `x.pc2`, `x.obj` over an old one in `dir` and stops as a
+    /// kill between its renames would; returns the two paths.
+    fn killed_between_renames(dir: &Path) -> (PathBuf, PathBuf) {
+        let (a, b) = (dir.join("x.pc2"), dir.join("x.obj"));
+        std::fs::write(&a, "old pc2").unwrap();
+        std::fs::write(&b, "old obj").unwrap();
+        KILL_BETWEEN_RENAMES.with(|c| c.set(true));
+        let killed = write_atomic_all(vec![(&a, fill("new pc2")), (&b, fill("new obj"))]);
+        KILL_BETWEEN_RENAMES.with(|c| c.set(false));
+        assert!(killed.is_err());
+        (a, b)
+    }
+
     #[test]
     fn a_set_is_written_whole_and_leaves_no_journal() {
         let dir = folder("whole");
@@ -747,13 +763,7 @@ mod tests {
         #[cfg(target_os = "linux")]
         {
             let dir = folder("killed");
-            let (a, b) = (dir.join("x.pc2"), dir.join("x.obj"));
-            std::fs::write(&a, "old pc2").unwrap();
-            std::fs::write(&b, "old obj").unwrap();
-            KILL_BETWEEN_RENAMES.with(|c| c.set(true));
-            let killed = write_atomic_all(vec![(&a, fill("new pc2")), (&b, fill("new obj"))]);
-            KILL_BETWEEN_RENAMES.with(|c| c.set(false));
-            assert!(killed.is_err());
+            let (a, b) = killed_between_renames(&dir);
             // Half old, half new, as a kill leaves it; the journal says what is left.
             assert_eq!(std::fs::read_to_string(&a).unwrap(), "new pc2");
             assert_eq!(std::fs::read_to_string(&b).unwrap(), "old obj");
@@ -773,13 +783,7 @@ mod tests {
         #[cfg(target_os = "linux")]
         {
             let dir = folder("replaced");
-            let (a, b) = (dir.join("x.pc2"), dir.join("x.obj"));
-            std::fs::write(&a, "old pc2").unwrap();
-            std::fs::write(&b, "old obj").unwrap();
-            KILL_BETWEEN_RENAMES.with(|c| c.set(true));
-            let killed = write_atomic_all(vec![(&a, fill("new pc2")), (&b, fill("new obj"))]);
-            KILL_BETWEEN_RENAMES.with(|c| c.set(false));
-            assert!(killed.is_err());
+            let (_, b) = killed_between_renames(&dir);
             as_if_from(&dir, gone_pid());
             // The user's own file where the set's second one was to go.
             std::fs::remove_file(&b).unwrap();

@@ -13,7 +13,7 @@ use voltrack::model::PositionFrames;
 use voltrack::Progress;
 
 mod common;
-use common::Scratch;
+use common::{Scratch, StopAfterPolls as StopAfter};
 
 /// The bundled example's frame-0 mesh carried through its true motion.
 fn bending_bar() -> DynamicMesh {
@@ -923,33 +923,6 @@ fn compact_basis_bytes_do_not_depend_on_threads() {
         };
         let one = write("a.glb", 1);
         assert_eq!(one, write("b.glb", 2), "{basis:?}: 1 and 2 threads differ");
-    }
-}
-
-/// Counts its polls and asks to stop from the `after`-th on.
-struct StopAfter {
-    polls: std::sync::atomic::AtomicUsize,
-    after: usize,
-}
-
-impl StopAfter {
-    fn new(after: usize) -> Self {
-        StopAfter {
-            polls: 0.into(),
-            after,
-        }
-    }
-    fn polls(&self) -> usize {
-        self.polls.load(std::sync::atomic::Ordering::Relaxed)
-    }
-}
-
-impl voltrack::progress::ProgressSink for StopAfter {
-    fn report(&self, _: voltrack::Stage, _: usize, _: usize) {}
-    fn cancelled(&self) -> bool {
-        self.polls
-            .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
-            >= self.after
     }
 }
 

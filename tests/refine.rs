@@ -27,19 +27,25 @@ fn two_bodies(frames: usize, resolution: usize) -> VoxelSequence {
     common::voxel_sequence(&meshes, resolution)
 }
 
-#[test]
-fn accepted_iterations_lower_the_energy_monotonically() {
-    let seq = two_bodies(6, 40);
-    let tracked = track(
-        &seq,
+/// `centers` centers tracked through `seq` at the defaults otherwise.
+fn tracked(seq: &VoxelSequence, centers: usize) -> Trajectories {
+    track(
+        seq,
         &TrackParams {
-            centers: 40,
+            centers,
             ..Default::default()
         },
         Default::default(),
     )
-    .unwrap();
-    let mut traj = tracked.trajectories.clone();
+    .unwrap()
+    .trajectories
+}
+
+#[test]
+fn accepted_iterations_lower_the_energy_monotonically() {
+    let seq = two_bodies(6, 40);
+    let tracked = tracked(&seq, 40);
+    let mut traj = tracked.clone();
     let p = RefineParams::default();
     let scale = p.length_scale(&seq.bounds);
     let mut cells = SequenceCells::new(&seq, usize::MAX);
@@ -73,22 +79,14 @@ fn accepted_iterations_lower_the_energy_monotonically() {
         );
         assert!((w[1].energy - (w[1].smooth + p.beta_hat * w[1].data)).abs() <= 1e-9 * w[1].energy);
     }
-    assert_ne!(traj, tracked.trajectories);
+    assert_ne!(traj, tracked);
 }
 
 #[test]
 fn a_center_jumping_between_bodies_is_removed_first() {
     let seq = two_bodies(6, 40);
-    let tracked = track(
-        &seq,
-        &TrackParams {
-            centers: 40,
-            ..Default::default()
-        },
-        Default::default(),
-    )
-    .unwrap();
-    let mut traj: Trajectories = tracked.trajectories.clone();
+    let tracked = tracked(&seq, 40);
+    let mut traj: Trajectories = tracked.clone();
     // Center 7 alternates between a center of each body.
     let (on_a, on_b) = {
         let f0 = traj.frame(0);
@@ -129,17 +127,9 @@ fn a_center_jumping_between_bodies_is_removed_first() {
 #[test]
 fn removal_spreads_over_batches() {
     let seq = two_bodies(4, 32);
-    let tracked = track(
-        &seq,
-        &TrackParams {
-            centers: 30,
-            ..Default::default()
-        },
-        Default::default(),
-    )
-    .unwrap();
+    let tracked = tracked(&seq, 30);
     let res = refine(
-        tracked.trajectories.clone(),
+        tracked.clone(),
         &seq,
         &RefineParams {
             remove: Some(7),
@@ -160,7 +150,7 @@ fn removal_spreads_over_batches() {
     // Removal alone leaves the remaining trajectories untouched.
     for (k, &orig) in res.kept.iter().enumerate() {
         for f in 0..refined.frames {
-            assert_eq!(refined.get(f, k), tracked.trajectories.get(f, orig));
+            assert_eq!(refined.get(f, k), tracked.get(f, orig));
         }
     }
 }
@@ -202,19 +192,11 @@ fn kept_assignments_fill_the_byte_budget() {
 #[test]
 fn kept_and_fresh_assignments_and_gradients_in_a_file_give_the_same_optimisation() {
     let seq = two_bodies(7, 40);
-    let tracked = track(
-        &seq,
-        &TrackParams {
-            centers: 40,
-            ..Default::default()
-        },
-        Default::default(),
-    )
-    .unwrap();
+    let tracked = tracked(&seq, 40);
     let p = RefineParams::default();
     let scale = p.length_scale(&seq.bounds);
     let run = |kept: usize, memory: usize| {
-        let mut traj = tracked.trajectories.clone();
+        let mut traj = tracked.clone();
         let mut cells = SequenceCells::with_cache(&seq, kept);
         assert_eq!(cells.cached_frames(), kept.min(7));
         let mut energies = Vec::new();
@@ -278,44 +260,18 @@ fn kept_and_fresh_assignments_and_gradients_in_a_file_give_the_same_optimisation
     }
 }
 
-/// Asks the work to stop once it has been asked `after` times whether to.
-struct StopAfter {
-    after: usize,
-    asked: std::sync::atomic::AtomicUsize,
-}
-
-impl voltrack::progress::ProgressSink for StopAfter {
-    fn report(&self, _: voltrack::Stage, _: usize, _: usize) {}
-    fn cancelled(&self) -> bool {
-        self.asked
-            .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
-            >= self.after
-    }
-}
-
 #[test]
 fn a_stop_request_ends_the_optimisation_within_an_evaluation_and_keeps_accepted_steps() {
     let seq = two_bodies(6, 40);
-    let tracked = track(
-        &seq,
-        &TrackParams {
-            centers: 40,
-            ..Default::default()
-        },
-        Default::default(),
-    )
-    .unwrap();
+    let tracked = tracked(&seq, 40);
     let p = RefineParams {
         max_iterations: 10,
         ..Default::default()
     };
     let scale = p.length_scale(&seq.bounds);
     let run = |after: usize| {
-        let sink = StopAfter {
-            after,
-            asked: 0.into(),
-        };
-        let mut traj = tracked.trajectories.clone();
+        let sink = common::StopAfterPolls::new(after);
+        let mut traj = tracked.clone();
         let mut cells =
             SequenceCells::new(&seq, usize::MAX).stopping_with(voltrack::Progress(Some(&sink)));
         let omega = global_affinity(
@@ -332,13 +288,12 @@ fn a_stop_request_ends_the_optimisation_within_an_evaluation_and_keeps_accepted_
             true
         })
         .unwrap();
-        let asked = sink.asked.load(std::sync::atomic::Ordering::Relaxed);
-        (traj, history, accepted, asked)
+        (traj, history, accepted, sink.polls())
     };
     // Stopped at once: nothing evaluated, the trajectories untouched.
     let (traj, history, _, _) = run(0);
     assert!(history.is_empty());
-    assert_eq!(traj.positions, tracked.trajectories.positions);
+    assert_eq!(traj.positions, tracked.positions);
     // Stopped part way: the trajectories are those of the last accepted step.
     let (full, full_history, _, asked) = run(usize::MAX);
     let (traj, history, accepted, _) = run(asked / 2);
@@ -351,7 +306,7 @@ fn a_stop_request_ends_the_optimisation_within_an_evaluation_and_keeps_accepted_
     if history.len() > 1 {
         assert_eq!(traj.positions, accepted);
     } else {
-        assert_eq!(traj.positions, tracked.trajectories.positions);
+        assert_eq!(traj.positions, tracked.positions);
     }
-    assert_ne!(full.positions, tracked.trajectories.positions);
+    assert_ne!(full.positions, tracked.positions);
 }

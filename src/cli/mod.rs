@@ -59,7 +59,6 @@ pub fn init_logging() {
 }
 use std::path::{Path, PathBuf};
 use voltrack::checkpoint::Checkpointing;
-use voltrack::export::gltf::BasisChoice;
 use voltrack::io::FrameFiles;
 use voltrack::math::Real;
 use voltrack::params::CoverageParams;
@@ -583,7 +582,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
     if let Some(name) = &args.name {
         voltrack::model::check_name(name)?;
     }
-    args.gltf_options(voltrack::model::DEFAULT_NAME.into())
+    args.gltf_options(voltrack::model::DEFAULT_NAME.into(), None)
         .validate()?;
     let vat = args.vat_options(voltrack::model::DEFAULT_NAME.into());
     vat.validate()?;
@@ -660,24 +659,17 @@ fn convert(args: ConvertArgs) -> Result<()> {
                         .into_owned()
                 })
                 .collect();
-            let mut gltf = voltrack::export::gltf::GltfExportOptions {
-                frame_names,
-                ..args.gltf_options(name.clone())
-            };
-            // The fit is measured before every GLB is written; without it a
-            // bounded basis would be bounded by zero: per-frame targets.
+            // The fit is measured before every GLB is written.
             let fit = measured
                 .as_ref()
                 .map(|m| &m.fit)
                 .or(fit_only.as_ref().map(|f| &f.0));
+            let gltf = voltrack::export::gltf::GltfExportOptions {
+                frame_names,
+                ..args.gltf_options(name.clone(), fit)
+            };
             let fit_summary = fit.map(|f| (f.summary(), f.diagonal));
-            let bounded = matches!(gltf.basis, BasisChoice::Bounded { .. });
-            if let (true, Some((s, diagonal))) = (bounded, fit_summary) {
-                gltf.basis = BasisChoice::Bounded {
-                    mean: s.mean / 100.0 * diagonal,
-                    max: s.max / 100.0 * diagonal,
-                };
-            }
+            let bounded = args.basis_by_fit();
             let report =
                 voltrack::export::gltf::write_dynamic_glb(out, &conv.mesh, &gltf, bars.progress())?;
             // The basis' error in percent of the fit's diagonal, as the fit.
@@ -878,9 +870,8 @@ fn convert(args: ConvertArgs) -> Result<()> {
                 "chosen_by": match args.basis {
                     Some(BasisArg::Components(_)) => "components",
                     Some(BasisArg::PerFrame) => "per-frame",
-                    Some(BasisArg::Auto) => "fit",
-                    None if args.compress => "fit",
-                    None => "length",
+                    _ if args.basis_by_fit() => "fit",
+                    _ => "length",
                 },
                 // Percent of the diagonal, as `fit_percent`.
                 "reconstruction_error_percent": {

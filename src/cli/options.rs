@@ -6,6 +6,7 @@ use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use voltrack::export::gltf::{BasisChoice, GltfExportOptions, Interpolation};
 use voltrack::export::vat::VatOptions;
+use voltrack::metrics::SequenceFit;
 use voltrack::params::{
     AffinityKind, Blending, ConformParams, DeformParams, RefineParams, TrackParams,
 };
@@ -487,24 +488,36 @@ impl ConvertArgs {
         }
     }
 
-    /// The glTF options, the object called `name`.
-    pub fn gltf_options(&self, name: String) -> GltfExportOptions {
+    /// Whether the compact basis is chosen by the result's fit to the input:
+    /// `--basis auto`, or `--compress` without `--basis`.
+    pub fn basis_by_fit(&self) -> bool {
+        match self.basis {
+            Some(BasisArg::Auto) => true,
+            None => self.compress,
+            Some(_) => false,
+        }
+    }
+
+    /// The glTF options, the object called `name`; a basis chosen by the fit
+    /// is bounded by `fit` (by zero without it: per-frame targets).
+    pub fn gltf_options(&self, name: String, fit: Option<&SequenceFit>) -> GltfExportOptions {
         GltfExportOptions {
             fps: self.fps,
             name,
-            // Bounded by the fit once it is known (`with_fit_bounds`).
             basis: match self.basis {
                 Some(BasisArg::Components(k)) => BasisChoice::Components(k),
                 Some(BasisArg::PerFrame) => BasisChoice::PerFrame,
-                Some(BasisArg::Auto) => BasisChoice::Bounded {
-                    mean: 0.0,
-                    max: 0.0,
-                },
-                None if self.compress => BasisChoice::Bounded {
-                    mean: 0.0,
-                    max: 0.0,
-                },
-                None => BasisChoice::Auto,
+                _ if self.basis_by_fit() => {
+                    let length = |percent: voltrack::math::Real, f: &SequenceFit| {
+                        percent / 100.0 * f.diagonal
+                    };
+                    let (mean, max) = fit.map_or((0.0, 0.0), |f| {
+                        let s = f.summary();
+                        (length(s.mean, f), length(s.max, f))
+                    });
+                    BasisChoice::Bounded { mean, max }
+                }
+                _ => BasisChoice::Auto,
             },
             compress: self.compress,
             interpolation: match self.interpolation {

@@ -47,6 +47,17 @@ pub struct FrameExtent {
     pub vertices: usize,
 }
 
+impl FrameExtent {
+    /// What the estimate needs of `mesh`.
+    pub fn of(mesh: &TriangleMesh) -> Self {
+        FrameExtent {
+            bounds: mesh.bounding_box(),
+            volume: mesh.signed_volume().abs(),
+            vertices: mesh.positions.len(),
+        }
+    }
+}
+
 /// The estimate for one sequence on one grid.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MemoryEstimate {
@@ -71,14 +82,7 @@ impl MemoryEstimate {
     /// signed volume, bounded by its own box of voxels); voxelising holds
     /// one byte per voxel of a frame's box on each of `threads` threads.
     pub fn of(meshes: &[&TriangleMesh], grid: &GridSpec, threads: usize) -> Self {
-        let extents: Vec<FrameExtent> = meshes
-            .iter()
-            .map(|m| FrameExtent {
-                bounds: m.bounding_box(),
-                volume: m.signed_volume().abs(),
-                vertices: m.positions.len(),
-            })
-            .collect();
+        let extents: Vec<FrameExtent> = meshes.iter().map(|m| FrameExtent::of(m)).collect();
         Self::of_frames(&extents, grid, threads)
     }
 
@@ -184,21 +188,24 @@ pub(crate) fn size(bytes: f64) -> String {
     }
 }
 
+/// The bytes of the `key` line of a /proc file's `text` ("VmRSS:  1234 kB").
+fn kib_field(text: &str, key: &str) -> Option<f64> {
+    let line = text.lines().find(|l| l.starts_with(key))?;
+    Some(line.split_whitespace().nth(1)?.parse::<f64>().ok()? * 1024.0)
+}
+
 /// Memory the process holds now (its resident set), if known (Linux).
 pub(crate) fn resident_memory() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
-    Some(line.split_whitespace().nth(1)?.parse::<f64>().ok()? * 1024.0)
+    kib_field(
+        &std::fs::read_to_string("/proc/self/status").ok()?,
+        "VmRSS:",
+    )
 }
 
 /// Memory the process can still get now, if known (Linux): the system's
 /// available memory, or less under an address-space limit (`ulimit -v`).
 pub(crate) fn available_memory() -> Option<f64> {
-    let kib = |text: &str, key: &str| -> Option<f64> {
-        let line = text.lines().find(|l| l.starts_with(key))?;
-        Some(line.split_whitespace().nth(1)?.parse::<f64>().ok()? * 1024.0)
-    };
-    let system = kib(
+    let system = kib_field(
         &std::fs::read_to_string("/proc/meminfo").ok()?,
         "MemAvailable:",
     )?;
@@ -212,7 +219,7 @@ pub(crate) fn available_memory() -> Option<f64> {
         });
     let used = std::fs::read_to_string("/proc/self/status")
         .ok()
-        .and_then(|s| kib(&s, "VmSize:"));
+        .and_then(|s| kib_field(&s, "VmSize:"));
     Some(match (limit, used) {
         (Some(limit), Some(used)) => system.min((limit - used).max(0.0)),
         _ => system,

@@ -117,11 +117,7 @@ pub fn voxelize_sequence(
             counter.tick();
             Ok(match frame {
                 Frame::Mesh(m) => Summary::Mesh {
-                    extent: FrameExtent {
-                        bounds: m.bounding_box(),
-                        volume: m.signed_volume().abs(),
-                        vertices: m.positions.len(),
-                    },
+                    extent: FrameExtent::of(&m),
                     mesh: (f == 0).then_some(m),
                 },
                 Frame::Voxels(g, o) => Summary::Voxels(g, o),

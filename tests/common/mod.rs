@@ -167,3 +167,30 @@ pub fn ply_bytes(
     voltrack::export::ply::write_ply(&mut out, m, encoding).unwrap();
     out
 }
+
+/// Counts its polls and asks to stop from the `after`-th on.
+pub struct StopAfterPolls {
+    polls: std::sync::atomic::AtomicUsize,
+    after: usize,
+}
+
+impl StopAfterPolls {
+    pub fn new(after: usize) -> Self {
+        StopAfterPolls {
+            polls: 0.into(),
+            after,
+        }
+    }
+    pub fn polls(&self) -> usize {
+        self.polls.load(std::sync::atomic::Ordering::Relaxed)
+    }
+}
+
+impl voltrack::progress::ProgressSink for StopAfterPolls {
+    fn report(&self, _: voltrack::Stage, _: usize, _: usize) {}
+    fn cancelled(&self) -> bool {
+        self.polls
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+            >= self.after
+    }
+}
