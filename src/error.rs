@@ -29,6 +29,9 @@ pub enum Error {
     InvalidParameter(String),
     #[error("{}: cannot write: {message}", path.display())]
     Write { path: PathBuf, message: String },
+    /// Writing to a caller's writer (not a file of ours) failed.
+    #[error("cannot write the output: {0}")]
+    WriteStream(#[source] std::io::Error),
     /// An output the run refuses to write, found before any work: it would
     /// replace an input or another output, or its place takes no file.
     #[error("{}: cannot write: {message}", path.display())]

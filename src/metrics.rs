@@ -1,4 +1,4 @@
-//! Quality measures of a tracking result (method.md §6, §8), computed as the
+//! Quality measures of a tracking result (docs/method.md §6, §8), computed as the
 //! reference computes them, and of the dynamic mesh against its input
 //! ([`fit`]).
 

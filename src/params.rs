@@ -1,12 +1,12 @@
 //! Parameters of every stage, with the paper's defaults. Lengths are fractions
 //! of the longest side of the sequence's bounding box unless
-//! `absolute_units` is set (method.md §9): the paper's ρ = 0.125 m on a
+//! `absolute_units` is set (docs/method.md §9): the paper's ρ = 0.125 m on a
 //! 1.8 m human becomes 0.07, so one default serves millimetres and metres.
 //! ρ_p defaults to 1.5 center spacings instead: see [`TrackParams::rho_p`].
 
 use crate::math::Real;
 
-/// Which affinity weights the rigid fits (method.md §5).
+/// Which affinity weights the rigid fits (docs/method.md §5).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum AffinityKind {
@@ -16,7 +16,7 @@ pub enum AffinityKind {
     Iir,
 }
 
-/// Forward tracking (method.md §2-§5).
+/// Forward tracking (docs/method.md §2-§5).
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct TrackParams {
     /// Number of centers N. Default 1000; 1 ..= [`MAX_CENTERS`] and at most
@@ -77,7 +77,7 @@ pub struct TrackParams {
     /// k of a second start for every frame after the first: besides the
     /// paper's constant-velocity guess c^{f-1} + (c^{f-1} − c^{f-2}), the
     /// frame is also tracked from c^{f-1} + k (c^{f-1} − c^{f-2}), and the
-    /// runs are compared by their energy E = Es + β Eu (method.md §3),
+    /// runs are compared by their energy E = Es + β Eu (docs/method.md §3),
     /// region by region (see `guess_screening`). Limbs that swing and turn
     /// back within a few frames defeat the constant-velocity guess, all the more when frames are far apart in
     /// time: it sends a hand that has just stopped at the hip into the hip,
@@ -279,7 +279,7 @@ pub fn sigma_for(rho: Real) -> Real {
     std::f64::consts::LN_2 / (rho * rho)
 }
 
-/// Irregular-center removal and the temporally global optimisation (method.md §6-§7).
+/// Irregular-center removal and the temporally global optimisation (docs/method.md §6-§7).
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct RefineParams {
     /// Irregular centers removed in all. Default None = 1 % of N, at least 1;
@@ -438,7 +438,7 @@ pub enum Blending {
     Linear,
 }
 
-/// Deforming the first-frame mesh by the trajectories (method.md §10).
+/// Deforming the first-frame mesh by the trajectories (docs/method.md §10).
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct DeformParams {
     /// Centers each vertex is bound to. Default 4; 1 ..= [`MAX_NEIGHBORS`].
@@ -502,7 +502,7 @@ impl Default for DeformParams {
     }
 }
 
-/// Lengths are fractions of the bounding box's longest side (method.md §9)
+/// Lengths are fractions of the bounding box's longest side (docs/method.md §9)
 /// unless given in the input's units.
 fn length_scale(absolute_units: bool, bounds: &crate::model::mesh::Aabb) -> Real {
     if absolute_units {
@@ -514,7 +514,7 @@ fn length_scale(absolute_units: bool, bounds: &crate::model::mesh::Aabb) -> Real
 
 /// Fitting the deformed mesh to every frame's input surface (not in the
 /// paper): per frame, an as-rigid-as-possible deformation of the frame-0
-/// mesh, started from the blended result of method.md §10 and pulled
+/// mesh, started from the blended result of docs/method.md §10 and pulled
 /// through the vertices of that frame's input (each input vertex pulls the
 /// mesh's nearest compatible point; `deform::conform` says why not onto the
 /// input's triangles).

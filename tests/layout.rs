@@ -2,7 +2,8 @@
 //! `src/` (the binary's `cli` and `main.rs` aside) import each other without
 //! a cycle, and no stage reads files through `io`: only the pipeline's
 //! composition may, and today not even it does (stages take a
-//! `FrameSource`).
+//! `FrameSource`), and only the files listed in `FILE_SYSTEM` touch the
+//! file system.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -147,4 +148,86 @@ fn no_stage_reads_files_itself() {
             "{stage} imports io; stages take a FrameSource"
         );
     }
+}
+
+/// The library's files that touch the file system themselves (`std::fs`,
+/// `File::open`, `OpenOptions`), each with why. Stages take data; a new file
+/// here is a stage reading or writing behind its caller's back.
+const FILE_SYSTEM: [(&str, &str); 16] = [
+    ("io/mod.rs", "reading the input"),
+    ("io/sequence.rs", "finding a sequence's frames"),
+    ("io/obj.rs", "reading the input (materials beside an OBJ)"),
+    ("io/gltf.rs", "reading the input (buffers beside a glTF)"),
+    ("io/exr.rs", "reading trajectories"),
+    (
+        "files.rs",
+        "atomic writes, the one place outputs are created",
+    ),
+    ("checkpoint.rs", "checkpoint files"),
+    (
+        "track/forward.rs",
+        "removing a checkpoint a fresh run makes stale",
+    ),
+    ("export/gltf.rs", "embedding the texture the mesh names"),
+    ("export/pc2.rs", "the writer's file type (through files.rs)"),
+    ("export/exr.rs", "the writer's file type (through files.rs)"),
+    (
+        "export/binvox.rs",
+        "the writer's file type (through files.rs)",
+    ),
+    (
+        "model/mesh.rs",
+        "whether a texture file is an image to embed",
+    ),
+    (
+        "model/positions.rs",
+        "spilling a long sequence's frames to disk",
+    ),
+    (
+        "pipeline/guard.rs",
+        "the output plan: what each output path is",
+    ),
+    ("voxel/memory.rs", "the memory available, from /proc"),
+];
+
+#[test]
+fn only_listed_files_touch_the_file_system() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    let mut touching = BTreeSet::new();
+    for path in files {
+        let rel = path
+            .strip_prefix(&src)
+            .unwrap()
+            .to_string_lossy()
+            .replace('\\', "/");
+        if rel.starts_with("cli/") || rel == "main.rs" {
+            continue; // the binary prints, renders and writes
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        if [
+            "std::fs",
+            "fs::",
+            "File::open",
+            "File::create",
+            "OpenOptions",
+        ]
+        .iter()
+        .any(|s| text.contains(s))
+        {
+            touching.insert(rel);
+        }
+    }
+    let listed: BTreeSet<String> = FILE_SYSTEM.iter().map(|(f, _)| f.to_string()).collect();
+    let unlisted: Vec<_> = touching.difference(&listed).collect();
+    assert!(
+        unlisted.is_empty(),
+        "{unlisted:?} touch the file system; stages take data and options, not paths (or list the file here with why)"
+    );
+    let stale: Vec<_> = listed.difference(&touching).collect();
+    assert!(
+        stale.is_empty(),
+        "{stale:?} no longer touch the file system: drop them from the list"
+    );
 }

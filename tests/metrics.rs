@@ -1,4 +1,4 @@
-//! PCAC, DFU and irregularity (method.md §6, §8): hand-computed cases, both
+//! PCAC, DFU and irregularity (docs/method.md §6, §8): hand-computed cases, both
 //! eigen-decomposition routes of PCAC against a direct implementation of the
 //! definition, irregularity against brute force, and the SVG curve.
 

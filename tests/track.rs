@@ -507,7 +507,7 @@ fn motion_dissimilarity_matches_its_definition() {
     }
 }
 
-/// Weights after a few frames, from the formulas of method.md §5 evaluated
+/// Weights after a few frames, from the formulas of docs/method.md §5 evaluated
 /// directly over the whole history.
 #[test]
 fn both_affinities_match_their_formulas() {

@@ -664,7 +664,7 @@ fn tracking_html(input: &ReportInput) -> String {
     if let (Some(after), Some(_)) = (m.refined.as_ref(), conv.refined.as_ref()) {
         if after.dfu > m.tracked.dfu {
             // Users read a rising DFU as refinement gone wrong; it is the
-            // trade the global energy makes (method.md §7).
+            // trade the global energy makes (docs/method.md §7).
             h.push_str(
                 "<p class=\"note\">DFU rises after refinement here. That is expected: the global optimisation moves every \
                  center toward the motion its neighbours predict from the frames before and after (the smoothness term) as \

@@ -3,7 +3,7 @@
 //! deformed as rigidly as possible (Sorkine & Alexa 2007: every vertex's
 //! one-ring keeps its frame-0 edges up to a rotation) while it is pulled
 //! through the vertices of that frame's input, starting from the blended
-//! result of method.md §10: every input vertex pulls the point of the mesh
+//! result of docs/method.md §10: every input vertex pulls the point of the mesh
 //! nearest to it, if the mesh there faces the way of every input triangle
 //! at the vertex. The term
 //! weighs the distance along the mesh's normal fully and the distance along
@@ -320,7 +320,7 @@ pub fn conform(
     Ok(DynamicMesh { base, frames })
 }
 
-/// One frame: `blended` (positions of `base`'s vertices after method.md
+/// One frame: `blended` (positions of `base`'s vertices after docs/method.md
 /// §10) fitted to `input`, as [`conform`] fits each frame.
 /// `bounds` is the box whose longest side `params.max_distance` is a
 /// fraction of (the whole input's, in a sequence). Both

@@ -1,5 +1,5 @@
 //! Stage 4: the first-frame mesh deformed by the center trajectories into one
-//! mesh with one connectivity for all frames (method.md §10).
+//! mesh with one connectivity for all frames (docs/method.md §10).
 //!
 //! Every frame-0 vertex binds to its nearest centers, but only to those
 //! affine (ω) to its nearest one, so a hand resting on a hip in frame 0 is not

@@ -163,6 +163,66 @@ pub fn write_dynamic_glb(
     options: &GltfExportOptions,
     progress: Progress,
 ) -> Result<GltfExportReport> {
+    dynamic_glb(mesh, options, progress, |glb, animation, failed| {
+        crate::files::write_atomic(path, |w| glb.write(w, animation, progress, failed))
+    })
+}
+
+/// [`write_dynamic_glb`] into any writer (a `Vec<u8>`, a socket): the same
+/// bytes. What was written before an error stays written: the caller owns
+/// the writer.
+///
+/// ```
+/// # use voltrack::pipeline::{convert, ConvertOptions};
+/// # use voltrack::{params::TrackParams, voxel::VoxelParams, TriangleMesh};
+/// # use voltrack::math::{Point3, Real};
+/// use voltrack::export::gltf::{write_dynamic_glb_to, GltfExportOptions};
+/// # fn boxed(x: Real) -> TriangleMesh {
+/// #     let positions = (0..8)
+/// #         .map(|i| Point3::new(x + (i & 1) as Real, 0.6 * ((i >> 1) & 1) as Real, 0.4 * (i >> 2) as Real))
+/// #         .collect();
+/// #     let triangles = vec![
+/// #         [0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+/// #         [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5],
+/// #     ];
+/// #     TriangleMesh { positions, triangles, ..Default::default() }
+/// # }
+/// // Three frames of a box moving along x, converted and encoded in memory.
+/// let frames: Vec<TriangleMesh> = (0..3).map(|f| boxed(0.1 * f as Real)).collect();
+/// let options = ConvertOptions {
+///     voxel: VoxelParams { resolution: 24, ..Default::default() },
+///     track: TrackParams { centers: 40, ..Default::default() },
+///     ..Default::default()
+/// };
+/// let result = convert(&frames, &options, Default::default())?;
+/// let mut glb = Vec::new();
+/// let report = write_dynamic_glb_to(&mut glb, &result.mesh, &GltfExportOptions::default(), Default::default())?;
+/// assert_eq!(&glb[..4], b"glTF");
+/// assert_eq!(report.bytes, glb.len() as u64);
+/// assert_eq!(report.targets, 2); // frames 1 and 2 against frame 0
+/// # Ok::<(), voltrack::Error>(())
+/// ```
+pub fn write_dynamic_glb_to(
+    w: &mut impl std::io::Write,
+    mesh: &DynamicMesh,
+    options: &GltfExportOptions,
+    progress: Progress,
+) -> Result<GltfExportReport> {
+    dynamic_glb(mesh, options, progress, |glb, animation, failed| {
+        glb.write(w, animation, progress, failed)
+            .map_err(Error::WriteStream)
+    })
+}
+
+/// Encodes `mesh` as [`write_dynamic_glb`] says and hands the parts to
+/// `emit`, which writes them and puts a failure other than its writer's in
+/// `failed` (see `GlbParts::write`).
+fn dynamic_glb(
+    mesh: &DynamicMesh,
+    options: &GltfExportOptions,
+    progress: Progress,
+    emit: impl FnOnce(&GlbParts, Option<&MorphAnimation>, &mut Option<Error>) -> Result<()>,
+) -> Result<GltfExportReport> {
     options.validate()?;
     basis::check_frames(mesh)?;
     let frames = &mesh.frames;
@@ -235,11 +295,9 @@ pub fn write_dynamic_glb(
     };
     let bytes = glb.length()?;
     // An interruption or a frame that cannot be read while writing is
-    // returned as itself, not as a failure to write `path`.
+    // returned as itself, not as a failure to write the output.
     let mut failed = None;
-    let written = crate::files::write_atomic(path, |w| {
-        glb.write(w, animation.as_ref(), progress, &mut failed)
-    });
+    let written = emit(&glb, animation.as_ref(), &mut failed);
     if let Some(e) = failed {
         return Err(e);
     }

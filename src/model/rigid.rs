@@ -1,5 +1,5 @@
 //! Weighted Kabsch: the rigid motion that best carries one set of weighted
-//! points onto another (method.md §4).
+//! points onto another (docs/method.md §4).
 
 use crate::math::{Matrix3, Point3, Real, UnitQuaternion, Vector3};
 use rayon::prelude::*;

@@ -23,7 +23,7 @@ pub use guard::OutputPlan;
 use std::path::Path;
 use std::time::Instant;
 
-/// PCAC, DFU and irregularity of one set of trajectories (method.md §6, §8).
+/// PCAC, DFU and irregularity of one set of trajectories (docs/method.md §6, §8).
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Quality {
     pub pcac: Real,
@@ -253,7 +253,7 @@ pub struct Conversion {
 pub struct ConvertOptions {
     pub voxel: VoxelParams,
     pub track: TrackParams,
-    /// Refinement (method.md §6-§7); None skips it. Default: its defaults.
+    /// Refinement (docs/method.md §6-§7); None skips it. Default: its defaults.
     pub refine: Option<RefineParams>,
     pub deform: DeformParams,
     /// Fitting every frame to its input; `iterations: 0` skips it.

@@ -1,5 +1,5 @@
 //! The affinity of the global optimisation, from the whole sequence at once
-//! (method.md §7): ω_max from the largest distance over all frames, rigid
+//! (docs/method.md §7): ω_max from the largest distance over all frames, rigid
 //! motions fitted with it, then ω from the largest motion dissimilarity.
 
 use super::cells::{frame_blocks, SequenceCells};

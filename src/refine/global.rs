@@ -1,4 +1,4 @@
-//! The temporally global optimisation (method.md §7): gradient steps on
+//! The temporally global optimisation (docs/method.md §7): gradient steps on
 //! Ê = Ês + β̂ Êu over all frames at once, with a halving line search.
 
 use super::affinity::SparseAffinity;

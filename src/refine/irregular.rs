@@ -1,4 +1,4 @@
-//! Irregular centers (method.md §6): those whose whole trajectory stays
+//! Irregular centers (docs/method.md §6): those whose whole trajectory stays
 //! farthest from every other center's.
 
 use crate::math::Real;
@@ -57,7 +57,7 @@ pub fn relative_irregularity(traj: &Trajectories, irregularity: &[Real]) -> Vec<
         .collect()
 }
 
-/// Irregularity I_i = min over j ≠ i of Σ_f ‖c_i^f − c_j^f‖² (method.md §6):
+/// Irregularity I_i = min over j ≠ i of Σ_f ‖c_i^f − c_j^f‖² (docs/method.md §6):
 /// how far a center's whole trajectory is from its nearest other trajectory.
 /// Infinite for a lone center.
 ///

@@ -1,5 +1,5 @@
 //! Stage 3: removing irregular centers in batches, each followed by the
-//! temporally global optimisation (method.md §6-§7).
+//! temporally global optimisation (docs/method.md §6-§7).
 
 pub mod affinity;
 pub mod cells;

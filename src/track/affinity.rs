@@ -1,4 +1,4 @@
-//! Affinity weights between centers (method.md §5): who moves with whom.
+//! Affinity weights between centers (docs/method.md §5): who moves with whom.
 //!
 //! Kept sparse: each center lists the centers whose weight is at least μ. The
 //! maximum-distance weights only ever decrease, so lists only shrink. The IIR

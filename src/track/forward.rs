@@ -1,4 +1,4 @@
-//! Forward tracking, frame by frame (method.md §3): extrapolate, presmooth
+//! Forward tracking, frame by frame (docs/method.md §3): extrapolate, presmooth
 //! with rigid predictions, then alternate Voronoi centroids and rigid
 //! predictions until no center moves more than the threshold.
 //!
@@ -38,7 +38,7 @@ struct FrameResult {
     centers: Vec<Point3>,
     counts: Vec<u32>,
     timing: FrameTiming,
-    /// E = Es + β Eu at the final positions (method.md §3).
+    /// E = Es + β Eu at the final positions (docs/method.md §3).
     energy: Real,
 }
 
@@ -815,7 +815,7 @@ impl Recent {
     }
 }
 
-/// E = Es + β Eu = ½ Σ ‖c_i − p_i‖² + β ½ Σ ‖c_i − x̄_i‖² (method.md §3);
+/// E = Es + β Eu = ½ Σ ‖c_i − p_i‖² + β ½ Σ ‖c_i − x̄_i‖² (docs/method.md §3);
 /// an empty cell adds nothing to Eu.
 fn energy(
     centers: &[Point3],

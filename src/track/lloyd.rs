@@ -1,5 +1,5 @@
 //! Frame 0: N distinct random occupied voxels, relaxed by over-relaxed Lloyd
-//! iterations into an even cover (method.md §2).
+//! iterations into an even cover (docs/method.md §2).
 
 use crate::math::{Point3, Real};
 use crate::model::rng::SplitMix64;

@@ -1,4 +1,4 @@
-//! Stage 1: every frame on one common voxel grid (method.md §1).
+//! Stage 1: every frame on one common voxel grid (docs/method.md §1).
 
 mod memory;
 mod voxelize;
