@@ -126,6 +126,66 @@ fn convert_to_glb() {
     assert_eq!(dir.files(), ["tmp/x.glb"]);
 }
 
+/// Decodes standard base64 (padding optional), as a `data:` URI holds it.
+fn unbase64(text: &str) -> Vec<u8> {
+    let value = |c: u8| match c {
+        b'A'..=b'Z' => c - b'A',
+        b'a'..=b'z' => c - b'a' + 26,
+        b'0'..=b'9' => c - b'0' + 52,
+        b'+' => 62,
+        b'/' => 63,
+        _ => panic!("not base64: {:?}", c as char),
+    };
+    let digits: Vec<u8> = text.bytes().filter(|&c| c != b'=').map(value).collect();
+    digits
+        .chunks(4)
+        .flat_map(|g| {
+            let n = g
+                .iter()
+                .enumerate()
+                .fold(0u32, |n, (k, &d)| n | (d as u32) << (18 - 6 * k));
+            (0..g.len() - 1).map(move |k| (n >> (16 - 8 * k)) as u8)
+        })
+        .collect()
+}
+
+#[test]
+fn convert_to_text_gltf() {
+    let dir = Scratch::new("cli", "gltf");
+    for extra in [&[][..], &["--compress"]] {
+        ok(&dir, &convert_args("x.glb", extra));
+        let stdout = ok(&dir, &convert_args("x.gltf", extra));
+        let glb = std::fs::read(dir.join("x.glb")).unwrap();
+        let glb = gltf::Glb::from_slice(&glb).expect("a GLB");
+        let text = std::fs::read_to_string(dir.join("x.gltf")).unwrap();
+        // The size printed is the .gltf file's.
+        assert!(
+            stdout.contains(&format!("({:.1} KiB", text.len() as f64 / 1024.0)),
+            "{stdout}"
+        );
+        let mut gltf = json(&text);
+        let uri = gltf["buffers"][0]
+            .as_object_mut()
+            .unwrap()
+            .remove("uri")
+            .expect("the buffer is embedded");
+        let data = uri
+            .as_str()
+            .unwrap()
+            .strip_prefix("data:application/octet-stream;base64,")
+            .expect("a base64 data URI");
+        // The GLB's JSON and BIN chunk, in one text file.
+        assert_eq!(
+            gltf,
+            json(std::str::from_utf8(&glb.json).unwrap()),
+            "{extra:?}"
+        );
+        let length = gltf["buffers"][0]["byteLength"].as_u64().unwrap() as usize;
+        assert_eq!(unbase64(data), glb.bin.unwrap()[..length], "{extra:?}");
+    }
+    assert_eq!(dir.files(), ["x.glb", "x.gltf"]);
+}
+
 #[test]
 fn convert_with_a_report() {
     let dir = Scratch::new("cli", "report");

@@ -12,7 +12,7 @@ import path from "node:path";
 const ci = path.resolve(path.dirname(new URL(import.meta.url).pathname), "..");
 const [outDir, ...cases] = process.argv.slice(2);
 const roots = { "/node_modules/": path.join(ci, "node_modules"), "/three/": path.join(ci, "three"), "/out/": path.resolve(outDir) };
-const types = { ".html": "text/html", ".js": "text/javascript", ".glb": "model/gltf-binary", ".obj": "text/plain" };
+const types = { ".html": "text/html", ".js": "text/javascript", ".glb": "model/gltf-binary", ".gltf": "model/gltf+json", ".obj": "text/plain" };
 
 const server = createServer(async (req, res) => {
   const url = decodeURIComponent(new URL(req.url, "http://x").pathname);

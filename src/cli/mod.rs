@@ -647,7 +647,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
     let mut glb_report = None;
     let mut vat_layout = None;
     let files = match format {
-        OutputFormat::Glb => {
+        OutputFormat::Glb | OutputFormat::Gltf => {
             // Targets named after the input files, not frame indices.
             let frame_names = source
                 .paths()
@@ -670,8 +670,12 @@ fn convert(args: ConvertArgs) -> Result<()> {
             };
             let fit_summary = fit.map(|f| (f.summary(), f.diagonal));
             let bounded = args.basis_by_fit();
-            let report =
-                voltrack::export::gltf::write_dynamic_glb(out, &conv.mesh, &gltf, bars.progress())?;
+            let write = if format == OutputFormat::Gltf {
+                voltrack::export::gltf::write_dynamic_gltf
+            } else {
+                voltrack::export::gltf::write_dynamic_glb
+            };
+            let report = write(out, &conv.mesh, &gltf, bars.progress())?;
             // The basis' error in percent of the fit's diagonal, as the fit.
             let animation = conv.mesh.frames.bounds()?.diagonal();
             let as_fit = |e: Real| {
@@ -827,11 +831,15 @@ fn convert(args: ConvertArgs) -> Result<()> {
     // What carries the name and the frame rate, and where they are written.
     let named = matches!(
         format,
-        OutputFormat::Glb | OutputFormat::Vat | OutputFormat::Pc2 | OutputFormat::ObjSequence
+        OutputFormat::Glb
+            | OutputFormat::Gltf
+            | OutputFormat::Vat
+            | OutputFormat::Pc2
+            | OutputFormat::ObjSequence
     );
     let timed = matches!(
         format,
-        OutputFormat::Glb | OutputFormat::Vat | OutputFormat::Pc2
+        OutputFormat::Glb | OutputFormat::Gltf | OutputFormat::Vat | OutputFormat::Pc2
     );
     let lost = pipeline::lost_parts(&conv, fit.as_ref().map(|f| (&f.0, &f.1)));
     let warnings = lost.warnings();
@@ -847,7 +855,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
             "format": format.name(),
             "name": named.then_some(&name),
             "fps": timed.then_some(args.fps),
-            "interpolation": (format == OutputFormat::Glb).then(|| {
+            "interpolation": format.is_gltf().then(|| {
                 clap::ValueEnum::to_possible_value(&args.interpolation).map(|v| v.get_name().to_string())
             }),
             "frames": conv.mesh.frames.len(),
@@ -933,7 +941,7 @@ fn planned_outputs(
     plan: voltrack::pipeline::OutputPlan,
 ) -> voltrack::pipeline::OutputPlan {
     match format {
-        OutputFormat::Glb | OutputFormat::Exr => plan.file(out, "the output"),
+        OutputFormat::Glb | OutputFormat::Gltf | OutputFormat::Exr => plan.file(out, "the output"),
         OutputFormat::Vat => plan
             .file(out, "the output")
             .sidecar(

@@ -249,6 +249,8 @@ impl RefineArgs {
 pub enum OutputFormat {
     /// Binary glTF with morph targets
     Glb,
+    /// glTF as JSON with the binary buffer embedded (the GLB's content in one text file)
+    Gltf,
     /// Center trajectories (as `voltrack track`)
     Exr,
     /// Per-vertex positions as an EXR vertex-animation texture, with its mesh (.glb) and a JSON sidecar
@@ -260,9 +262,15 @@ pub enum OutputFormat {
 }
 
 impl OutputFormat {
+    /// glTF, binary or text: morph targets, `--basis`, `--compress`.
+    pub fn is_gltf(self) -> bool {
+        matches!(self, OutputFormat::Glb | OutputFormat::Gltf)
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             OutputFormat::Glb => "glb",
+            OutputFormat::Gltf => "gltf",
             OutputFormat::Exr => "exr",
             OutputFormat::Vat => "vat",
             OutputFormat::Pc2 => "pc2",
@@ -402,6 +410,7 @@ impl ConvertArgs {
             .to_ascii_lowercase();
         let implied = match ext.as_str() {
             "glb" => Some(OutputFormat::Glb),
+            "gltf" => Some(OutputFormat::Gltf),
             "exr" => Some(OutputFormat::Exr),
             "pc2" => Some(OutputFormat::Pc2),
             _ => None,
@@ -431,7 +440,7 @@ impl ConvertArgs {
                 ))
             }
         };
-        if self.basis.is_some() && format != OutputFormat::Glb {
+        if self.basis.is_some() && !format.is_gltf() {
             return bad(format!(
                 "--basis shapes glTF morph targets, but the output is {}",
                 format.name()
@@ -445,7 +454,7 @@ impl ConvertArgs {
         {
             return bad(format!("--vat-max-width, --vat-max-height and --vat-power-of-two shape a vertex-animation texture, but the output is {}", format.name()));
         }
-        if self.compress && format != OutputFormat::Glb {
+        if self.compress && !format.is_gltf() {
             return bad(format!(
                 "--compress compresses a GLB, but the output is {}",
                 format.name()

@@ -214,6 +214,82 @@ pub fn write_dynamic_glb_to(
     })
 }
 
+/// [`write_dynamic_glb`] as a `.gltf` file: the same JSON with the binary
+/// buffer embedded as a base64 `data:` URI, so the file stands alone (a
+/// third larger than the GLB) and is written in one step like any other.
+/// The report's `bytes` are the `.gltf` file's.
+pub fn write_dynamic_gltf(
+    path: &Path,
+    mesh: &DynamicMesh,
+    options: &GltfExportOptions,
+    progress: Progress,
+) -> Result<GltfExportReport> {
+    let mut written = 0;
+    let mut report = dynamic_glb(mesh, options, progress, |glb, animation, failed| {
+        let mut bytes = Vec::with_capacity(glb.length()? as usize);
+        glb.write(&mut bytes, animation, progress, failed)
+            .map_err(Error::WriteStream)?;
+        let text = embedded_gltf(&bytes)?;
+        written = text.len() as u64;
+        crate::files::write_atomic(path, |w| std::io::Write::write_all(w, text.as_bytes()))
+    })?;
+    report.bytes = written;
+    Ok(report)
+}
+
+/// The `.gltf` text of a GLB of ours: its JSON chunk with the BIN chunk as
+/// the first buffer's `data:` URI.
+fn embedded_gltf(glb: &[u8]) -> Result<String> {
+    let chunk = |at: usize| -> Result<(&[u8], usize)> {
+        let bad = || Error::InvalidInput("a GLB chunk runs past the file's end".into());
+        let len =
+            u32::from_le_bytes(glb.get(at..at + 4).ok_or_else(bad)?.try_into().unwrap()) as usize;
+        let data = glb.get(at + 8..at + 8 + len).ok_or_else(bad)?;
+        Ok((data, at + 8 + len))
+    };
+    let (json, next) = chunk(12)?;
+    let (bin, _) = chunk(next)?;
+    let mut root: serde_json::Value =
+        serde_json::from_slice(json).map_err(|e| Error::InvalidInput(e.to_string()))?;
+    let buffer = root
+        .get_mut("buffers")
+        .and_then(|b| b.get_mut(0))
+        .and_then(|b| b.as_object_mut())
+        .ok_or_else(|| Error::InvalidInput("a GLB without a buffer".into()))?;
+    let length = buffer
+        .get("byteLength")
+        .and_then(|l| l.as_u64())
+        .unwrap_or(0) as usize;
+    let data = bin
+        .get(..length)
+        .ok_or_else(|| Error::InvalidInput("the BIN chunk is shorter than its buffer".into()))?;
+    buffer.insert(
+        "uri".into(),
+        format!("data:application/octet-stream;base64,{}", base64(data)).into(),
+    );
+    serde_json::to_string(&root).map_err(|e| Error::InvalidInput(e.to_string()))
+}
+
+/// Standard base64 with padding (RFC 4648 §4), as `data:` URIs take it.
+fn base64(bytes: &[u8]) -> String {
+    const DIGITS: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for group in bytes.chunks(3) {
+        let n = group
+            .iter()
+            .enumerate()
+            .fold(0u32, |n, (k, &b)| n | (b as u32) << (16 - 8 * k));
+        for k in 0..4 {
+            out.push(if k <= group.len() {
+                DIGITS[(n >> (18 - 6 * k) & 63) as usize] as char
+            } else {
+                '='
+            });
+        }
+    }
+    out
+}
+
 /// Encodes `mesh` as [`write_dynamic_glb`] says and hands the parts to
 /// `emit`, which writes them and puts a failure other than its writer's in
 /// `failed` (see `GlbParts::write`).
@@ -1667,4 +1743,24 @@ fn texture_material(
         double_sided: true,
         ..Default::default()
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    /// RFC 4648 §10's test vectors.
+    #[test]
+    fn base64_as_the_rfc_gives_it() {
+        for (text, coded) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            assert_eq!(super::base64(text.as_bytes()), coded, "{text:?}");
+        }
+        assert_eq!(super::base64(&[0xff, 0xfe, 0x00]), "//4A");
+    }
 }
