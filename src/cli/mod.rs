@@ -806,6 +806,8 @@ fn convert(args: ConvertArgs) -> Result<()> {
             let report = report::ReportInput {
                 seconds: &seconds,
                 output: Some(out),
+                output_bytes: Some(output_size(out)),
+                gltf: glb_report.as_ref(),
                 command: Some(&command),
                 ..report::ReportInput::new(
                     &conv,
@@ -871,7 +873,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
             "coverage": &conv.coverage,
             "lost_parts": &lost,
             "warnings": warnings.iter().map(|w| &w.message).collect::<Vec<_>>(),
-            "basis": glb_report.map(|r| serde_json::json!({
+            "basis": glb_report.as_ref().map(|r| serde_json::json!({
                 "targets": r.targets,
                 "components": r.basis,
                 "compressed": r.compressed,

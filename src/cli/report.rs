@@ -40,6 +40,10 @@ pub struct ReportInput<'a> {
     pub seconds: &'a [(Stage, f64)],
     /// The file the result was written to, named in the header.
     pub output: Option<&'a Path>,
+    /// Its size in bytes (a folder's files added up).
+    pub output_bytes: Option<u64>,
+    /// What the glTF writer reports: the basis, compression and their error.
+    pub gltf: Option<&'a voltrack::export::gltf::GltfExportReport>,
     /// The command line, shown so the run can be repeated.
     pub command: Option<&'a str>,
 }
@@ -69,9 +73,24 @@ impl<'a> ReportInput<'a> {
             conform,
             seconds: &conversion.seconds,
             output: None,
+            output_bytes: None,
+            gltf: None,
             command: None,
         }
     }
+}
+
+/// `n` with its thousands grouped by commas: 1,234,567.
+fn thousands(n: u64) -> String {
+    let digits = n.to_string();
+    let mut out = String::with_capacity(digits.len() + digits.len() / 3);
+    for (k, c) in digits.chars().enumerate() {
+        if k > 0 && (digits.len() - k) % 3 == 0 {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
 }
 
 /// Writes the report to `path` through a temporary file, so a failure
@@ -276,7 +295,33 @@ fn input_html(input: &ReportInput) -> String {
         ),
     ];
     if let Some(out) = input.output {
-        rows.push(("Output", code(&out.display().to_string())));
+        let mut text = code(&out.display().to_string());
+        if let Some(bytes) = input.output_bytes {
+            let _ = write!(text, ", {} bytes", thousands(bytes));
+        }
+        if let Some(g) = input.gltf {
+            let content = match g.basis {
+                Some(k) => format!(
+                    "a compact basis of {k} component{} ({} morph targets)",
+                    if k == 1 { "" } else { "s" },
+                    g.targets
+                ),
+                None => format!("{} morph targets, one per frame", g.targets),
+            };
+            let _ = write!(text, "; {content}");
+            if g.compressed {
+                text.push_str(", compressed (KHR_mesh_quantization + EXT_meshopt_compression)");
+            }
+            if g.basis.is_some() || g.compressed {
+                let _ = write!(
+                    text,
+                    "; reconstruction error mean {} %, max {} % of the diagonal",
+                    significant(100.0 * g.reconstruction_error_mean, 3),
+                    significant(100.0 * g.reconstruction_error_max, 3)
+                );
+            }
+        }
+        rows.push(("Output", text));
     }
     if let Some(cmd) = input.command {
         rows.push(("Command", code(cmd)));

@@ -101,9 +101,19 @@ fn report_of_a_conversion() {
         input.display()
     );
     let conform = ConformParams::default();
+    let written = voltrack::export::gltf::GltfExportReport {
+        targets: 10,
+        basis: Some(9),
+        reconstruction_error_max: 0.0041,
+        reconstruction_error_mean: 0.000123,
+        bytes: 1_234_567,
+        compressed: true,
+    };
     let report = ReportInput {
         seconds: &seconds,
         output: Some(&glb),
+        output_bytes: Some(1_234_567),
+        gltf: Some(&written),
         command: Some(&command),
         ..ReportInput::new(
             &conv,
@@ -131,6 +141,16 @@ fn report_of_a_conversion() {
         "<iframe",
     ] {
         assert!(!without_namespace.contains(bad), "{bad} in the report");
+    }
+
+    // The output's size, content and error.
+    for shown in [
+        "1,234,567 bytes",
+        "a compact basis of 9 components (10 morph targets)",
+        "compressed (KHR_mesh_quantization + EXT_meshopt_compression)",
+        "reconstruction error mean 0.0123 %, max 0.410 % of the diagonal",
+    ] {
+        assert!(html.contains(shown), "{shown:?} not in the report");
     }
 
     // Names from the file system are escaped everywhere.
@@ -309,4 +329,17 @@ fn report_of_a_conversion() {
     );
     assert_eq!(svgs[4].matches("<polyline").count(), 1);
     assert!(html.contains("150 (not refined)"));
+}
+
+#[test]
+fn thousands_are_grouped() {
+    for (n, text) in [
+        (0, "0"),
+        (999, "999"),
+        (1000, "1,000"),
+        (383_400, "383,400"),
+        (1_096_404, "1,096,404"),
+    ] {
+        assert_eq!(super::thousands(n), text);
+    }
 }
