@@ -9,8 +9,9 @@
 //! `VOLTRACK_BENCH_FRAMES` change the configuration.
 
 use std::time::Instant;
+use voltrack::metrics::Quality;
 use voltrack::params::{AffinityKind, RefineParams, TrackParams};
-use voltrack::pipeline::{measure, measure_with_counts, Quality};
+use voltrack::pipeline::measure;
 use voltrack::voxel::{voxelize_sequence, VoxelParams};
 
 fn env(key: &str, default: usize) -> usize {
@@ -78,7 +79,7 @@ fn main() {
             results.push((tracked, per_frame));
         }
         let forward =
-            |r: &voltrack::track::TrackResult| measure_with_counts(&r.trajectories, &r.cell_counts);
+            |r: &voltrack::track::TrackResult| Quality::of(&r.trajectories, &r.cell_counts);
         let (qm, qi) = (forward(&results[0].0), forward(&results[1].0));
         table1.push(format!(
             "| {name} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.2} |",

@@ -4,19 +4,53 @@
 
 pub mod coverage;
 pub mod fit;
+mod irregularity;
 pub mod lost;
 
 pub use coverage::{coverage, fit_outliers, Coverage, FitOutliers, FrameCoverage};
 
-pub use crate::refine::irregular::irregularity;
 pub use fit::{
     fit_to_input, surface_fit, DistanceSummary, FarRegion, FrameFit, SequenceFit, Surface,
 };
+pub use irregularity::irregularity;
 pub use lost::{frame_runs, lost_parts, FrameLoss, LostPartWarning, LostParts};
 
 use crate::math::Real;
 use crate::model::Trajectories;
 use nalgebra::{DMatrix, SymmetricEigen};
+
+/// PCAC, DFU and irregularity of one set of trajectories (docs/method.md §6, §8).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Quality {
+    pub pcac: Real,
+    pub dfu: Real,
+    pub dfu_per_frame: Vec<Real>,
+    /// I_i per center, in the trajectories' order.
+    pub irregularity: Vec<Real>,
+}
+
+impl Quality {
+    /// The qualities of `traj`, whose cells held `counts` occupied voxels
+    /// per frame (the tracker returns them for its final positions;
+    /// `pipeline::measure` assigns them).
+    pub fn of(traj: &Trajectories, counts: &[Vec<u32>]) -> Quality {
+        let (dfu, dfu_per_frame) = dfu(counts);
+        Quality {
+            pcac: pcac(traj),
+            dfu,
+            dfu_per_frame,
+            irregularity: irregularity(traj),
+        }
+    }
+
+    /// The `k` largest I_i, largest first.
+    pub fn largest_irregularity(&self, k: usize) -> Vec<Real> {
+        let mut v = self.irregularity.clone();
+        v.sort_by(|a, b| b.total_cmp(a));
+        v.truncate(k);
+        v
+    }
+}
 
 /// Eigenvalues below this fraction of the largest belong to M's null space.
 const NULL_EIGENVALUE: Real = 1e-12;

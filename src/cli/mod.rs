@@ -61,8 +61,9 @@ use std::path::{Path, PathBuf};
 use voltrack::checkpoint::Checkpointing;
 use voltrack::io::FrameFiles;
 use voltrack::math::Real;
+use voltrack::metrics::Quality;
 use voltrack::params::CoverageParams;
-use voltrack::pipeline::{self, Quality};
+use voltrack::pipeline;
 use voltrack::Stage;
 
 #[derive(Parser)]

@@ -18,8 +18,9 @@ use voltrack::error::Result;
 use voltrack::math::Real;
 use voltrack::metrics::frame_runs;
 use voltrack::metrics::FrameFit;
+use voltrack::metrics::Quality;
 use voltrack::params::{ConformParams, DeformParams, RefineParams, TrackParams};
-use voltrack::pipeline::{Conversion, Measurements, Quality};
+use voltrack::pipeline::{Conversion, Measurements};
 use voltrack::progress::Stage;
 use voltrack::voxel::VoxelParams;
 
@@ -85,7 +86,7 @@ fn thousands(n: u64) -> String {
     let digits = n.to_string();
     let mut out = String::with_capacity(digits.len() + digits.len() / 3);
     for (k, c) in digits.chars().enumerate() {
-        if k > 0 && (digits.len() - k) % 3 == 0 {
+        if k > 0 && (digits.len() - k).is_multiple_of(3) {
             out.push(',');
         }
         out.push(c);

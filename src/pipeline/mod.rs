@@ -3,8 +3,7 @@
 
 use crate::deform::{conform, deform_with};
 use crate::error::{Error, Result, Saved};
-use crate::math::Real;
-use crate::metrics::{fit_outliers, fit_to_input, Coverage, FitOutliers, SequenceFit};
+use crate::metrics::{fit_outliers, fit_to_input, Coverage, FitOutliers, Quality, SequenceFit};
 use crate::model::mesh::TriangleMesh;
 use crate::model::metadata::GridRecord;
 use crate::model::DynamicMesh;
@@ -23,26 +22,6 @@ pub use guard::OutputPlan;
 use std::path::Path;
 use std::time::Instant;
 
-/// PCAC, DFU and irregularity of one set of trajectories (docs/method.md §6, §8).
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct Quality {
-    pub pcac: Real,
-    pub dfu: Real,
-    pub dfu_per_frame: Vec<Real>,
-    /// I_i per center, in the trajectories' order.
-    pub irregularity: Vec<Real>,
-}
-
-impl Quality {
-    /// The `k` largest I_i, largest first.
-    pub fn largest_irregularity(&self, k: usize) -> Vec<Real> {
-        let mut v = self.irregularity.clone();
-        v.sort_by(|a, b| b.total_cmp(a));
-        v.truncate(k);
-        v
-    }
-}
-
 /// Measures trajectories against the voxelised sequence they track.
 pub fn measure(traj: &Trajectories, seq: &VoxelSequence) -> Quality {
     let mut cells = SequenceCells::single_pass(seq);
@@ -50,19 +29,7 @@ pub fn measure(traj: &Trajectories, seq: &VoxelSequence) -> Quality {
         .flat_map(|block| cells.update_frames(traj, 0, block, false))
         .map(|s| s.count)
         .collect();
-    measure_with_counts(traj, &counts)
-}
-
-/// [`measure`] when the cells' voxel counts per frame are already known
-/// (the tracker returns them for its final positions).
-pub fn measure_with_counts(traj: &Trajectories, counts: &[Vec<u32>]) -> Quality {
-    let (dfu, dfu_per_frame) = crate::metrics::dfu(counts);
-    Quality {
-        pcac: crate::metrics::pcac(traj),
-        dfu,
-        dfu_per_frame,
-        irregularity: crate::metrics::irregularity(traj),
-    }
+    Quality::of(traj, &counts)
 }
 
 /// The metadata recording how trajectories were made, for their EXR file.
@@ -217,8 +184,7 @@ impl Tracked {
     /// Splits `result`'s trajectories off, measuring them first if `measure`;
     /// its cell counts are not kept.
     pub fn split(result: TrackResult, measure: bool) -> (Self, Trajectories) {
-        let quality =
-            measure.then(|| measure_with_counts(&result.trajectories, &result.cell_counts));
+        let quality = measure.then(|| Quality::of(&result.trajectories, &result.cell_counts));
         (
             Tracked {
                 centers: result.trajectories.centers,

@@ -133,7 +133,7 @@ pub fn refine_with_checkpoints(
             None => {
                 // Spread the remainder over the first batches.
                 let n_rem = total / params.batches + usize::from(b < total % params.batches);
-                let mut irregularity = irregular::irregularity(&current);
+                let mut irregularity = crate::metrics::irregularity(&current);
                 if params.relative_irregularity {
                     irregularity = irregular::relative_irregularity(&current, &irregularity);
                 }
