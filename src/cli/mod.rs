@@ -565,8 +565,107 @@ fn metrics(centers: PathBuf, input: Vec<PathBuf>, json: bool, plot: Option<PathB
 }
 
 fn convert(args: ConvertArgs) -> Result<()> {
-    // Every parameter and every output location is checked now, before a
-    // frame is read, not after the whole pipeline has run.
+    let plan = convert_plan(&args)?;
+    let bars = bars::Bars::new();
+    let source = FrameFiles::new(plan.found.clone());
+    let options = pipeline::ConvertOptions {
+        voxel: plan.voxel.clone(),
+        track: plan.track.clone(),
+        refine: plan.refine.clone(),
+        deform: plan.deform.clone(),
+        conform: plan.conform.clone(),
+        coverage: CoverageParams::default(),
+        checkpoint: plan.checkpoint.clone(),
+        measure_tracked: args.report.is_some(),
+    };
+    let conv = pipeline::convert(&source, &options, bars.progress())?;
+    // Measured before the output is written: a frame that cannot be read
+    // again (or changed) fails the run with an earlier output still in place.
+    let measured = match &args.report {
+        Some(_) => Some(pipeline::Measurements::of(&conv, &source, bars.progress())?),
+        None => None,
+    };
+    let fit_only = match (&measured, plan.format) {
+        // Trajectories alone: the mesh was not fitted and is not written.
+        (None, OutputFormat::Exr) => None,
+        (None, _) => Some(pipeline::Measurements::fit_of(
+            &conv,
+            &source,
+            bars.progress(),
+        )?),
+        (Some(_), _) => None,
+    };
+    let clock = std::time::Instant::now();
+    bars.progress().report(Stage::Export, 0, 1);
+    let out = &args.output;
+    // The fit is measured before every GLB is written.
+    let fit = measured
+        .as_ref()
+        .map(|m| &m.fit)
+        .or(fit_only.as_ref().map(|f| &f.0));
+    let mut written = write_output(&args, &plan, &conv, &source, fit, bars.progress())?;
+    bars.progress().report(Stage::Export, 1, 1);
+    let mut seconds = conv.seconds.clone();
+    if let Some(s) = measured
+        .as_ref()
+        .map(|m| m.fit.seconds)
+        .or(fit_only.as_ref().map(|f| f.0.seconds))
+    {
+        seconds.push((Stage::Fit, s));
+    }
+    seconds.push((Stage::Export, clock.elapsed().as_secs_f64()));
+    let fit = match (&args.report, measured) {
+        (Some(path), Some(measured)) => {
+            // Arguments need not be UTF-8 (file names): shown as well as they can be.
+            let command = std::env::args_os()
+                .map(|a| a.to_string_lossy().into_owned())
+                .collect::<Vec<_>>()
+                .join(" ");
+            let report = report::ReportInput {
+                seconds: &seconds,
+                output: Some(out),
+                output_bytes: Some(output_size(out)),
+                gltf: written.gltf.as_ref(),
+                command: Some(&command),
+                ..report::ReportInput::new(
+                    &conv,
+                    &measured,
+                    source.paths(),
+                    &plan.voxel,
+                    &plan.track,
+                    plan.refine.as_ref(),
+                    &plan.deform,
+                    &plan.conform,
+                )
+            };
+            report::write_report(path, &report)?;
+            written.notes.push(format!("report: {}", path.display()));
+            Some((measured.fit, measured.fit_outliers))
+        }
+        _ => fit_only,
+    };
+    bars.finish();
+    print_conversion(&args, &plan, &conv, &seconds, fit.as_ref(), written)
+}
+
+/// What `convert` checked before reading a frame, and what it will run with.
+struct ConvertPlan {
+    voxel: voltrack::voxel::VoxelParams,
+    track: voltrack::params::TrackParams,
+    refine: Option<voltrack::params::RefineParams>,
+    deform: voltrack::params::DeformParams,
+    conform: voltrack::params::ConformParams,
+    format: OutputFormat,
+    checkpoint: Option<Checkpointing>,
+    /// The input's frames, listed once.
+    found: Vec<PathBuf>,
+    /// The object's name in the outputs.
+    name: String,
+}
+
+/// Checks every parameter and every output location of `args`, before a
+/// frame is read, not after the whole pipeline has run.
+fn convert_plan(args: &ConvertArgs) -> Result<ConvertPlan> {
     let voxel = args.input.voxel_params();
     let track = args.track.params();
     let refine = (!args.no_refine).then(|| args.refine.params(args.track.absolute_units));
@@ -612,137 +711,47 @@ fn convert(args: ConvertArgs) -> Result<()> {
         Some(name) => name.clone(),
         None => voltrack::io::sequence_name(&args.input.input, &found),
     };
-    let bars = bars::Bars::new();
-    let source = FrameFiles::new(found);
-    let options = pipeline::ConvertOptions {
-        voxel: voxel.clone(),
-        track: track.clone(),
-        refine: refine.clone(),
-        deform: deform.clone(),
-        conform: conform.clone(),
-        coverage: CoverageParams::default(),
+    Ok(ConvertPlan {
+        voxel,
+        track,
+        refine,
+        deform,
+        conform,
+        format,
         checkpoint,
-        measure_tracked: args.report.is_some(),
-    };
-    let conv = pipeline::convert(&source, &options, bars.progress())?;
-    // Measured before the output is written: a frame that cannot be read
-    // again (or changed) fails the run with an earlier output still in place.
-    let measured = match &args.report {
-        Some(_) => Some(pipeline::Measurements::of(&conv, &source, bars.progress())?),
-        None => None,
-    };
-    let fit_only = match (&measured, format) {
-        // Trajectories alone: the mesh was not fitted and is not written.
-        (None, OutputFormat::Exr) => None,
-        (None, _) => Some(pipeline::Measurements::fit_of(
-            &conv,
-            &source,
-            bars.progress(),
-        )?),
-        (Some(_), _) => None,
-    };
-    let clock = std::time::Instant::now();
-    bars.progress().report(Stage::Export, 0, 1);
-    let out = &args.output;
+        found,
+        name,
+    })
+}
+
+/// What `write_output` wrote: the files, notes for the summary, and what
+/// the glTF or VAT writer reports.
+struct Written {
+    files: Vec<PathBuf>,
+    notes: Vec<String>,
+    gltf: Option<voltrack::export::gltf::GltfExportReport>,
+    vat: Option<voltrack::export::vat::VatLayout>,
+}
+
+/// Writes the conversion in `plan.format` to `args.output`; `fit` is the
+/// result's fit to the input, which bounds `--basis auto`.
+fn write_output(
+    args: &ConvertArgs,
+    plan: &ConvertPlan,
+    conv: &pipeline::Conversion,
+    source: &FrameFiles,
+    fit: Option<&voltrack::metrics::SequenceFit>,
+    progress: voltrack::Progress,
+) -> Result<Written> {
+    let (out, name, format) = (&args.output, &plan.name, plan.format);
+    let (voxel, track, refine) = (&plan.voxel, &plan.track, &plan.refine);
     let mut notes = Vec::new();
     let mut glb_report = None;
     let mut vat_layout = None;
     let files = match format {
         OutputFormat::Glb | OutputFormat::Gltf => {
-            // Targets named after the input files, not frame indices.
-            let frame_names = source
-                .paths()
-                .iter()
-                .map(|p| {
-                    p.file_stem()
-                        .unwrap_or_default()
-                        .to_string_lossy()
-                        .into_owned()
-                })
-                .collect();
-            // The fit is measured before every GLB is written.
-            let fit = measured
-                .as_ref()
-                .map(|m| &m.fit)
-                .or(fit_only.as_ref().map(|f| &f.0));
-            let gltf = voltrack::export::gltf::GltfExportOptions {
-                frame_names,
-                ..args.gltf_options(name.clone(), fit)
-            };
-            let fit_summary = fit.map(|f| (f.summary(), f.diagonal));
-            let bounded = args.basis_by_fit();
-            let write = if format == OutputFormat::Gltf {
-                voltrack::export::gltf::write_dynamic_gltf
-            } else {
-                voltrack::export::gltf::write_dynamic_glb
-            };
-            let report = write(out, &conv.mesh, &gltf, bars.progress())?;
-            // The basis' error in percent of the fit's diagonal, as the fit.
-            let animation = conv.mesh.frames.bounds()?.diagonal();
-            let as_fit = |e: Real| {
-                fit_summary.map_or(100.0 * e, |(_, d)| {
-                    100.0 * e * animation / d.max(Real::MIN_POSITIVE)
-                })
-            };
-            if let (Some(k), Some((s, _))) = (report.basis, fit_summary) {
-                let (mean, max) = (
-                    as_fit(report.reconstruction_error_mean),
-                    as_fit(report.reconstruction_error_max),
-                );
-                if bounded {
-                    notes.push(format!(
-                        "--basis auto: {k} components, the fewest whose error (mean {mean:.4} %, max {max:.4} %) stays within the result's own fit to the input (mean {:.4} %, max {:.4} %)",
-                        s.mean, s.max
-                    ));
-                } else if mean > s.mean || max > s.max {
-                    notes.push(format!(
-                        "warning: the compact basis of {k} components adds more error (mean {mean:.4} %, max {max:.4} %) than the result has against the input (mean {:.4} %, max {:.4} %); --basis auto picks the fewest components within it",
-                        s.mean, s.max
-                    ));
-                }
-            }
-            if bounded && report.basis.is_none() {
-                notes.push(
-                    "--basis auto: no compact basis within the result's own fit to the input needs fewer morph targets than one per frame; wrote one per frame".into(),
-                );
-            }
-            if let Some(k) = report.basis {
-                if args.basis.is_none() && !bounded {
-                    notes.push(format!(
-                        "{} frames is past {} (where three.js and mobile GPUs fail with one morph target per frame): \
-                         wrote a compact basis instead; --basis K chooses it yourself",
-                        conv.mesh.frames.len(),
-                        voltrack::export::basis::AUTO_PER_FRAME_LIMIT
-                    ));
-                }
-                if !report.compressed && !bounded {
-                    notes.push(format!(
-                        "compact basis of {k} components ({} morph targets): reconstruction error max {:.4} %, mean {:.4} % of the diagonal",
-                        report.targets,
-                        100.0 * report.reconstruction_error_max,
-                        100.0 * report.reconstruction_error_mean
-                    ));
-                }
-            }
-            if let (Some(BasisArg::Components(k)), None) = (args.basis, report.basis) {
-                notes.push(format!(
-                    "--basis {k}: that many components need no fewer morph targets than one per frame ({}); wrote one per frame, which is exact",
-                    conv.mesh.frames.len().saturating_sub(1)
-                ));
-            }
-            if report.compressed {
-                let basis = report.basis.map_or(String::new(), |k| {
-                    format!(
-                        ", compact basis of {k} components ({} morph targets)",
-                        report.targets
-                    )
-                });
-                notes.push(format!(
-                    "compressed (KHR_mesh_quantization + EXT_meshopt_compression{basis}): reconstruction error max {:.4} %, mean {:.4} % of the diagonal",
-                    100.0 * report.reconstruction_error_max,
-                    100.0 * report.reconstruction_error_mean
-                ));
-            }
+            let (report, gltf_notes) = write_gltf(args, format, conv, source, fit, name, progress)?;
+            notes.extend(gltf_notes);
             glb_report = Some(report);
             vec![out.clone()]
         }
@@ -754,8 +763,8 @@ fn convert(args: ConvertArgs) -> Result<()> {
                 .unwrap_or_default();
             let meta = pipeline::trajectory_metadata(
                 &conv.sequence,
-                &voxel,
-                &track,
+                voxel,
+                track,
                 refine.as_ref().map(|r| (r, removed.as_slice())),
             );
             voltrack::export::exr::write_trajectories_exr(out, &conv.trajectories, &meta)?;
@@ -780,54 +789,145 @@ fn convert(args: ConvertArgs) -> Result<()> {
             ]
         }
         OutputFormat::Pc2 => {
-            voltrack::export::pc2::write_pc2(out, &conv.mesh, args.fps, &name)?;
+            voltrack::export::pc2::write_pc2(out, &conv.mesh, args.fps, name)?;
             vec![out.clone(), out.with_extension("obj")]
         }
         OutputFormat::ObjSequence => {
-            voltrack::export::obj::write_obj_sequence(out, &conv.mesh, &name)?
+            voltrack::export::obj::write_obj_sequence(out, &conv.mesh, name)?
         }
     };
-    bars.progress().report(Stage::Export, 1, 1);
-    let mut seconds = conv.seconds.clone();
-    if let Some(s) = measured
-        .as_ref()
-        .map(|m| m.fit.seconds)
-        .or(fit_only.as_ref().map(|f| f.0.seconds))
-    {
-        seconds.push((Stage::Fit, s));
+    Ok(Written {
+        files,
+        notes,
+        gltf: glb_report,
+        vat: vat_layout,
+    })
+}
+
+/// Writes the glTF output and says what the basis chose and cost.
+fn write_gltf(
+    args: &ConvertArgs,
+    format: OutputFormat,
+    conv: &pipeline::Conversion,
+    source: &FrameFiles,
+    fit: Option<&voltrack::metrics::SequenceFit>,
+    name: &str,
+    progress: voltrack::Progress,
+) -> Result<(voltrack::export::gltf::GltfExportReport, Vec<String>)> {
+    let out = &args.output;
+    let mut notes = Vec::new();
+    // Targets named after the input files, not frame indices.
+    let frame_names = source
+        .paths()
+        .iter()
+        .map(|p| {
+            p.file_stem()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect();
+    let gltf = voltrack::export::gltf::GltfExportOptions {
+        frame_names,
+        ..args.gltf_options(name.to_string(), fit)
+    };
+    let fit_summary = fit.map(|f| (f.summary(), f.diagonal));
+    let bounded = args.basis_by_fit();
+    let write = if format == OutputFormat::Gltf {
+        voltrack::export::gltf::write_dynamic_gltf
+    } else {
+        voltrack::export::gltf::write_dynamic_glb
+    };
+    let report = write(out, &conv.mesh, &gltf, progress)?;
+    // The basis' error in percent of the fit's diagonal, as the fit.
+    let animation = conv.mesh.frames.bounds()?.diagonal();
+    let as_fit = |e: Real| {
+        fit_summary.map_or(100.0 * e, |(_, d)| {
+            100.0 * e * animation / d.max(Real::MIN_POSITIVE)
+        })
+    };
+    if let (Some(k), Some((s, _))) = (report.basis, fit_summary) {
+        let (mean, max) = (
+            as_fit(report.reconstruction_error_mean),
+            as_fit(report.reconstruction_error_max),
+        );
+        if bounded {
+            notes.push(format!(
+                        "--basis auto: {k} components, the fewest whose error (mean {mean:.4} %, max {max:.4} %) stays within the result's own fit to the input (mean {:.4} %, max {:.4} %)",
+                        s.mean, s.max
+                    ));
+        } else if mean > s.mean || max > s.max {
+            notes.push(format!(
+                        "warning: the compact basis of {k} components adds more error (mean {mean:.4} %, max {max:.4} %) than the result has against the input (mean {:.4} %, max {:.4} %); --basis auto picks the fewest components within it",
+                        s.mean, s.max
+                    ));
+        }
     }
-    seconds.push((Stage::Export, clock.elapsed().as_secs_f64()));
-    let fit = match (&args.report, measured) {
-        (Some(path), Some(measured)) => {
-            // Arguments need not be UTF-8 (file names): shown as well as they can be.
-            let command = std::env::args_os()
-                .map(|a| a.to_string_lossy().into_owned())
-                .collect::<Vec<_>>()
-                .join(" ");
-            let report = report::ReportInput {
-                seconds: &seconds,
-                output: Some(out),
-                output_bytes: Some(output_size(out)),
-                gltf: glb_report.as_ref(),
-                command: Some(&command),
-                ..report::ReportInput::new(
-                    &conv,
-                    &measured,
-                    source.paths(),
-                    &voxel,
-                    &track,
-                    refine.as_ref(),
-                    &deform,
-                    &conform,
-                )
-            };
-            report::write_report(path, &report)?;
-            notes.push(format!("report: {}", path.display()));
-            Some((measured.fit, measured.fit_outliers))
+    if bounded && report.basis.is_none() {
+        notes.push(
+                    "--basis auto: no compact basis within the result's own fit to the input needs fewer morph targets than one per frame; wrote one per frame".into(),
+                );
+    }
+    if let Some(k) = report.basis {
+        if args.basis.is_none() && !bounded {
+            notes.push(format!(
+                        "{} frames is past {} (where three.js and mobile GPUs fail with one morph target per frame): \
+                         wrote a compact basis instead; --basis K chooses it yourself",
+                        conv.mesh.frames.len(),
+                        voltrack::export::basis::AUTO_PER_FRAME_LIMIT
+                    ));
         }
-        _ => fit_only,
-    };
-    bars.finish();
+        if !report.compressed && !bounded {
+            notes.push(format!(
+                        "compact basis of {k} components ({} morph targets): reconstruction error max {:.4} %, mean {:.4} % of the diagonal",
+                        report.targets,
+                        100.0 * report.reconstruction_error_max,
+                        100.0 * report.reconstruction_error_mean
+                    ));
+        }
+    }
+    if let (Some(BasisArg::Components(k)), None) = (args.basis, report.basis) {
+        notes.push(format!(
+                    "--basis {k}: that many components need no fewer morph targets than one per frame ({}); wrote one per frame, which is exact",
+                    conv.mesh.frames.len().saturating_sub(1)
+                ));
+    }
+    if report.compressed {
+        let basis = report.basis.map_or(String::new(), |k| {
+            format!(
+                ", compact basis of {k} components ({} morph targets)",
+                report.targets
+            )
+        });
+        notes.push(format!(
+                    "compressed (KHR_mesh_quantization + EXT_meshopt_compression{basis}): reconstruction error max {:.4} %, mean {:.4} % of the diagonal",
+                    100.0 * report.reconstruction_error_max,
+                    100.0 * report.reconstruction_error_mean
+                ));
+    }
+    Ok((report, notes))
+}
+
+/// Prints what `convert` did: `--json`'s document, or the summary and the
+/// warnings.
+fn print_conversion(
+    args: &ConvertArgs,
+    plan: &ConvertPlan,
+    conv: &pipeline::Conversion,
+    seconds: &[(Stage, f64)],
+    fit: Option<&(
+        voltrack::metrics::SequenceFit,
+        voltrack::metrics::FitOutliers,
+    )>,
+    written: Written,
+) -> Result<()> {
+    let (out, name, format, voxel) = (&args.output, &plan.name, plan.format, &plan.voxel);
+    let Written {
+        files,
+        notes,
+        gltf: glb_report,
+        vat: vat_layout,
+    } = written;
     let size = output_size(out);
     let traj = &conv.trajectories;
     let total: f64 = seconds.iter().map(|s| s.1).sum();
@@ -844,7 +944,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
         format,
         OutputFormat::Glb | OutputFormat::Gltf | OutputFormat::Vat | OutputFormat::Pc2
     );
-    let lost = pipeline::lost_parts(&conv, fit.as_ref().map(|f| (&f.0, &f.1)));
+    let lost = pipeline::lost_parts(conv, fit.as_ref().map(|f| (&f.0, &f.1)));
     let warnings = lost.warnings();
     if args.json {
         let mut stages: serde_json::Map<String, serde_json::Value> = seconds
@@ -906,7 +1006,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
             r.removed.len()
         ))
     );
-    for (stage, s) in &seconds {
+    for (stage, s) in seconds {
         println!(
             "  {:>9} {:>8.2} s  {:>5.1} %",
             stage.name(),
