@@ -306,6 +306,38 @@ fn convert_to_a_compressed_glb() {
         error <= 1.05 * summary["fit_percent"]["mean"].as_f64().unwrap(),
         "{summary}"
     );
+    // The bases tried, by size, each encoded as the file: the one written
+    // is the file, the smaller ones err more on average.
+    let rows = summary["basis"]["rate_distortion"].as_array().unwrap();
+    assert!(rows.len() >= 2, "{summary}");
+    let field = |r: &serde_json::Value, k: &str| r[k].as_f64().unwrap();
+    for pair in rows.windows(2) {
+        assert!(
+            field(&pair[0], "targets") < field(&pair[1], "targets"),
+            "{summary}"
+        );
+        assert!(
+            field(&pair[0], "bytes") < field(&pair[1], "bytes"),
+            "{summary}"
+        );
+    }
+    let chosen: Vec<_> = rows.iter().filter(|r| r["chosen"] == true).collect();
+    assert_eq!(chosen.len(), 1, "{summary}");
+    assert_eq!(chosen[0]["bytes"], summary["bytes"], "{summary}");
+    assert_eq!(
+        chosen[0]["components"], summary["basis"]["components"],
+        "{summary}"
+    );
+    assert_eq!(
+        chosen[0]["error_percent"], summary["basis"]["reconstruction_error_percent"],
+        "{summary}"
+    );
+    for smaller in rows.iter().take_while(|r| r["chosen"] != true) {
+        assert!(
+            smaller["error_percent"]["mean"].as_f64().unwrap() > error,
+            "{summary}"
+        );
+    }
     let mut args = vec!["--json"];
     args.extend(per_frame);
     let summary = json(&ok(&dir, &convert_args("c.glb", &args)));

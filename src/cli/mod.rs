@@ -829,6 +829,8 @@ fn write_gltf(
         .collect();
     let gltf = voltrack::export::gltf::GltfExportOptions {
         frame_names,
+        // The sizes and errors of the bases tried, for --json and the report.
+        rate_distortion: args.json || args.report.is_some(),
         ..args.gltf_options(name.to_string(), fit)
     };
     let fit_summary = fit.map(|f| (f.summary(), f.diagonal));
@@ -989,6 +991,15 @@ fn print_conversion(
                     "max": 100.0 * r.reconstruction_error_max,
                     "mean": 100.0 * r.reconstruction_error_mean,
                 },
+                // The bases the choice by error tried, each as this file
+                // would be with it: bytes against error.
+                "rate_distortion": r.rate_distortion.iter().map(|row| serde_json::json!({
+                    "components": row.components,
+                    "targets": row.targets,
+                    "bytes": row.bytes,
+                    "error_percent": {"max": 100.0 * row.error_max, "mean": 100.0 * row.error_mean},
+                    "chosen": row.chosen,
+                })).collect::<Vec<_>>(),
             })),
             "vat": vat_layout.map(|l| serde_json::json!({"width": l.width, "height": l.height, "rows_per_frame": l.rows_per_frame})),
             "report": args.report,

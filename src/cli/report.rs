@@ -81,6 +81,27 @@ impl<'a> ReportInput<'a> {
     }
 }
 
+/// The bases the glTF writer tried: size against error, the one written marked.
+fn rate_distortion_table(g: &voltrack::export::gltf::GltfExportReport) -> String {
+    let mut h = String::from(
+        "<table class=\"numbers\">\n<caption>Sizes of the bases tried (each encoded as the output; error in % of the diagonal)</caption>\n<tr><th>components</th><th>morph targets</th><th>bytes</th><th>error mean</th><th>error max</th><th></th></tr>\n",
+    );
+    for row in &g.rate_distortion {
+        let _ = writeln!(
+            h,
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td class=\"note\">{}</td></tr>",
+            row.components.map_or("one per frame".into(), |k| k.to_string()),
+            row.targets,
+            thousands(row.bytes),
+            significant(100.0 * row.error_mean, 3),
+            significant(100.0 * row.error_max, 3),
+            if row.chosen { "written" } else { "" }
+        );
+    }
+    h.push_str("</table>\n");
+    h
+}
+
 /// `n` with its thousands grouped by commas: 1,234,567.
 fn thousands(n: u64) -> String {
     let digits = n.to_string();
@@ -335,6 +356,9 @@ fn input_html(input: &ReportInput) -> String {
         let _ = writeln!(h, "<tr><th>{k}</th><td>{v}</td></tr>");
     }
     h.push_str("</table>\n");
+    if let Some(g) = input.gltf.filter(|g| !g.rate_distortion.is_empty()) {
+        h.push_str(&rate_distortion_table(g));
+    }
     let lengths = if input.track.absolute_units {
         "in the input's units"
     } else {

@@ -108,6 +108,24 @@ fn report_of_a_conversion() {
         reconstruction_error_mean: 0.000123,
         bytes: 1_234_567,
         compressed: true,
+        rate_distortion: vec![
+            voltrack::export::gltf::RateRow {
+                components: Some(4),
+                targets: 8,
+                bytes: 654_321,
+                error_max: 0.0123,
+                error_mean: 0.000456,
+                chosen: false,
+            },
+            voltrack::export::gltf::RateRow {
+                components: Some(9),
+                targets: 10,
+                bytes: 1_234_567,
+                error_max: 0.0041,
+                error_mean: 0.000123,
+                chosen: true,
+            },
+        ],
     };
     let report = ReportInput {
         seconds: &seconds,
@@ -149,6 +167,8 @@ fn report_of_a_conversion() {
         "a compact basis of 9 components (10 morph targets)",
         "compressed (KHR_mesh_quantization + EXT_meshopt_compression)",
         "reconstruction error mean 0.0123 %, max 0.410 % of the diagonal",
+        "<tr><td>4</td><td>8</td><td>654,321</td><td>0.0456</td><td>1.23</td><td class=\"note\"></td></tr>",
+        "<tr><td>9</td><td>10</td><td>1,234,567</td><td>0.0123</td><td>0.410</td><td class=\"note\">written</td></tr>",
     ] {
         assert!(html.contains(shown), "{shown:?} not in the report");
     }

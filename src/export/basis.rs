@@ -266,10 +266,34 @@ pub fn choose(
     tolerance: Real,
     progress: Progress,
 ) -> Result<(MorphBasis, BasisError)> {
+    choose_with_trials(frames, choice, tolerance, progress).map(|(b, e, _)| (b, e))
+}
+
+/// A compact basis [`choose`] measured on the way to its choice.
+#[derive(Clone, Debug)]
+pub struct BasisTrial {
+    pub basis: MorphBasis,
+    pub error: BasisError,
+}
+
+/// Component counts whose bases [`choose_with_trials`] returns when it
+/// measured them (with the one chosen): a rate-distortion table's rows.
+const TRIAL_COMPONENTS: [usize; 14] = [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128];
+
+/// [`choose`], and for [`BasisChoice::Auto`] and [`BasisChoice::Bounded`]
+/// the compact bases it measured (of 1, 2, 3, 4, 6, 8, 12, 16, 24, 32, … components and
+/// the chosen count, fewer targets than one per frame), by increasing size.
+pub fn choose_with_trials(
+    frames: &PositionFrames,
+    choice: BasisChoice,
+    tolerance: Real,
+    progress: Progress,
+) -> Result<(MorphBasis, BasisError, Vec<BasisTrial>)> {
     let exact = || (MorphBasis::per_frame(frames.len()), BasisError::default());
+    let untried = |(b, e): (MorphBasis, BasisError)| (b, e, Vec::new());
     let mut passes = Passes { progress, done: 0 };
     match choice {
-        BasisChoice::PerFrame => Ok(exact()),
+        BasisChoice::PerFrame => Ok(untried(exact())),
         BasisChoice::Components(0) => Err(Error::InvalidParameter(
             "a compact basis needs at least one component".into(),
         )),
@@ -295,15 +319,15 @@ pub fn choose(
                     basis.targets()
                 );
                 passes.finish();
-                return Ok(exact());
+                return Ok(untried(exact()));
             }
             let error = pca.errors(frames, k..=k, &mut passes)?[0];
             passes.finish();
-            Ok((basis, error))
+            Ok((basis, error, Vec::new()))
         }
-        BasisChoice::Auto if frames.len() <= AUTO_PER_FRAME_LIMIT => Ok(exact()),
+        BasisChoice::Auto if frames.len() <= AUTO_PER_FRAME_LIMIT => Ok(untried(exact())),
         // One target per frame is the fewest there can be.
-        BasisChoice::Bounded { .. } if frames.len() <= 2 => Ok(exact()),
+        BasisChoice::Bounded { .. } if frames.len() <= 2 => Ok(untried(exact())),
         BasisChoice::Auto | BasisChoice::Bounded { .. } => {
             // Auto bounds the largest error by `tolerance`; Bounded its own.
             let (max, mean) = match choice {
@@ -329,13 +353,25 @@ pub fn choose(
                 // The largest error need not fall monotonically with k, so
                 // every k is measured (one pass, whatever the range).
                 let errors = pca.errors(frames, 0..=end, &mut passes)?;
-                if let Some(k) = errors.iter().position(within) {
+                let chosen = errors.iter().position(within);
+                let trials = || -> Vec<BasisTrial> {
+                    (1..=end)
+                        .filter(|k| TRIAL_COMPONENTS.contains(k) || Some(*k) == chosen)
+                        .map(|k| BasisTrial {
+                            basis: pca.basis(k),
+                            error: errors[k],
+                        })
+                        .filter(|t| t.basis.targets() < moving)
+                        .collect()
+                };
+                if let Some(k) = chosen {
                     let basis = pca.basis(k);
-                    break if basis.targets() < moving {
+                    let (b, e) = if basis.targets() < moving {
                         (basis, errors[k])
                     } else {
                         exact()
                     };
+                    break (b, e, trials());
                 }
                 // Nothing within tolerance up to the limit, or more components
                 // would need as many targets as the frames, or than Auto
@@ -344,7 +380,8 @@ pub fn choose(
                     || pca.basis(end).targets() >= moving
                     || wanted >= AUTO_MAX_COMPONENTS
                 {
-                    break exact();
+                    let (b, e) = exact();
+                    break (b, e, trials());
                 }
                 wanted = (wanted * 2).min(AUTO_MAX_COMPONENTS);
             };

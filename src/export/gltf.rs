@@ -63,6 +63,11 @@ pub struct GltfExportOptions {
     /// captures are then blends (a limb moving fast is drawn shorter
     /// between two captures), not captures.
     pub interpolation: Interpolation,
+    /// Also measure the compact bases the choice tried (by error:
+    /// [`BasisChoice::Auto`], [`BasisChoice::Bounded`]), each encoded as this
+    /// file would be, for [`GltfExportReport::rate_distortion`]. Costs an
+    /// encoding per basis tried. Default false.
+    pub rate_distortion: bool,
 }
 
 impl Default for GltfExportOptions {
@@ -73,6 +78,7 @@ impl Default for GltfExportOptions {
             basis: BasisChoice::Auto,
             max_basis_error: 0.001,
             interpolation: Interpolation::Step,
+            rate_distortion: false,
             normals: true,
             compress: false,
             frame_names: Vec::new(),
@@ -138,6 +144,26 @@ pub struct GltfExportReport {
     pub bytes: u64,
     /// Whether the file is compressed ([`GltfExportOptions::compress`]).
     pub compressed: bool,
+    /// With [`GltfExportOptions::rate_distortion`], the compact bases the
+    /// choice tried, by increasing size, each as this file would be with it.
+    pub rate_distortion: Vec<RateRow>,
+}
+
+/// One basis of a rate-distortion table: its size and its error.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct RateRow {
+    /// Principal components (None: one target per frame).
+    pub components: Option<usize>,
+    pub targets: usize,
+    /// The file's size with this basis.
+    pub bytes: u64,
+    /// Reconstruction error, largest and mean, as fractions of the
+    /// animation's diagonal ([`GltfExportReport::reconstruction_error_max`]:
+    /// with the quantisation for a compressed file).
+    pub error_max: Real,
+    pub error_mean: Real,
+    /// Whether it is the basis written.
+    pub chosen: bool,
 }
 
 /// Writes `mesh` as a GLB holding one mesh: frame 0 as the base, morph targets
@@ -303,7 +329,7 @@ fn dynamic_glb(
     basis::check_frames(mesh)?;
     let frames = &mesh.frames;
     let diagonal = frames.bounds()?.diagonal();
-    let (mut basis, error) = basis::choose(
+    let (mut basis, error, trials) = basis::choose_with_trials(
         frames,
         options.basis,
         options.max_basis_error * diagonal,
@@ -378,6 +404,37 @@ fn dynamic_glb(
         return Err(e);
     }
     written?;
+    let mut rate_distortion = Vec::new();
+    if options.rate_distortion && !trials.is_empty() {
+        for (trial, Encoded { bytes, max, mean }) in trials.iter().zip(tried_sizes(
+            frames,
+            &base,
+            &trials,
+            normals.as_ref(),
+            &scene,
+            options,
+            progress,
+        )?) {
+            rate_distortion.push(RateRow {
+                components: trial.basis.components,
+                targets: trial.basis.targets(),
+                bytes,
+                error_max: relative(max),
+                error_mean: relative(mean),
+                chosen: trial.basis == basis,
+            });
+        }
+        if basis.components.is_none() {
+            rate_distortion.push(RateRow {
+                components: None,
+                targets: basis.targets(),
+                bytes: bytes as u64,
+                error_max: relative(error_max),
+                error_mean: relative(error_mean),
+                chosen: true,
+            });
+        }
+    }
     Ok(GltfExportReport {
         targets: basis.targets(),
         basis: basis.components,
@@ -385,7 +442,74 @@ fn dynamic_glb(
         reconstruction_error_mean: relative(error_mean),
         bytes: bytes as u64,
         compressed: options.compress,
+        rate_distortion,
     })
+}
+
+/// A basis encoded: the file's size, the largest and mean error (scene units).
+struct Encoded {
+    bytes: u64,
+    max: Real,
+    mean: Real,
+}
+
+/// Each of `trials` encoded as the file would be with it (never written):
+/// its size and its error (with the quantisation when compressed). The
+/// bases are nested (each one's targets begin the next's), so the largest's
+/// targets are computed once and each takes its first ones.
+fn tried_sizes(
+    frames: &PositionFrames,
+    base: &TriangleMesh,
+    trials: &[basis::BasisTrial],
+    normals: Option<&FrameNormals>,
+    scene: &SceneInfo,
+    options: &GltfExportOptions,
+    progress: Progress,
+) -> Result<Vec<Encoded>> {
+    let largest = trials
+        .iter()
+        .max_by_key(|t| t.basis.targets())
+        .expect("at least one trial");
+    let MorphDeltas::Stored { positions, normals } =
+        stored_deltas(frames, &largest.basis, normals, progress)?
+    else {
+        unreachable!("stored deltas")
+    };
+    trials
+        .iter()
+        .map(|trial| {
+            let t = trial.basis.targets();
+            debug_assert_eq!(trial.basis.mix[..], largest.basis.mix[..t]);
+            let deltas = MorphDeltas::Stored {
+                positions: positions[..t].to_vec(),
+                normals: normals.as_ref().map(|n| n[..t].to_vec()),
+            };
+            let animation = morph_animation(
+                deltas,
+                frames.len(),
+                &trial.basis,
+                options.fps,
+                options.interpolation,
+            );
+            let glb = glb_with(
+                base,
+                Some(&animation),
+                scene,
+                GlbExtras::default(),
+                Progress::none(),
+            )?;
+            let (max, mean) = if options.compress {
+                quantised_error(frames, base, Some(&animation))?
+            } else {
+                (trial.error.max, trial.error.mean)
+            };
+            Ok(Encoded {
+                bytes: glb.length()?,
+                max,
+                mean,
+            })
+        })
+        .collect()
 }
 
 /// Max and mean distance between the captured frames and the positions a
