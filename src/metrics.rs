@@ -19,6 +19,12 @@ use crate::math::Real;
 use crate::model::Trajectories;
 use nalgebra::{DMatrix, SymmetricEigen};
 
+/// A share (a fraction) written in percent, as every share and distance in
+/// the JSON the commands print.
+fn as_percent<S: serde::Serializer>(share: &Real, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_f64(100.0 * share)
+}
+
 /// PCAC, DFU and irregularity of one set of trajectories (docs/method.md §6, §8).
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Quality {

@@ -462,7 +462,7 @@ fn track_json_carries_the_coverage_per_frame() {
         "occupied",
         "unreached",
         "lost",
-        "lost_share",
+        "lost_percent",
         "largest_region",
         "farthest",
     ] {
@@ -472,4 +472,18 @@ fn track_json_carries_the_coverage_per_frame() {
         );
     }
     assert_eq!(coverage["params"]["reach"], 2.0);
+    // Shares in percent, as the far regions' and the fit's.
+    let lost = coverage["frames"].as_array().unwrap().iter().map(|f| {
+        (
+            f["lost"].as_f64().unwrap(),
+            f["occupied"].as_f64().unwrap(),
+            f["lost_percent"].as_f64().unwrap(),
+        )
+    });
+    for (lost, occupied, percent) in lost {
+        assert!(
+            (percent - 100.0 * lost / occupied).abs() < 1e-9,
+            "{coverage}"
+        );
+    }
 }

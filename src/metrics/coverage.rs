@@ -43,7 +43,9 @@ pub struct FrameCoverage {
     /// Of those, the voxels in connected regions of at least
     /// `min_region` cells' volume: the volume counted as lost.
     pub lost: usize,
-    /// `lost` / `occupied`.
+    /// `lost` / `occupied` (in JSON `lost_percent`, in percent as every
+    /// share there).
+    #[serde(rename = "lost_percent", serialize_with = "super::as_percent")]
     pub lost_share: Real,
     /// Voxels in the largest connected unreached region.
     pub largest_region: usize,

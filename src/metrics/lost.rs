@@ -24,7 +24,9 @@ use crate::params::CoverageParams;
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct FrameLoss {
     /// Share of the frame's occupied volume that no tracked cell reaches,
-    /// in connected regions ([`super::FrameCoverage::lost_share`]).
+    /// in connected regions ([`super::FrameCoverage::lost_share`]; in JSON
+    /// `unreached_percent`, in percent).
+    #[serde(rename = "unreached_percent", serialize_with = "super::as_percent")]
     pub unreached: Real,
     /// The largest region of the input's surface far from the result, and
     /// of the result's far from the input (None without a mesh).
