@@ -3,6 +3,7 @@
 mod bars;
 mod options;
 mod plot;
+mod preview;
 mod report;
 #[cfg(test)]
 #[path = "../../tests/common/mod.rs"]

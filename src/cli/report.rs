@@ -81,6 +81,39 @@ impl<'a> ReportInput<'a> {
     }
 }
 
+/// A few frames of the result, drawn (`preview`); nothing when a frame
+/// cannot be read back.
+fn preview_html(input: &ReportInput) -> String {
+    let frames = &input.conversion.mesh.frames;
+    let shown = super::preview::frames_shown(frames.len());
+    let positions: Vec<_> = match shown.iter().map(|&f| frames.get(f)).collect() {
+        Ok(p) => p,
+        Err(e) => {
+            log::warn!("the report's preview is left out: {e}");
+            return String::new();
+        }
+    };
+    let Some(view) = super::preview::View::fitting(positions.iter().map(|p| &p[..])) else {
+        return String::new();
+    };
+    let triangles = &input.conversion.mesh.base.triangles;
+    let mut h =
+        String::from("<section id=\"preview\">\n<h2>The result</h2>\n<div class=\"preview\">\n");
+    for (&f, p) in shown.iter().zip(&positions) {
+        let shade = super::preview::raster(p, triangles, &view);
+        let label = format!("frame {f}");
+        let _ = writeln!(
+            h,
+            "<figure>{}<figcaption>frame {f}</figcaption></figure>",
+            super::preview::svg(&shade, &label)
+        );
+    }
+    h.push_str(
+        "</div>\n<p class=\"note\">Seen along &#8722;z with y up, one scale for all frames.</p>\n</section>\n",
+    );
+    h
+}
+
 /// The bases the glTF writer tried: size against error, the one written marked.
 fn rate_distortion_table(g: &voltrack::export::gltf::GltfExportReport) -> String {
     let mut h = String::from(
@@ -144,6 +177,7 @@ pub fn report_html(input: &ReportInput) -> String {
         env!("CARGO_PKG_VERSION")
     );
     h.push_str(&glance_html(input));
+    h.push_str(&preview_html(input));
     h.push_str(&warning_html(input));
     h.push_str(&input_html(input));
     h.push_str(&fit_html(input));
@@ -924,6 +958,8 @@ code { font-family: ui-monospace, SFMono-Regular, Menlo, Consolas, monospace; fo
 .card .note { font-size: 12px; color: #5a6374; }
 figure { margin: 18px 0; background: #fff; border: 1px solid #e0e3e9; border-radius: 8px; padding: 10px; }
 figure svg { display: block; max-width: 100%; height: auto; margin: 0 auto; }
+.preview { display: flex; flex-wrap: wrap; gap: 12px; }
+.preview figure { margin: 0; }
 figcaption { font-size: 14px; color: #363e4c; padding: 8px 8px 2px; max-width: 80ch; margin: 0 auto; }
 table { border-collapse: collapse; background: #fff; font-variant-numeric: tabular-nums; margin: 8px 0; }
 /* Wide tables scroll inside the page on a narrow screen instead of overflowing it. */

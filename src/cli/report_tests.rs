@@ -182,11 +182,26 @@ fn report_of_a_conversion() {
     assert!(html.contains("out &lt;b&gt;.glb"));
     assert!(html.contains("-r 48 -n 150"));
 
+    // The result drawn at frames 0, 2, 4 and 7 (of 8), in one view: every
+    // picture has shaded pixels.
+    let preview = between(&html, "<section id=\"preview\">", "</section>");
+    assert_eq!(preview.len(), 1);
+    let pictures = between(preview[0], "<svg", "</svg>");
+    assert_eq!(pictures.len(), 4, "preview");
+    for (picture, f) in pictures.iter().zip([0, 2, 4, 7]) {
+        assert!(
+            picture.contains(&format!("aria-label=\"frame {f}\"")),
+            "{picture}"
+        );
+        assert!(picture.contains("<path fill="), "{picture}");
+    }
+    let plots = html.replace(preview[0], "");
+
     // Ten plots, each in a figure whose caption says which way is better.
-    let svgs = between(&html, "<svg", "</svg>");
+    let svgs = between(&plots, "<svg", "</svg>");
     assert_eq!(svgs.len(), 10, "plots");
-    assert_eq!(html.matches("<figure>").count(), 10);
-    for caption in between(&html, "<figcaption>", "</figcaption>") {
+    assert_eq!(plots.matches("<figure>").count(), 10);
+    for caption in between(&plots, "<figcaption>", "</figcaption>") {
         assert!(
             caption.contains("is better") || caption.contains("is faster"),
             "caption without a direction: {caption}"
@@ -341,8 +356,10 @@ fn report_of_a_conversion() {
         &Default::default(),
     ));
     assert_well_formed(&html);
+    // Four pictures of the result, then the plots.
     let svgs = between(&html, "<svg", "</svg>");
-    assert_eq!(svgs.len(), 9);
+    assert_eq!(svgs.len(), 4 + 9);
+    let svgs = &svgs[4..];
     assert!(
         !html.contains("Refinement: energy")
             && html.contains("<caption>Refinement</caption><tr><td>skipped</td></tr>")
