@@ -111,7 +111,7 @@ def evaluated_world(obj):
 
 def file_timing(path):
     """(fps, frames) as the file states them, read here, not by the add-on."""
-    if path.lower().endswith(".glb"):
+    if path.lower().endswith((".glb", ".gltf")):
         doc, _binary = vi.read_glb(path)
         extras = doc["scenes"][doc.get("scene", 0)]["extras"]
         return extras["fps"], extras["frames"]
@@ -152,7 +152,7 @@ def check_file(path, frame_start, expect_name, samples, operator):
         "frame_end": scene.frame_end,
         "captures": n,
     }
-    if path.lower().endswith(".glb"):
+    if path.lower().endswith((".glb", ".gltf")):
         name, targets, capture = glb_captures(path)
         keys = obj.data.shape_keys
         count = len(keys.key_blocks) if keys else 0

@@ -16,7 +16,7 @@ if [ ! -x "$voltrack" ]; then
 fi
 out=target/ci/blender
 mkdir -p "$out"
-for ext in glb pc2; do
+for ext in glb gltf pc2; do
     "$voltrack" convert fixtures/bending_bar -r 48 -n 120 --fps 29.97 -o "$out/bar.$ext" >/dev/null
 done
 "$voltrack" convert fixtures/bending_bar -r 48 -n 120 -o "$out/bar30.glb" >/dev/null
@@ -33,7 +33,7 @@ done
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
 status=0
-run contrib/blender/check_import.py -- "$out/bar.glb" "$out/bar.pc2" "$out/bar30.glb" --expect-name bending_bar >"$log" || status=$?
+run contrib/blender/check_import.py -- "$out/bar.glb" "$out/bar.gltf" "$out/bar.pc2" "$out/bar30.glb" --expect-name bending_bar >"$log" || status=$?
 run contrib/blender/check_import.py -- "$out/bar.glb" "$out/bar.pc2" --frame-start 1 --operator --expect-name bending_bar >>"$log" || status=$?
 # A --compress file: imported where the importer reads EXT_meshopt_compression,
 # else refused before the scene is touched.
@@ -44,9 +44,9 @@ else
     run contrib/blender/check_import.py -- "$out/bar_compress.glb" --refused >>"$log" || status=$?
 fi
 grep -E '^(PASS|FAIL)' "$log" || true
-if [ "$status" -ne 0 ] || grep -q '^FAIL' "$log" || [ "$(grep -c '^PASS' "$log")" -ne 6 ]; then
+if [ "$status" -ne 0 ] || grep -q '^FAIL' "$log" || [ "$(grep -c '^PASS' "$log")" -ne 7 ]; then
     echo "contrib/blender/test.sh: FAILED" >&2
     cat "$log" >&2
     exit 1
 fi
-echo "contrib/blender/test.sh: 6 imports checked"
+echo "contrib/blender/test.sh: 7 imports checked"

@@ -49,6 +49,7 @@ bl_info = {
     "category": "Import-Export",
 }
 
+import base64
 import json
 import math
 import os
@@ -77,10 +78,25 @@ class VoltrackError(Exception):
     pass
 
 
+_EMBEDDED = "data:application/octet-stream;base64,"
+
+
 def read_glb(path):
-    """The JSON document and the BIN chunk (bytes, or None) of a GLB file."""
+    """The JSON document and the BIN chunk (bytes, or None) of a GLB file;
+    of a .gltf (`voltrack convert -o NAME.gltf`), the JSON and its first
+    buffer, embedded as a base64 data: URI."""
     with open(path, "rb") as f:
         data = f.read()
+    if path.lower().endswith(".gltf"):
+        try:
+            doc = json.loads(data.decode("utf-8"))
+        except ValueError as e:
+            raise VoltrackError(f"{path}: not glTF JSON ({e})") from None
+        buffers = doc.get("buffers") or [{}]
+        uri = buffers[0].get("uri", "")
+        if not uri.startswith(_EMBEDDED):
+            raise VoltrackError(f"{path}: its buffer is not embedded; voltrack writes .gltf files with the buffer inside")
+        return doc, base64.b64decode(uri[len(_EMBEDDED) :])
     if len(data) < 20 or data[:4] != GLB_MAGIC:
         raise VoltrackError(f"{path}: not a GLB file")
     _version, length = struct.unpack_from("<II", data, 4)
@@ -449,13 +465,13 @@ def import_voltrack(context, path, frame_start=0):
     """Imports a voltrack .glb, or a .pc2 (or the .obj beside it), and sets the
     scene's frame rate and range; returns a summary dict."""
     ext = os.path.splitext(path)[1].lower()
-    if ext == ".glb":
+    if ext in (".glb", ".gltf"):
         return import_glb(context, path, frame_start)
     if ext == ".pc2":
         return import_pc2(context, path, frame_start)
     if ext == ".obj" and os.path.isfile(os.path.splitext(path)[0] + ".pc2"):
         return import_pc2(context, os.path.splitext(path)[0] + ".pc2", frame_start)
-    raise VoltrackError(f"{path}: expected a .glb or a .pc2 (with its .obj beside it)")
+    raise VoltrackError(f"{path}: expected a .glb, a .gltf or a .pc2 (with its .obj beside it)")
 
 
 if bpy is not None:
@@ -468,7 +484,7 @@ if bpy is not None:
         bl_options = {"REGISTER", "UNDO"}
 
         filename_ext = ".glb"
-        filter_glob: StringProperty(default="*.glb;*.pc2", options={"HIDDEN"})
+        filter_glob: StringProperty(default="*.glb;*.gltf;*.pc2", options={"HIDDEN"})
         frame_start: IntProperty(
             name="First frame",
             description="Scene frame of the first capture: capture k is shown at this frame + k",
