@@ -1528,7 +1528,6 @@ fn glb_with(
     };
     b.root.asset.generator = Some(format!("voltrack {}", env!("CARGO_PKG_VERSION")));
     b.root.asset.extras = extras.asset;
-    let array = Some(json::buffer::Target::ArrayBuffer);
     // A compressed file's quantisation and the order of its vertices: every
     // per-vertex array goes through both.
     let packing = scene
@@ -1545,58 +1544,7 @@ fn glb_with(
     } else {
         far_origin(&mesh.positions)
     };
-    let at = origin.map_or([0.0; 3], |o| o.map(f64::from));
-    let positions: Vec<[f32; 3]> = mesh
-        .positions
-        .iter()
-        .map(|p| {
-            [
-                (p.x - at[0]) as f32,
-                (p.y - at[1]) as f32,
-                (p.z - at[2]) as f32,
-            ]
-        })
-        .collect();
-    let mut attributes = BTreeMap::new();
-    let position_accessor = match &packing {
-        Some((q, o)) => b.short3(
-            &o.apply(
-                &mesh
-                    .positions
-                    .iter()
-                    .map(|p| q.position(p))
-                    .collect::<Vec<_>>(),
-            ),
-            true,
-        )?,
-        None => b.vec3(&positions, true, array),
-    };
-    attributes.insert(Valid(json::mesh::Semantic::Positions), position_accessor);
-    if let Some(n) = &mesh.normals {
-        let acc = match &packing {
-            Some((_, o)) => b.byte3(&o.apply(n))?,
-            None => b.vec3(n, false, array),
-        };
-        attributes.insert(Valid(json::mesh::Semantic::Normals), acc);
-    }
-    for (set, uv) in [(0, mesh.uvs.as_deref()), (1, extras.uv1)] {
-        let Some(uv) = uv else { continue };
-        let uv = match &packing {
-            Some((_, o)) => std::borrow::Cow::Owned(o.apply(uv)),
-            None => std::borrow::Cow::Borrowed(uv),
-        };
-        let bytes = f32_bytes(uv.iter().flatten().copied());
-        let view = b.data_view(&bytes, 8, MeshoptMode::Attributes, array)?;
-        let acc = b.accessor_in(
-            view,
-            uv.len(),
-            json::accessor::ComponentType::F32,
-            json::accessor::Type::Vec2,
-            false,
-            None,
-        );
-        attributes.insert(Valid(json::mesh::Semantic::TexCoords(set)), acc);
-    }
+    let attributes = vertex_attributes(&mut b, mesh, packing.as_ref(), origin, extras.uv1)?;
     let triangles = packing
         .as_ref()
         .map_or(&mesh.triangles, |(_, o)| &o.triangles);
@@ -1627,57 +1575,7 @@ fn glb_with(
     let mut extras = None;
     let mut weights = None;
     if let Some(anim) = animation {
-        let mut t = Vec::with_capacity(anim.targets());
-        // POSITION needs its bounds in the JSON, before the deltas are written.
-        let bounds: Vec<_> = match packing {
-            Some(_) => Vec::new(),
-            None => {
-                let counter = Counter::new(progress, Stage::Export, anim.targets());
-                (0..anim.targets())
-                    .into_par_iter()
-                    .map(|k| {
-                        if progress.cancelled() {
-                            return Err(Error::Interrupted { saved: None });
-                        }
-                        let bounds = bounds_of(&anim.positions(k)?);
-                        counter.tick();
-                        Ok(bounds)
-                    })
-                    .collect::<Result<_>>()?
-            }
-        };
-        for k in 0..anim.targets() {
-            let target = match &packing {
-                Some((q, o)) => {
-                    let normals = if anim.has_normals() {
-                        Some(b.byte3(&o.apply(&anim.normals(k)?))?)
-                    } else {
-                        None
-                    };
-                    let deltas: Vec<[i16; 3]> =
-                        anim.positions(k)?.iter().map(|v| q.delta(v)).collect();
-                    let positions = b.short3(&o.apply(&deltas), true)?;
-                    json::mesh::MorphTarget {
-                        positions: Some(positions),
-                        normals,
-                        tangents: None,
-                    }
-                }
-                None => {
-                    let vertices = mesh.positions.len();
-                    let normals = anim
-                        .has_normals()
-                        .then(|| b.deferred_vec3(k, true, vertices, None));
-                    let positions = b.deferred_vec3(k, false, vertices, bounds.get(k).cloned());
-                    json::mesh::MorphTarget {
-                        positions: Some(positions),
-                        normals,
-                        tangents: None,
-                    }
-                }
-            };
-            t.push(target);
-        }
+        let t = morph_targets(&mut b, mesh, anim, packing.as_ref(), progress)?;
         targets = Some(t);
         weights = Some(anim.weights[0].clone());
         let names = serde_json::json!({ "targetNames": anim.target_names });
@@ -1716,49 +1614,187 @@ fn glb_with(
     if let Some(anim) = animation {
         add_weight_animation(&mut b, anim, node, &scene.name, timing)?;
     }
-    b.bin.pad();
-    b.root.push(json::Buffer {
-        byte_length: USize64::from(b.bin.len),
-        name: None,
-        uri: None,
-        extensions: None,
-        extras: Default::default(),
-    });
-    let mut json_bytes = if scene.compress {
-        let used = ["EXT_meshopt_compression", "KHR_mesh_quantization"]
-            .map(String::from)
-            .to_vec();
-        b.root.extensions_used = used.clone();
-        b.root.extensions_required = used;
+    b.finish()
+}
+
+/// The mesh's vertex attributes (POSITION, NORMAL, TEXCOORD_0 and _1), as
+/// `packing` quantises and orders them or as floats moved by `origin`.
+fn vertex_attributes(
+    b: &mut Builder,
+    mesh: &TriangleMesh,
+    packing: Option<&(Quantizer, CodecOrder)>,
+    origin: Option<[f32; 3]>,
+    uv1: Option<&[[f32; 2]]>,
+) -> Result<BTreeMap<json::validation::Checked<json::mesh::Semantic>, json::Index<json::Accessor>>>
+{
+    let array = Some(json::buffer::Target::ArrayBuffer);
+    let at = origin.map_or([0.0; 3], |o| o.map(f64::from));
+    let positions: Vec<[f32; 3]> = mesh
+        .positions
+        .iter()
+        .map(|p| {
+            [
+                (p.x - at[0]) as f32,
+                (p.y - at[1]) as f32,
+                (p.z - at[2]) as f32,
+            ]
+        })
+        .collect();
+    let mut attributes = BTreeMap::new();
+    let position_accessor = match packing {
+        Some((q, o)) => b.short3(
+            &o.apply(
+                &mesh
+                    .positions
+                    .iter()
+                    .map(|p| q.position(p))
+                    .collect::<Vec<_>>(),
+            ),
+            true,
+        )?,
+        None => b.vec3(&positions, true, array),
+    };
+    attributes.insert(Valid(json::mesh::Semantic::Positions), position_accessor);
+    if let Some(n) = &mesh.normals {
+        let acc = match packing {
+            Some((_, o)) => b.byte3(&o.apply(n))?,
+            None => b.vec3(n, false, array),
+        };
+        attributes.insert(Valid(json::mesh::Semantic::Normals), acc);
+    }
+    for (set, uv) in [(0, mesh.uvs.as_deref()), (1, uv1)] {
+        let Some(uv) = uv else { continue };
+        let uv = match packing {
+            Some((_, o)) => std::borrow::Cow::Owned(o.apply(uv)),
+            None => std::borrow::Cow::Borrowed(uv),
+        };
+        let bytes = f32_bytes(uv.iter().flatten().copied());
+        let view = b.data_view(&bytes, 8, MeshoptMode::Attributes, array)?;
+        let acc = b.accessor_in(
+            view,
+            uv.len(),
+            json::accessor::ComponentType::F32,
+            json::accessor::Type::Vec2,
+            false,
+            None,
+        );
+        attributes.insert(Valid(json::mesh::Semantic::TexCoords(set)), acc);
+    }
+    Ok(attributes)
+}
+
+/// One morph target per target of `anim`: quantised deltas as `packing`
+/// says, or float deltas deferred to the writing of the binary chunk (with
+/// their bounds, which POSITION needs in the JSON first).
+fn morph_targets(
+    b: &mut Builder,
+    mesh: &TriangleMesh,
+    anim: &MorphAnimation,
+    packing: Option<&(Quantizer, CodecOrder)>,
+    progress: Progress,
+) -> Result<Vec<json::mesh::MorphTarget>> {
+    let mut t = Vec::with_capacity(anim.targets());
+    // POSITION needs its bounds in the JSON, before the deltas are written.
+    let bounds: Vec<_> = match packing {
+        Some(_) => Vec::new(),
+        None => {
+            let counter = Counter::new(progress, Stage::Export, anim.targets());
+            (0..anim.targets())
+                .into_par_iter()
+                .map(|k| {
+                    if progress.cancelled() {
+                        return Err(Error::Interrupted { saved: None });
+                    }
+                    let bounds = bounds_of(&anim.positions(k)?);
+                    counter.tick();
+                    Ok(bounds)
+                })
+                .collect::<Result<_>>()?
+        }
+    };
+    for k in 0..anim.targets() {
+        let target = match packing {
+            Some((q, o)) => {
+                let normals = if anim.has_normals() {
+                    Some(b.byte3(&o.apply(&anim.normals(k)?))?)
+                } else {
+                    None
+                };
+                let deltas: Vec<[i16; 3]> = anim.positions(k)?.iter().map(|v| q.delta(v)).collect();
+                let positions = b.short3(&o.apply(&deltas), true)?;
+                json::mesh::MorphTarget {
+                    positions: Some(positions),
+                    normals,
+                    tangents: None,
+                }
+            }
+            None => {
+                let vertices = mesh.positions.len();
+                let normals = anim
+                    .has_normals()
+                    .then(|| b.deferred_vec3(k, true, vertices, None));
+                let positions = b.deferred_vec3(k, false, vertices, bounds.get(k).cloned());
+                json::mesh::MorphTarget {
+                    positions: Some(positions),
+                    normals,
+                    tangents: None,
+                }
+            }
+        };
+        t.push(target);
+    }
+    Ok(t)
+}
+
+impl Builder {
+    /// The buffers (and a compressed file's fallback buffer and extensions)
+    /// added, the JSON serialised and padded: the file's two parts.
+    fn finish(mut self) -> Result<GlbParts> {
+        let b = &mut self;
+        b.bin.pad();
         b.root.push(json::Buffer {
-            byte_length: USize64::from(b.fallback_len.next_multiple_of(4)),
+            byte_length: USize64::from(b.bin.len),
             name: None,
             uri: None,
             extensions: None,
             extras: Default::default(),
         });
-        // gltf-json has no types for EXT_meshopt_compression: added to the JSON.
-        let mut value =
-            serde_json::to_value(&b.root).map_err(|e| Error::InvalidInput(e.to_string()))?;
-        for (view, ext) in b.meshopt.drain(..) {
-            value["bufferViews"][view]["extensions"] =
-                serde_json::json!({ "EXT_meshopt_compression": ext });
+        let mut json_bytes = if b.compress {
+            let used = ["EXT_meshopt_compression", "KHR_mesh_quantization"]
+                .map(String::from)
+                .to_vec();
+            b.root.extensions_used = used.clone();
+            b.root.extensions_required = used;
+            b.root.push(json::Buffer {
+                byte_length: USize64::from(b.fallback_len.next_multiple_of(4)),
+                name: None,
+                uri: None,
+                extensions: None,
+                extras: Default::default(),
+            });
+            // gltf-json has no types for EXT_meshopt_compression: added to the JSON.
+            let mut value =
+                serde_json::to_value(&b.root).map_err(|e| Error::InvalidInput(e.to_string()))?;
+            for (view, ext) in b.meshopt.drain(..) {
+                value["bufferViews"][view]["extensions"] =
+                    serde_json::json!({ "EXT_meshopt_compression": ext });
+            }
+            value["buffers"][1]["extensions"] =
+                serde_json::json!({ "EXT_meshopt_compression": { "fallback": true } });
+            serde_json::to_vec(&value).map_err(|e| Error::InvalidInput(e.to_string()))?
+        } else {
+            b.root
+                .to_vec()
+                .map_err(|e| Error::InvalidInput(e.to_string()))?
+        };
+        while json_bytes.len() % 4 != 0 {
+            json_bytes.push(b' ');
         }
-        value["buffers"][1]["extensions"] =
-            serde_json::json!({ "EXT_meshopt_compression": { "fallback": true } });
-        serde_json::to_vec(&value).map_err(|e| Error::InvalidInput(e.to_string()))?
-    } else {
-        b.root
-            .to_vec()
-            .map_err(|e| Error::InvalidInput(e.to_string()))?
-    };
-    while json_bytes.len() % 4 != 0 {
-        json_bytes.push(b' ');
+        Ok(GlbParts {
+            json: json_bytes,
+            bin: std::mem::take(&mut b.bin),
+        })
     }
-    Ok(GlbParts {
-        json: json_bytes,
-        bin: b.bin,
-    })
 }
 
 fn add_weight_animation(
