@@ -43,6 +43,22 @@ pub(crate) struct Capacity {
 }
 
 impl Capacity {
+    /// Of the centers `centers0` placed in `seq`'s frame 0, their cells
+    /// assigned afresh.
+    pub(crate) fn of_first_frame(seq: &crate::voxel::VoxelSequence, centers0: &[Point3]) -> Self {
+        use crate::spatial::cells::{assign, CenterIndex, NO_OWNER};
+        let voxels0 = seq.frames[0].indices();
+        let mut owners = vec![NO_OWNER; voxels0.len()];
+        assign(
+            &seq.grid,
+            &voxels0,
+            &CenterIndex::new(centers0),
+            &mut owners,
+            false,
+        );
+        Capacity::new(&seq.grid, &voxels0, &owners, centers0)
+    }
+
     /// From frame 0's voxels, their owners and the centers.
     pub(crate) fn new(grid: &GridSpec, voxels: &[u32], owners: &[u32], centers: &[Point3]) -> Self {
         let n = centers.len();

@@ -8,7 +8,7 @@
 //! combined (see [`Tracker::track_frame`]).
 
 use super::affinity::Affinity;
-use super::checkpoint::{self, Checkpointing, Snapshot};
+use super::checkpoint::{self, Checkpointing, Restored, Snapshot};
 use super::lloyd::seed_centers_until;
 use super::{FrameTiming, Guess};
 use crate::error::{Error, Result, Saved};
@@ -119,7 +119,7 @@ pub fn track_with_checkpoints(
         }
         _ => None,
     };
-    let (mut traj, mut cell_counts, mut timings, affinity, owners, first) = match resume {
+    let started = match resume {
         Some(c) => {
             let r = checkpoint::load(c, fingerprint.expect("fingerprinted"), seq, params)?;
             log::info!(
@@ -127,82 +127,24 @@ pub fn track_with_checkpoints(
                 c.path().display(),
                 r.frames_done
             );
-            (
-                r.trajectories,
-                r.cell_counts,
-                r.timings,
-                r.affinity,
-                r.owners,
-                r.frames_done,
-            )
+            r
         }
-        None => {
-            if let Some(stale) = checkpoint.map(|c| c.refine_path()).filter(|p| p.exists()) {
-                // It refined the tracking this run starts over, not this run's.
-                log::info!("tracking starts over: removing {}", stale.display());
-                std::fs::remove_file(&stale).map_err(|e| Error::io(&stale, e))?;
-            }
-            let start = Instant::now();
-            let voxels0 = &seq.frames[0].indices();
-            let placed = seed_centers_until(
-                grid,
-                voxels0,
-                params.centers,
-                params.seed,
-                params.lloyd_iterations,
-                params.over_relaxation,
-                params.threshold * scale,
-                &|| progress.cancelled(),
-            );
-            // Nothing to save yet.
-            let (centers0, lloyd_steps) = placed.ok_or(Error::Interrupted { saved: None })?;
-            let mut traj = Trajectories::new(frames, params.centers);
-            traj.frame_mut(0).copy_from_slice(&centers0);
-            let mut owners = vec![NO_OWNER; voxels0.len()];
-            let stats0 = assign(
-                grid,
-                voxels0,
-                &CenterIndex::new(&centers0),
-                &mut owners,
-                false,
-            );
-            let reach = super::rho_p(params, seq, scale);
-            let affinity = Affinity::initial(
-                &centers0,
-                params.affinity,
-                reach,
-                params.rho_m * scale,
-                params.alpha,
-                params.mu,
-            );
-            let timing = FrameTiming {
-                total: start.elapsed().as_secs_f64(),
-                iterations: lloyd_steps,
-                ..Default::default()
-            };
-            log::info!(
-                "frame 0: {} centers placed; ρ_p {reach:.4}, {:.1} neighbours each",
-                params.centers,
-                affinity.mean_neighbors()
-            );
-            (traj, vec![stats0.count], vec![timing], affinity, owners, 1)
-        }
+        None => first_frame(seq, params, scale, checkpoint, progress)?,
     };
+    let Restored {
+        frames_done: first,
+        trajectories: mut traj,
+        mut cell_counts,
+        mut timings,
+        affinity,
+        owners,
+    } = started;
     progress.report(Stage::Track, first, frames);
 
     let prev_voxels: std::sync::Arc<[u32]> = seq.frames[first - 1].indices().into();
-    let capacity = params.reclaim.then(|| {
-        let voxels0 = seq.frames[0].indices();
-        let mut owners = vec![NO_OWNER; voxels0.len()];
-        assign(
-            grid,
-            &voxels0,
-            &CenterIndex::new(traj.frame(0)),
-            &mut owners,
-            false,
-        );
-        super::claims::Capacity::new(grid, &voxels0, &owners, traj.frame(0))
-    });
+    let capacity = params
+        .reclaim
+        .then(|| super::claims::Capacity::of_first_frame(seq, traj.frame(0)));
     let mut tracker = Tracker {
         capacity,
         grid,
@@ -285,6 +227,75 @@ pub fn track_with_checkpoints(
         cell_counts,
         timings,
         scale,
+    })
+}
+
+/// A fresh start: the centers placed in frame 0 (Lloyd), their cells, the
+/// first affinity; a refinement checkpoint of an earlier run is removed,
+/// since it refined tracking this run starts over.
+fn first_frame(
+    seq: &VoxelSequence,
+    params: &TrackParams,
+    scale: Real,
+    checkpoint: Option<&Checkpointing>,
+    progress: Progress,
+) -> Result<Restored> {
+    let (grid, frames) = (&seq.grid, seq.frames.len());
+    if let Some(stale) = checkpoint.map(|c| c.refine_path()).filter(|p| p.exists()) {
+        // It refined the tracking this run starts over, not this run's.
+        log::info!("tracking starts over: removing {}", stale.display());
+        std::fs::remove_file(&stale).map_err(|e| Error::io(&stale, e))?;
+    }
+    let start = Instant::now();
+    let voxels0 = &seq.frames[0].indices();
+    let placed = seed_centers_until(
+        grid,
+        voxels0,
+        params.centers,
+        params.seed,
+        params.lloyd_iterations,
+        params.over_relaxation,
+        params.threshold * scale,
+        &|| progress.cancelled(),
+    );
+    // Nothing to save yet.
+    let (centers0, lloyd_steps) = placed.ok_or(Error::Interrupted { saved: None })?;
+    let mut traj = Trajectories::new(frames, params.centers);
+    traj.frame_mut(0).copy_from_slice(&centers0);
+    let mut owners = vec![NO_OWNER; voxels0.len()];
+    let stats0 = assign(
+        grid,
+        voxels0,
+        &CenterIndex::new(&centers0),
+        &mut owners,
+        false,
+    );
+    let reach = super::rho_p(params, seq, scale);
+    let affinity = Affinity::initial(
+        &centers0,
+        params.affinity,
+        reach,
+        params.rho_m * scale,
+        params.alpha,
+        params.mu,
+    );
+    let timing = FrameTiming {
+        total: start.elapsed().as_secs_f64(),
+        iterations: lloyd_steps,
+        ..Default::default()
+    };
+    log::info!(
+        "frame 0: {} centers placed; ρ_p {reach:.4}, {:.1} neighbours each",
+        params.centers,
+        affinity.mean_neighbors()
+    );
+    Ok(Restored {
+        frames_done: 1,
+        trajectories: traj,
+        cell_counts: vec![stats0.count],
+        timings: vec![timing],
+        affinity,
+        owners,
     })
 }
 
