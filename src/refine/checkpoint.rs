@@ -41,6 +41,21 @@ pub(super) struct Snapshot<'a> {
     pub seconds: f64,
 }
 
+impl Restored {
+    /// The state before the first batch: every tracked center kept.
+    pub(super) fn fresh(tracked: Trajectories) -> Self {
+        Restored {
+            batches_done: 0,
+            kept: (0..tracked.centers).collect(),
+            trajectories: tracked,
+            removed: Vec::new(),
+            finished: Vec::new(),
+            current: None,
+            seconds: 0.0,
+        }
+    }
+}
+
 /// A state read back.
 pub(super) struct Restored {
     pub batches_done: usize,

@@ -9,7 +9,7 @@ pub mod irregular;
 
 pub use affinity::{global_affinity, SparseAffinity};
 pub use cells::SequenceCells;
-use checkpoint::Snapshot;
+use checkpoint::{Restored, Snapshot};
 pub use global::{evaluate, optimise, Iteration};
 pub use irregular::most_irregular;
 
@@ -54,6 +54,28 @@ pub fn refine(
     refine_with_checkpoints(traj, seq, params, None, progress)
 }
 
+/// Removes the `n_rem` most irregular centers of `current` (relative to
+/// their spacing when `params` says so) from it and from `cells`; `kept`
+/// maps the centers left to the tracked ones, `removed` gains theirs.
+fn remove_irregular(
+    current: &mut Trajectories,
+    cells: &mut SequenceCells,
+    kept: &mut Vec<usize>,
+    removed: &mut Vec<usize>,
+    n_rem: usize,
+    params: &RefineParams,
+) {
+    let mut irregularity = crate::metrics::irregularity(current);
+    if params.relative_irregularity {
+        irregularity = irregular::relative_irregularity(current, &irregularity);
+    }
+    let worst = most_irregular(&irregularity, n_rem);
+    removed.extend(worst.iter().map(|&i| kept[i]));
+    let survivors = current.remove_centers(&worst);
+    cells.keep_centers(&survivors);
+    *kept = survivors.into_iter().map(|i| kept[i]).collect();
+}
+
 /// [`refine`], saving its state to `checkpoint` ([`Checkpointing::refine_path`])
 /// after every batch, every `refine_save_seconds` within one, and when
 /// cancelled through `progress` (then returning [`Error::Interrupted`]); with
@@ -81,31 +103,19 @@ pub fn refine_with_checkpoints(
                 r.batches_done,
                 params.batches
             );
-            Some(r)
+            r
         }
-        _ => None,
+        _ => Restored::fresh(traj),
     };
-    let (first, mut kept, mut current, mut removed, mut batches, mut in_progress, earlier) =
-        match restored {
-            Some(r) => (
-                r.batches_done,
-                r.kept,
-                r.trajectories,
-                r.removed,
-                r.finished,
-                r.current,
-                r.seconds,
-            ),
-            None => (
-                0,
-                (0..traj.centers).collect(),
-                traj,
-                Vec::new(),
-                Vec::new(),
-                None,
-                0.0,
-            ),
-        };
+    let Restored {
+        batches_done: first,
+        mut kept,
+        trajectories: mut current,
+        mut removed,
+        finished: mut batches,
+        current: mut in_progress,
+        seconds: earlier,
+    } = restored;
     let seconds = |start: &Instant| earlier + start.elapsed().as_secs_f64();
     let interrupted = |batches_done: usize| Error::Interrupted {
         saved: checkpoint.map(|c| Saved {
@@ -133,15 +143,14 @@ pub fn refine_with_checkpoints(
             None => {
                 // Spread the remainder over the first batches.
                 let n_rem = total / params.batches + usize::from(b < total % params.batches);
-                let mut irregularity = crate::metrics::irregularity(&current);
-                if params.relative_irregularity {
-                    irregularity = irregular::relative_irregularity(&current, &irregularity);
-                }
-                let worst = most_irregular(&irregularity, n_rem);
-                removed.extend(worst.iter().map(|&i| kept[i]));
-                let survivors = current.remove_centers(&worst);
-                cells.keep_centers(&survivors);
-                kept = survivors.into_iter().map(|i| kept[i]).collect();
+                remove_irregular(
+                    &mut current,
+                    &mut cells,
+                    &mut kept,
+                    &mut removed,
+                    n_rem,
+                    params,
+                );
                 if !params.optimise {
                     save(
                         saving,
