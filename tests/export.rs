@@ -1893,3 +1893,64 @@ impl Glb {
             .collect()
     }
 }
+
+/// A writer that takes `room` bytes, then fails.
+struct Full {
+    room: usize,
+    taken: Vec<u8>,
+}
+
+impl std::io::Write for Full {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        if self.room == 0 {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::StorageFull,
+                "no room",
+            ));
+        }
+        let n = buf.len().min(self.room);
+        self.room -= n;
+        self.taken.extend_from_slice(&buf[..n]);
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// Into any writer, the bytes the file would hold; a writer that fails is
+/// an error of its own kind (no path to name), whatever part it fails in.
+#[test]
+fn glb_into_a_writer_is_the_file_and_its_failure_is_reported() {
+    use voltrack::export::gltf::write_dynamic_glb_to;
+    let dir = Scratch::new("export", "writer");
+    let mesh = bending_bar();
+    for opts in [
+        options(BasisChoice::PerFrame),
+        GltfExportOptions {
+            compress: true,
+            ..Default::default()
+        },
+    ] {
+        let path = dir.join("bar.glb");
+        let report = write_dynamic_glb(&path, &mesh, &opts, Progress::none()).unwrap();
+        let mut bytes = Vec::new();
+        let streamed = write_dynamic_glb_to(&mut bytes, &mesh, &opts, Progress::none()).unwrap();
+        assert_eq!(bytes, std::fs::read(&path).unwrap());
+        assert_eq!(streamed, report);
+        for room in [0, 11, 20, bytes.len() / 2, bytes.len() - 1] {
+            let mut full = Full {
+                room,
+                taken: Vec::new(),
+            };
+            let err = write_dynamic_glb_to(&mut full, &mesh, &opts, Progress::none()).unwrap_err();
+            assert!(
+                matches!(err, voltrack::Error::WriteStream(_)),
+                "{room}: {err}"
+            );
+            assert!(err.to_string().contains("no room"), "{err}");
+            assert_eq!(full.taken[..], bytes[..room]);
+        }
+    }
+}
