@@ -266,17 +266,10 @@ pub fn write_dynamic_gltf(
 /// The `.gltf` text of a GLB of ours: its JSON chunk with the BIN chunk as
 /// the first buffer's `data:` URI.
 fn embedded_gltf(glb: &[u8]) -> Result<String> {
-    let chunk = |at: usize| -> Result<(&[u8], usize)> {
-        let bad = || Error::InvalidInput("a GLB chunk runs past the file's end".into());
-        let len =
-            u32::from_le_bytes(glb.get(at..at + 4).ok_or_else(bad)?.try_into().unwrap()) as usize;
-        let data = glb.get(at + 8..at + 8 + len).ok_or_else(bad)?;
-        Ok((data, at + 8 + len))
-    };
-    let (json, next) = chunk(12)?;
-    let (bin, _) = chunk(next)?;
-    let mut root: serde_json::Value =
-        serde_json::from_slice(json).map_err(|e| Error::InvalidInput(e.to_string()))?;
+    let invalid = |e: &dyn std::fmt::Display| Error::InvalidInput(e.to_string());
+    let glb = gltf::binary::Glb::from_slice(glb).map_err(|e| invalid(&e))?;
+    let bin = glb.bin.as_deref().unwrap_or_default();
+    let mut root: serde_json::Value = serde_json::from_slice(&glb.json).map_err(|e| invalid(&e))?;
     let buffer = root
         .get_mut("buffers")
         .and_then(|b| b.get_mut(0))
@@ -293,7 +286,7 @@ fn embedded_gltf(glb: &[u8]) -> Result<String> {
         "uri".into(),
         format!("data:application/octet-stream;base64,{}", base64(data)).into(),
     );
-    serde_json::to_string(&root).map_err(|e| Error::InvalidInput(e.to_string()))
+    serde_json::to_string(&root).map_err(|e| invalid(&e))
 }
 
 /// Standard base64 with padding (RFC 4648 §4), as `data:` URIs take it.
@@ -406,34 +399,40 @@ fn dynamic_glb(
     written?;
     let mut rate_distortion = Vec::new();
     if options.rate_distortion && !trials.is_empty() {
-        for (trial, Encoded { bytes, max, mean }) in trials.iter().zip(tried_sizes(
+        // The basis written is measured already: only the others are encoded.
+        let others: Vec<&basis::BasisTrial> = trials
+            .iter()
+            .filter(|t| t.basis.components != basis.components)
+            .collect();
+        let sizes = tried_sizes(
             frames,
             &base,
-            &trials,
+            &others,
             normals.as_ref(),
             &scene,
             options,
             progress,
-        )?) {
+        )?;
+        for (trial, Encoded { bytes, max, mean }) in others.into_iter().zip(sizes) {
             rate_distortion.push(RateRow {
                 components: trial.basis.components,
                 targets: trial.basis.targets(),
                 bytes,
                 error_max: relative(max),
                 error_mean: relative(mean),
-                chosen: trial.basis == basis,
+                chosen: false,
             });
         }
-        if basis.components.is_none() {
-            rate_distortion.push(RateRow {
-                components: None,
-                targets: basis.targets(),
-                bytes: bytes as u64,
-                error_max: relative(error_max),
-                error_mean: relative(error_mean),
-                chosen: true,
-            });
-        }
+        rate_distortion.push(RateRow {
+            components: basis.components,
+            targets: basis.targets(),
+            bytes: bytes as u64,
+            error_max: relative(error_max),
+            error_mean: relative(error_mean),
+            chosen: true,
+        });
+        // By size, as the trials: the per-frame basis has the most targets.
+        rate_distortion.sort_by_key(|r| r.targets);
     }
     Ok(GltfExportReport {
         targets: basis.targets(),
@@ -460,16 +459,15 @@ struct Encoded {
 fn tried_sizes(
     frames: &PositionFrames,
     base: &TriangleMesh,
-    trials: &[basis::BasisTrial],
+    trials: &[&basis::BasisTrial],
     normals: Option<&FrameNormals>,
     scene: &SceneInfo,
     options: &GltfExportOptions,
     progress: Progress,
 ) -> Result<Vec<Encoded>> {
-    let largest = trials
-        .iter()
-        .max_by_key(|t| t.basis.targets())
-        .expect("at least one trial");
+    let Some(largest) = trials.iter().max_by_key(|t| t.basis.targets()) else {
+        return Ok(Vec::new());
+    };
     let MorphDeltas::Stored { positions, normals } =
         stored_deltas(frames, &largest.basis, normals, progress)?
     else {
@@ -1750,23 +1748,22 @@ impl Builder {
     /// The buffers (and a compressed file's fallback buffer and extensions)
     /// added, the JSON serialised and padded: the file's two parts.
     fn finish(mut self) -> Result<GlbParts> {
-        let b = &mut self;
-        b.bin.pad();
-        b.root.push(json::Buffer {
-            byte_length: USize64::from(b.bin.len),
+        self.bin.pad();
+        self.root.push(json::Buffer {
+            byte_length: USize64::from(self.bin.len),
             name: None,
             uri: None,
             extensions: None,
             extras: Default::default(),
         });
-        let mut json_bytes = if b.compress {
+        let mut json_bytes = if self.compress {
             let used = ["EXT_meshopt_compression", "KHR_mesh_quantization"]
                 .map(String::from)
                 .to_vec();
-            b.root.extensions_used = used.clone();
-            b.root.extensions_required = used;
-            b.root.push(json::Buffer {
-                byte_length: USize64::from(b.fallback_len.next_multiple_of(4)),
+            self.root.extensions_used = used.clone();
+            self.root.extensions_required = used;
+            self.root.push(json::Buffer {
+                byte_length: USize64::from(self.fallback_len.next_multiple_of(4)),
                 name: None,
                 uri: None,
                 extensions: None,
@@ -1774,8 +1771,8 @@ impl Builder {
             });
             // gltf-json has no types for EXT_meshopt_compression: added to the JSON.
             let mut value =
-                serde_json::to_value(&b.root).map_err(|e| Error::InvalidInput(e.to_string()))?;
-            for (view, ext) in b.meshopt.drain(..) {
+                serde_json::to_value(&self.root).map_err(|e| Error::InvalidInput(e.to_string()))?;
+            for (view, ext) in self.meshopt.drain(..) {
                 value["bufferViews"][view]["extensions"] =
                     serde_json::json!({ "EXT_meshopt_compression": ext });
             }
@@ -1783,7 +1780,7 @@ impl Builder {
                 serde_json::json!({ "EXT_meshopt_compression": { "fallback": true } });
             serde_json::to_vec(&value).map_err(|e| Error::InvalidInput(e.to_string()))?
         } else {
-            b.root
+            self.root
                 .to_vec()
                 .map_err(|e| Error::InvalidInput(e.to_string()))?
         };
@@ -1792,7 +1789,7 @@ impl Builder {
         }
         Ok(GlbParts {
             json: json_bytes,
-            bin: std::mem::take(&mut b.bin),
+            bin: self.bin,
         })
     }
 }
