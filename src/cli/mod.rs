@@ -568,7 +568,7 @@ fn metrics(centers: PathBuf, input: Vec<PathBuf>, json: bool, plot: Option<PathB
 fn convert(args: ConvertArgs) -> Result<()> {
     let plan = convert_plan(&args)?;
     let bars = bars::Bars::new();
-    let source = FrameFiles::new(plan.found.clone());
+    let source = &plan.source;
     let options = pipeline::ConvertOptions {
         voxel: plan.voxel.clone(),
         track: plan.track.clone(),
@@ -579,11 +579,11 @@ fn convert(args: ConvertArgs) -> Result<()> {
         checkpoint: plan.checkpoint.clone(),
         measure_tracked: args.report.is_some(),
     };
-    let conv = pipeline::convert(&source, &options, bars.progress())?;
+    let conv = pipeline::convert(source, &options, bars.progress())?;
     // Measured before the output is written: a frame that cannot be read
     // again (or changed) fails the run with an earlier output still in place.
     let measured = match &args.report {
-        Some(_) => Some(pipeline::Measurements::of(&conv, &source, bars.progress())?),
+        Some(_) => Some(pipeline::Measurements::of(&conv, source, bars.progress())?),
         None => None,
     };
     let fit_only = match (&measured, plan.format) {
@@ -591,7 +591,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
         (None, OutputFormat::Exr) => None,
         (None, _) => Some(pipeline::Measurements::fit_of(
             &conv,
-            &source,
+            source,
             bars.progress(),
         )?),
         (Some(_), _) => None,
@@ -604,7 +604,7 @@ fn convert(args: ConvertArgs) -> Result<()> {
         .as_ref()
         .map(|m| &m.fit)
         .or(fit_only.as_ref().map(|f| &f.0));
-    let mut written = write_output(&args, &plan, &conv, &source, fit, bars.progress())?;
+    let mut written = write_output(&args, &plan, &conv, fit, bars.progress())?;
     bars.progress().report(Stage::Export, 1, 1);
     let mut seconds = conv.seconds.clone();
     if let Some(s) = measured
@@ -659,7 +659,7 @@ struct ConvertPlan {
     format: OutputFormat,
     checkpoint: Option<Checkpointing>,
     /// The input's frames, listed once.
-    found: Vec<PathBuf>,
+    source: FrameFiles,
     /// The object's name in the outputs.
     name: String,
 }
@@ -720,7 +720,7 @@ fn convert_plan(args: &ConvertArgs) -> Result<ConvertPlan> {
         conform,
         format,
         checkpoint,
-        found,
+        source: FrameFiles::new(found),
         name,
     })
 }
@@ -740,7 +740,6 @@ fn write_output(
     args: &ConvertArgs,
     plan: &ConvertPlan,
     conv: &pipeline::Conversion,
-    source: &FrameFiles,
     fit: Option<&voltrack::metrics::SequenceFit>,
     progress: voltrack::Progress,
 ) -> Result<Written> {
@@ -751,7 +750,8 @@ fn write_output(
     let mut vat_layout = None;
     let files = match format {
         OutputFormat::Glb | OutputFormat::Gltf => {
-            let (report, gltf_notes) = write_gltf(args, format, conv, source, fit, name, progress)?;
+            let (report, gltf_notes) =
+                write_gltf(args, format, conv, &plan.source, fit, name, progress)?;
             notes.extend(gltf_notes);
             glb_report = Some(report);
             vec![out.clone()]

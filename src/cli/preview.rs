@@ -8,6 +8,7 @@
 
 use std::fmt::Write;
 use voltrack::math::{Point3, Real, Vector3};
+use voltrack::Aabb;
 
 /// Pixels along each side of a frame's picture.
 pub const SIZE: usize = 160;
@@ -82,11 +83,8 @@ impl View {
     /// The view that fits every point of `frames` (x and y) into the square,
     /// with a pixel of margin.
     pub fn fitting<'a>(frames: impl IntoIterator<Item = &'a [Point3]>) -> Option<View> {
-        let (mut lo, mut hi) = ([Real::INFINITY; 2], [Real::NEG_INFINITY; 2]);
-        for p in frames.into_iter().flatten() {
-            lo = [lo[0].min(p.x), lo[1].min(p.y)];
-            hi = [hi[0].max(p.x), hi[1].max(p.y)];
-        }
+        let bounds = Aabb::from_points(frames.into_iter().flatten());
+        let (lo, hi) = ([bounds.min.x, bounds.min.y], [bounds.max.x, bounds.max.y]);
         let extent = (hi[0] - lo[0]).max(hi[1] - lo[1]);
         if !(extent > 0.0 && extent.is_finite()) {
             return None;
