@@ -14,6 +14,8 @@
 //!   other than the defaults; `VOLTRACK_FRAMES`: each take cut to its first
 //!   frames; `VOLTRACK_RECLAIM=1` (`--reclaim`),
 //!   `VOLTRACK_ABSOLUTE_IRREGULARITY=1` (`--absolute-irregularity`);
+//!   `VOLTRACK_REFERENCE`: `first`, `middle` (each take's middle frame) or
+//!   a frame number (`--reference`; default `auto`);
 //! - `VOLTRACK_FAMILY_JSON=FILE`: also write every take's figures as JSON
 //!   lines (per-frame errors included), for tables before and after a change.
 
@@ -21,6 +23,7 @@ use std::io::Write;
 use std::time::Instant;
 use voltrack::fixtures::family::{build, family, score, TakeSpec};
 use voltrack::metrics::coverage::runs;
+use voltrack::params::Reference;
 use voltrack::pipeline::{convert, ConvertOptions, Measurements};
 
 /// A take is within bounds when its correspondence maximum is at most this.
@@ -123,6 +126,16 @@ fn main() {
             ..spec
         };
         let take = build(&spec);
+        let mut options = options.clone();
+        options.track.reference = match std::env::var("VOLTRACK_REFERENCE").as_deref() {
+            Ok("first") => Reference::First,
+            Ok("middle") => Reference::Frame(spec.frames / 2),
+            Ok(k) => Reference::Frame(
+                k.parse()
+                    .expect("VOLTRACK_REFERENCE: first, middle or a frame"),
+            ),
+            Err(_) => Reference::Auto,
+        };
         let clock = Instant::now();
         let conv = convert(&take.meshes, &options, Default::default()).expect("converting");
         let (fit, outliers) = Measurements::fit_of(&conv, &take.meshes, Default::default())
@@ -131,7 +144,7 @@ fn main() {
         let lost = voltrack::pipeline::lost_parts(&conv, Some((&fit, &outliers)));
         let warned = lost.flagged.clone();
         let result = conv.mesh.frames.to_vec().expect("reading the result");
-        let s = score(&take, &result);
+        let s = score(&take, conv.mesh.reference, &result);
         let missed: Vec<usize> = s
             .lost
             .iter()
@@ -155,6 +168,9 @@ fn main() {
                 String::new()
             } else {
                 format!("  missed {}", frames_text(&missed))
+            } + &match conv.mesh.reference {
+                0 => String::new(),
+                r => format!("  reference {r}"),
             }
         );
         std::io::stdout().flush().ok();
@@ -168,7 +184,7 @@ fn main() {
                 .map(|(f, (positions, input))| {
                     let surface = voltrack::metrics::Surface {
                         positions,
-                        triangles: &take.meshes[0].triangles,
+                        triangles: &conv.mesh.base.triangles,
                     };
                     let inside = voltrack::metrics::fit::inside_volume(&conv.sequence, f);
                     voltrack::metrics::fit::far_profile(
@@ -187,7 +203,7 @@ fn main() {
                 "take": spec.name, "held_out": spec.held_out, "frames": spec.frames, "limb_voxels": take.limb_voxels,
                 "fastest_percent": take.fastest_percent, "seed": options.track.seed, "resolution": options.voxel.resolution,
                 "centers": options.track.centers, "mean": s.mean, "p95": s.p95, "max": s.max, "drift": s.drift,
-                "lost": s.lost, "warned": warned, "missed": missed, "seconds": seconds,
+                "lost": s.lost, "warned": warned, "missed": missed, "seconds": seconds, "reference": conv.mesh.reference,
                 "per_frame_mean": s.per_frame_mean, "worst_part": s.worst_part,
                 "far_thresholds": FAR_PROFILE, "far_profile": profile,
                 "coverage": conv.coverage.frames.iter().map(|c| c.lost_share).collect::<Vec<_>>(),

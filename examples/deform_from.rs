@@ -1,4 +1,5 @@
-//! Deforms the first frame of a sequence by trajectories already tracked
+//! Deforms the reference frame of a sequence (the first unless the
+//! trajectories record another) by trajectories already tracked
 //! (`voltrack track -o centers.exr`), to try deformation settings without
 //! tracking again: `cargo run --release --example deform_from -- centers.exr
 //! INPUT_DIR out.glb [neighbors]` (an output not ending in .glb is a
@@ -44,9 +45,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if std::env::var("VOLTRACK_BLEND").is_ok_and(|b| b == "linear") {
         params.blending = Blending::Linear;
     }
-    let first = seq.first_mesh.as_ref().ok_or("no mesh")?;
+    use voltrack::model::FrameSource;
+    let reference = files.mesh(traj.reference)?;
     let mesh = voltrack::pipeline::deform_sequence(
-        first,
+        &reference,
         &traj,
         &seq,
         Some(&refine),

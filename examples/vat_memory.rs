@@ -21,7 +21,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let wave = |p: &Point3| Vector3::new(0.0, 0.0, 0.1 * (3.0 * p.x + 0.1 * g as Real).sin());
         frames.push(base.positions.iter().map(|p| p + wave(p)).collect())?;
     }
-    let mesh = DynamicMesh { base, frames };
+    let mesh = DynamicMesh {
+        base,
+        frames,
+        reference: 0,
+    };
     let report = write_vat(out.as_ref(), &mesh, &VatOptions::default())?;
     println!(
         "{} vertices, {count} frames: texture, mesh, sidecar {:?} bytes",

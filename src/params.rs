@@ -16,6 +16,26 @@ pub enum AffinityKind {
     Iir,
 }
 
+/// The frame whose mesh the result deforms: the centers are placed in it
+/// and tracked from it forward to the last frame and backward to the first
+/// (`track::reference`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Reference {
+    /// The frame whose parts are most separate: the most parts less the
+    /// tunnels through them (`voxel::FrameTopology::separation`), the
+    /// earliest such frame. A take whose first frame shows two things
+    /// touching that part later (hands clasped, a ball held, then thrown)
+    /// otherwise keeps them joined by a membrane for the rest of the take.
+    /// With checkpoints, frame 0 (a checkpoint holds a forward tracking).
+    #[default]
+    Auto,
+    /// Frame 0, as the paper does.
+    First,
+    /// This frame, counted from 0.
+    Frame(usize),
+}
+
 /// Forward tracking (docs/method.md §2-§5).
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct TrackParams {
@@ -159,6 +179,11 @@ pub struct TrackParams {
     /// Take ρ_p, ρ_m and threshold in the input's units instead of as
     /// fractions of the bounding box's longest side. Default false.
     pub absolute_units: bool,
+    /// The frame the centers are placed in and tracked from, forward and
+    /// backward. Default [`Reference::Auto`]; a given frame must be one of
+    /// the sequence's.
+    #[serde(default)]
+    pub reference: Reference,
 }
 
 impl Default for TrackParams {
@@ -186,6 +211,7 @@ impl Default for TrackParams {
             lloyd_iterations: 1000,
             over_relaxation: 1.8,
             absolute_units: false,
+            reference: Reference::Auto,
         }
     }
 }

@@ -619,6 +619,7 @@ fn conforming_a_take_finds_its_joint_from_every_frame() {
         let mesh = DynamicMesh {
             base: base.clone(),
             frames: PositionFrames::from(blended.clone()),
+            reference: 0,
         };
         let fitted = conform(mesh, &inputs, &bounds, params, Default::default())
             .unwrap()

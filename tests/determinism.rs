@@ -56,6 +56,7 @@ fn convert_bytes(
         let refined = conv.refined.as_ref().unwrap();
         let meta = voltrack::pipeline::trajectory_metadata(
             &conv.sequence,
+            &conv.trajectories,
             &voxel,
             &track,
             Some((&RefineParams::default(), &refined.removed)),

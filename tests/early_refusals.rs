@@ -94,6 +94,15 @@ fn parameters_that_used_to_fail_late_or_panic_are_refused_before_reading() {
         (&["--cell-memory", "nan"], &["memory for kept cells"]),
         (&["--screening-block", "9"], &["screening block"]),
         (&["--basis", "many"], &["'many'", "auto"]),
+        (
+            &["--reference", "8"],
+            &["reference frame 8", "past the last frame (7)"],
+        ),
+        (&["--reference", "middle"], &["'middle'", "auto, first"]),
+        (
+            &["--reference", "3", "--checkpoint", "ck"],
+            &["reference frame 3", "checkpoint"],
+        ),
     ];
     for (extra, needles) in cases {
         let mut args = vec!["convert", "seq", "-o", "x.glb"];
@@ -104,13 +113,19 @@ fn parameters_that_used_to_fail_late_or_panic_are_refused_before_reading() {
         }
         refused_up_front(&dir, &args, needles);
     }
-    for extra in [["--beta", "1e308"], ["--beta-hat", "inf"]] {
+    for extra in [
+        &["--beta", "1e308"][..],
+        &["--beta-hat", "inf"],
+        &["--reference", "9"],
+        &["--reference", "1", "--checkpoint", "ck"],
+    ] {
         let mut args = vec!["track", "seq", "-o", "t.exr", "--refine"];
         args.extend_from_slice(&SMALL);
-        args.extend_from_slice(&extra);
+        args.extend_from_slice(extra);
         refused_up_front(&dir, &args, &[]);
     }
     assert!(!dir.0.join("x.glb").exists() && !dir.0.join("t.exr").exists());
+    assert!(!dir.0.join("ck").exists());
 }
 
 #[test]

@@ -29,6 +29,7 @@ fn bending_bar() -> DynamicMesh {
     DynamicMesh {
         base,
         frames: frames.into(),
+        reference: 0,
     }
 }
 
@@ -46,6 +47,7 @@ fn torus(frames: usize, motion: impl Fn(usize, &Point3) -> Point3) -> DynamicMes
     DynamicMesh {
         base,
         frames: frames.into(),
+        reference: 0,
     }
 }
 
@@ -695,7 +697,11 @@ fn auto_keeps_per_frame_targets_when_a_basis_would_not_be_smaller() {
                 .collect()
         })
         .collect();
-    let mesh = DynamicMesh { base, frames };
+    let mesh = DynamicMesh {
+        base,
+        frames,
+        reference: 0,
+    };
     let path = dir.join("full.glb");
     let report = write_dynamic_glb(
         &path,
@@ -772,6 +778,7 @@ fn glb_edge_cases() {
     let ragged = DynamicMesh {
         base: mesh.base.clone(),
         frames: frames.into(),
+        reference: 0,
     };
     assert!(write_dynamic_glb(
         &bad,
@@ -785,6 +792,7 @@ fn glb_edge_cases() {
     let nan = DynamicMesh {
         base: mesh.base.clone(),
         frames: frames.into(),
+        reference: 0,
     };
     assert!(
         write_dynamic_glb(&bad, &nan, &GltfExportOptions::default(), Progress::none()).is_err()
@@ -792,6 +800,7 @@ fn glb_edge_cases() {
     let empty = DynamicMesh {
         base: mesh.base.clone(),
         frames: Vec::new().into(),
+        reference: 0,
     };
     assert!(write_dynamic_glb(
         &bad,
@@ -849,6 +858,7 @@ fn in_file(mesh: &DynamicMesh) -> DynamicMesh {
     DynamicMesh {
         base: mesh.base.clone(),
         frames,
+        reference: mesh.reference,
     }
 }
 
@@ -1207,7 +1217,11 @@ fn point_cache_obj_is_named_and_smooth() {
     let frames = (0..4)
         .map(|f| base.positions.iter().map(|p| turning(f, p)).collect())
         .collect();
-    let mesh = DynamicMesh { base, frames };
+    let mesh = DynamicMesh {
+        base,
+        frames,
+        reference: 0,
+    };
     let path = dir.join("torus.pc2");
     voltrack::export::pc2::write_pc2(&path, &mesh, 30.0, "Torus").unwrap();
     let text = std::fs::read_to_string(dir.join("torus.obj")).unwrap();
@@ -1390,7 +1404,11 @@ fn vat_of_100k_vertices_fits_a_gpu_texture() {
     let frames = (0..3)
         .map(|f| base.positions.iter().map(|p| turning(f, p)).collect())
         .collect();
-    let mesh = DynamicMesh { base, frames };
+    let mesh = DynamicMesh {
+        base,
+        frames,
+        reference: 0,
+    };
     // 100,000 vertices in rows of 8192: 13 rows per frame, the last holding 1696.
     for (power_of_two, height) in [(false, 39), (true, 64)] {
         let path = dir.join(if power_of_two {
@@ -1660,7 +1678,11 @@ fn compressed_glb_decodes_to_every_frame_within_the_reported_error() {
                 .collect()
         })
         .collect();
-    let mesh = DynamicMesh { base, frames };
+    let mesh = DynamicMesh {
+        base,
+        frames,
+        reference: 0,
+    };
     let d = diagonal(&mesh);
     for basis in [BasisChoice::PerFrame, BasisChoice::Components(4)] {
         let plain = write_dynamic_glb(
@@ -1836,6 +1858,7 @@ fn compressed_glb_decodes_to_every_frame_within_the_reported_error() {
     let still = DynamicMesh {
         base: mesh.base.clone(),
         frames: mesh.frames.to_vec().unwrap()[..1].to_vec().into(),
+        reference: 0,
     };
     let report = write_dynamic_glb(
         &dir.join("still.glb"),

@@ -81,6 +81,7 @@ fn animated(t: &Trajectories) -> DynamicMesh {
             ..Default::default()
         },
         frames: frames.into(),
+        reference: 0,
     }
 }
 
@@ -318,18 +319,21 @@ fn vertex_animation_texture_with_json_sidecar() {
     let ragged = DynamicMesh {
         base: mesh.base.clone(),
         frames: frames.into(),
+        reference: 0,
     };
     assert!(write_vat_exr(&dir.join("ragged.exr"), &ragged).is_err());
     let empty = DynamicMesh {
         base: Default::default(),
         frames: vec![vec![], vec![]].into(),
+        reference: 0,
     };
     assert!(write_vat_exr(&dir.join("none.exr"), &empty).is_err());
     assert!(write_vat_exr(
         &dir.join("none.exr"),
         &DynamicMesh {
             frames: Vec::new().into(),
-            base: mesh.base.clone()
+            base: mesh.base.clone(),
+            reference: 0
         }
     )
     .is_err());

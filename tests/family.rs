@@ -115,10 +115,10 @@ fn the_score_measures_against_the_truth() {
     let truth: Vec<_> = (0..take.meshes.len())
         .map(|f| take.truth.frame(f, first))
         .collect();
-    let s = score(&take, &truth);
+    let s = score(&take, 0, &truth);
     assert!(s.max < 1e-9 && s.lost.is_empty(), "{s:?}");
     let still: Vec<_> = (0..take.meshes.len()).map(|_| first.clone()).collect();
-    let s = score(&take, &still);
+    let s = score(&take, 0, &still);
     assert!(
         !s.lost.is_empty() && s.lost.iter().all(|&f| f > 0),
         "{:?}",
@@ -160,7 +160,11 @@ fn a_subset_converts_within_bounds_and_every_lost_frame_is_warned() {
         let (fit, outliers) =
             Measurements::fit_of(&conv, &take.meshes, Default::default()).unwrap();
         let warned = voltrack::pipeline::lost_parts(&conv, Some((&fit, &outliers))).flagged;
-        let s = score(&take, &conv.mesh.frames.to_vec().unwrap());
+        let s = score(
+            &take,
+            conv.mesh.reference,
+            &conv.mesh.frames.to_vec().unwrap(),
+        );
         eprintln!(
             "{name}: mean {:.3} %, p95 {:.3} %, max {:.2} %, lost {:?}, warned {warned:?}",
             s.mean, s.p95, s.max, s.lost

@@ -46,6 +46,7 @@ fn fit_of_the_true_motion_is_zero_and_of_a_still_mesh_is_not() {
             })
             .collect(),
         base: base.clone(),
+        reference: 0,
     };
     let fit = fit_to_input(
         &truth,
@@ -83,6 +84,7 @@ fn fit_of_the_true_motion_is_zero_and_of_a_still_mesh_is_not() {
     let still = DynamicMesh {
         frames: vec![base.positions.clone(); BENDING_BAR_FRAMES].into(),
         base,
+        reference: 0,
     };
     let fit = fit_to_input(
         &still,

@@ -322,6 +322,8 @@ fn track_command(
         r.params(track.absolute_units).validate(params.centers)?;
     }
     let checkpoint = track.checkpointing()?;
+    let frames = voltrack::io::discover_frames(&input.input)?.len();
+    voltrack::track::check_reference(params.reference, frames, checkpoint.is_some())?;
     let mut plan = input.plan()?.file(&output, "the output");
     if let Some(c) = &checkpoint {
         plan = plan.checkpoints(c);
@@ -337,7 +339,10 @@ fn track_command(
     )?;
     let (
         pipeline::Tracked {
-            quality, timings, ..
+            quality,
+            timings,
+            reference,
+            ..
         },
         trajectories,
     ) = pipeline::Tracked::split(tracked, true);
@@ -358,6 +363,7 @@ fn track_command(
     };
     let meta = pipeline::trajectory_metadata(
         &seq,
+        &traj,
         &voxel,
         &params,
         refine_params
@@ -377,6 +383,7 @@ fn track_command(
             "centers": params.centers,
             "resolution": voxel.resolution,
             "affinity": params.affinity,
+            "reference": {"frame": reference.frame, "input": seq.names[reference.frame], "asked": reference.asked, "why": reference.why},
             "pcac": before.pcac,
             "dfu": before.dfu,
             "seconds": {"read": seq.read_seconds, "voxelize": seq.voxelize_seconds, "voxelize_per_frame": seq.voxelize_seconds / seq.frames.len() as f64, "track_per_frame": timing_json},
@@ -384,7 +391,8 @@ fn track_command(
             "coverage": coverage,
         }));
     }
-    let tracking: f64 = timings.iter().skip(1).map(|t| t.total).sum();
+    let r = reference.frame;
+    let tracking: f64 = timings.iter().map(|t| t.total).sum::<f64>() - timings[r].total;
     println!(
         "{} frames, {} centers, resolution {}, affinity {:?}",
         seq.frames.len(),
@@ -392,10 +400,11 @@ fn track_command(
         voxel.resolution,
         params.affinity
     );
+    println!("reference: frame {r} ({}), {}", seq.names[r], reference.why);
     println!(
-        "voxelised in {:.2} s; frame 0 placed in {:.2} s; tracked in {:.2} s ({:.3} s/frame)",
+        "voxelised in {:.2} s; frame {r} placed in {:.2} s; tracked in {:.2} s ({:.3} s/frame)",
         seq.voxelize_seconds,
-        timings[0].total,
+        timings[r].total,
         tracking,
         tracking / (seq.frames.len() - 1).max(1) as f64
     );
@@ -695,6 +704,7 @@ fn convert_plan(args: &ConvertArgs) -> Result<ConvertPlan> {
     // The frames are listed once, for the output checks, the VAT's height
     // and the default name.
     let found = voltrack::io::discover_frames(&args.input.input)?;
+    voltrack::track::check_reference(track.reference, found.len(), checkpoint.is_some())?;
     let reading = voltrack::pipeline::OutputPlan::new().reading(&args.input.input, &found);
     let mut plan = planned_outputs(format, &args.output, reading);
     if let Some(report) = &args.report {
@@ -764,6 +774,7 @@ fn write_output(
                 .unwrap_or_default();
             let meta = pipeline::trajectory_metadata(
                 &conv.sequence,
+                &conv.trajectories,
                 voxel,
                 track,
                 refine.as_ref().map(|r| (r, removed.as_slice())),
@@ -969,6 +980,7 @@ fn print_conversion(
             "triangles": conv.mesh.base.triangles.len(),
             "resolution": voxel.resolution,
             "centers": traj.centers,
+            "reference": reference_json(conv),
             "removed": conv.refined.as_ref().map(|r| &r.removed),
             "seconds": stages,
             // In percent of the input's bounding-box diagonal, as printed.
@@ -1018,6 +1030,11 @@ fn print_conversion(
             r.removed.len()
         ))
     );
+    let reference = &conv.tracked.reference;
+    println!(
+        "reference: frame {} ({}), {}",
+        reference.frame, conv.sequence.names[reference.frame], reference.why
+    );
     for (stage, s) in seconds {
         println!(
             "  {:>9} {:>8.2} s  {:>5.1} %",
@@ -1047,6 +1064,20 @@ fn print_conversion(
         println!("{}", w.message);
     }
     Ok(())
+}
+
+/// The reference frame for `--json`: which, the input it is, what was
+/// asked for and why; with `auto`, each frame's parts and tunnels.
+fn reference_json(conv: &pipeline::Conversion) -> serde_json::Value {
+    let r = &conv.tracked.reference;
+    serde_json::json!({
+        "frame": r.frame,
+        "input": conv.sequence.names[r.frame],
+        "asked": r.asked,
+        "why": r.why,
+        "parts": r.topology.iter().map(|t| t.parts).collect::<Vec<_>>(),
+        "tunnels": r.topology.iter().map(|t| t.tunnels).collect::<Vec<_>>(),
+    })
 }
 
 /// Adds every path `format` writes for `out` to `plan`.

@@ -8,7 +8,7 @@ use voltrack::export::gltf::{BasisChoice, GltfExportOptions, Interpolation};
 use voltrack::export::vat::VatOptions;
 use voltrack::metrics::SequenceFit;
 use voltrack::params::{
-    AffinityKind, Blending, ConformParams, DeformParams, RefineParams, TrackParams,
+    AffinityKind, Blending, ConformParams, DeformParams, Reference, RefineParams, TrackParams,
 };
 use voltrack::track::Checkpointing;
 use voltrack::voxel::VoxelParams;
@@ -58,6 +58,9 @@ pub struct TrackArgs {
     /// Seed of the initial center placement
     #[arg(long, default_value_t = TrackParams::default().seed)]
     pub seed: u64,
+    /// The frame whose mesh is deformed, where the centers are placed and tracked from, forward and back: auto (the first frame whose parts are most separate), first, or a frame number from 0
+    #[arg(long, value_name = "auto|first|FRAME", default_value = "auto", value_parser = parse_reference)]
+    pub reference: Reference,
     /// ρ_p: distance at which the positional affinity is 0.5 [default: 1.5 typical center spacings in frame 0; the paper's is 0.07] (range: 1e-12..=1e12)
     #[arg(long)]
     pub rho_p: Option<f64>,
@@ -176,7 +179,19 @@ impl TrackArgs {
             lloyd_iterations: self.lloyd_iterations,
             over_relaxation: self.over_relaxation,
             absolute_units: self.absolute_units,
+            reference: self.reference,
         }
+    }
+}
+
+fn parse_reference(s: &str) -> std::result::Result<Reference, String> {
+    match s {
+        "auto" => Ok(Reference::Auto),
+        "first" => Ok(Reference::First),
+        _ => s
+            .parse()
+            .map(Reference::Frame)
+            .map_err(|_| format!("'{s}' is not auto, first or a frame number")),
     }
 }
 

@@ -316,6 +316,15 @@ fn input_html(input: &ReportInput) -> String {
     let mut rows: Vec<(&str, String)> = vec![
         ("Input", files),
         ("Frames", seq.frames.len().to_string()),
+        (
+            "Reference",
+            format!(
+                "frame {} ({}), {}",
+                conv.tracked.reference.frame,
+                code(&seq.names[conv.tracked.reference.frame]),
+                escape(&conv.tracked.reference.why)
+            ),
+        ),
         ("Vertices", conv.mesh.base.positions.len().to_string()),
         ("Triangles", conv.mesh.base.triangles.len().to_string()),
         (
@@ -882,8 +891,13 @@ fn time_html(input: &ReportInput) -> String {
         ),
     ));
     let timings = &conv.tracked.timings;
-    let tracked: Vec<(usize, &voltrack::track::FrameTiming)> =
-        timings.iter().enumerate().skip(1).collect();
+    // Every frame but the reference, where the centers were placed.
+    let placed = conv.tracked.reference.frame;
+    let tracked: Vec<(usize, &voltrack::track::FrameTiming)> = timings
+        .iter()
+        .enumerate()
+        .filter(|&(f, _)| f != placed)
+        .collect();
     let per_frame = |pick: fn(&voltrack::track::FrameTiming) -> f64| {
         tracked
             .iter()

@@ -244,7 +244,11 @@ pub fn conform(
     }
     let topology = Topology::new(&mesh.base);
     let max_distance = params.length_scale(bounds) * params.max_distance;
+    // The frames to fit, all but the reference (which is its input): the
+    // k-th of them is frame other(k).
     let later = source.len().saturating_sub(1);
+    let reference = mesh.reference;
+    let other = |k: usize| if k < reference { k } else { k + 1 };
     let samples = if params.joint_strain > 0.0 {
         later.min(JOINT_SAMPLES)
     } else {
@@ -253,7 +257,11 @@ pub fn conform(
     let counter = Counter::new(progress, Stage::Conform, samples + later);
     // A few frames at a time, each replaced where it lies: memory holds a
     // block, whether the frames are in memory or in a file.
-    let DynamicMesh { base, mut frames } = mesh;
+    let DynamicMesh {
+        base,
+        mut frames,
+        reference,
+    } = mesh;
     let block = 4 * rayon::current_num_threads().max(1);
     let fit = |f: usize,
                blended: &[Point3],
@@ -282,7 +290,8 @@ pub fn conform(
     let joints = if samples > 0 {
         // Summed in frame order, whatever the threads: deterministic.
         let mut total = vec![0.0; topology.edges.items.len()];
-        let sampled: Vec<usize> = (0..samples).map(|k| 1 + k * later / samples).collect();
+        // Frames other than the reference, evenly spread.
+        let sampled: Vec<usize> = (0..samples).map(|k| other(k * later / samples)).collect();
         for chunk in sampled.chunks(block) {
             let strains: Vec<Vec<Real>> = chunk
                 .par_iter()
@@ -308,16 +317,21 @@ pub fn conform(
     } else {
         None
     };
-    for start in (1..frames.len()).step_by(block) {
-        let fitted: Vec<Vec<Point3>> = (start..(start + block).min(frames.len()))
-            .into_par_iter()
-            .map(|f| fit(f, &frames.get(f)?, joints.as_deref(), None))
+    for start in (0..later).step_by(block) {
+        let chunk: Vec<usize> = (start..(start + block).min(later)).map(other).collect();
+        let fitted: Vec<Vec<Point3>> = chunk
+            .par_iter()
+            .map(|&f| fit(f, &frames.get(f)?, joints.as_deref(), None))
             .collect::<Result<_>>()?;
-        for (k, frame) in fitted.into_iter().enumerate() {
-            frames.replace(start + k, frame)?;
+        for (&f, frame) in chunk.iter().zip(fitted) {
+            frames.replace(f, frame)?;
         }
     }
-    Ok(DynamicMesh { base, frames })
+    Ok(DynamicMesh {
+        base,
+        frames,
+        reference,
+    })
 }
 
 /// One frame: `blended` (positions of `base`'s vertices after docs/method.md

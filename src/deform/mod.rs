@@ -87,7 +87,7 @@ fn typical_spacing(tree: &ImmutableKdTree<Real, 3>, points: &[[Real; 3]]) -> Rea
     d[d.len() / 2].max(Real::MIN_POSITIVE)
 }
 
-/// Each center's rigid motion from frame 0 to frame `f`: the rotation
+/// Each center's rigid motion from the reference frame to frame `f`: the rotation
 /// fitted over its affine neighbours, the translation chosen so that the
 /// center itself lands exactly on its tracked position.
 ///
@@ -97,14 +97,16 @@ fn typical_spacing(tree: &ImmutableKdTree<Real, 3>, points: &[[Real; 3]]) -> Rea
 /// One frame at a time: all frames' motions would take 96 bytes per center
 /// and frame for as long as the deformation runs.
 pub(crate) fn center_motions(traj: &Trajectories, omega: &SparseAffinity, f: usize) -> Vec<Rigid> {
-    let mut motions = omega.fit_frames(traj, 0, f);
+    let r = traj.reference;
+    let mut motions = omega.fit_frames(traj, r, f);
     for (i, m) in motions.iter_mut().enumerate() {
-        m.translation = traj.get(f, i).coords - m.rotation * traj.get(0, i).coords;
+        m.translation = traj.get(f, i).coords - m.rotation * traj.get(r, i).coords;
     }
     motions
 }
 
-/// The dynamic mesh: `mesh` (frame 0 as loaded) moved by the trajectories.
+/// The dynamic mesh: `mesh` (the trajectories' reference frame as loaded)
+/// moved by the trajectories.
 pub fn deform(
     mesh: &TriangleMesh,
     traj: &Trajectories,
@@ -138,15 +140,18 @@ pub fn deform_with(
     let (weld, welded) = mesh.welded();
     let smoothed = smooth_bindings(
         &welded,
-        bind(mesh, traj.frame(0), omega, params),
+        bind(mesh, traj.frame(traj.reference), omega, params),
         omega,
         params.smoothing,
         2 * params.neighbors,
     );
     let bindings: Vec<Binding> = weld.iter().map(|&w| smoothed[w as usize].clone()).collect();
     let mut frames = PositionFrames::new(mesh.positions.len(), traj.frames, params.memory)?;
-    frames.push(mesh.positions.clone())?;
-    for f in 1..traj.frames {
+    for f in 0..traj.frames {
+        if f == traj.reference {
+            frames.push(mesh.positions.clone())?;
+            continue;
+        }
         if progress.cancelled() {
             return Err(Error::Interrupted { saved: None });
         }
@@ -160,6 +165,7 @@ pub fn deform_with(
     Ok(DynamicMesh {
         base: mesh.clone(),
         frames,
+        reference: traj.reference,
     })
 }
 

@@ -51,6 +51,7 @@ pub fn read_trajectories_exr(path: &Path) -> Result<(Trajectories, TrajectoryMet
         frames: height,
         centers: width,
         positions: positions.clone(),
+        reference: 0,
     };
     let mut metadata = TrajectoryMetadata::default();
     let meta = layer.attributes.other.iter().chain(&image.attributes.other);
@@ -68,6 +69,17 @@ pub fn read_trajectories_exr(path: &Path) -> Result<(Trajectories, TrajectoryMet
                 format!("the voltrack attribute is not voltrack's metadata: {e}"),
             )
         })?;
+    }
+    let mut traj = traj;
+    if let Some(r) = metadata.reference {
+        if r >= traj.frames {
+            return Err(Error::parse(
+                path,
+                None,
+                format!("its reference frame {r} is past its {} frames", traj.frames),
+            ));
+        }
+        traj.reference = r;
     }
     Ok((traj, metadata))
 }

@@ -4,10 +4,12 @@
 //! paper, which reports no such failure.
 //!
 //! Every occupied voxel of a frame belongs to the Voronoi cell of its
-//! nearest center, as in tracking. In frame 0 each cell's reach is the
-//! distance from its center to its farthest voxel. In a later frame a voxel
-//! is *unreached* when it lies farther from its cell's center than
-//! [`CoverageParams::reach`] times that cell's frame-0 reach: the cells of a
+//! nearest center, as in tracking. In the reference frame, where the
+//! centers were placed (frame 0 unless the tracking chose another), each
+//! cell's reach is the distance from its center to its farthest voxel. In
+//! any other frame a voxel is *unreached* when it lies farther from its
+//! cell's center than [`CoverageParams::reach`] times that cell's reach
+//! there ("frame-0 reach" below): the cells of a
 //! well-tracked part move with it and keep their size, but the cells that
 //! cover a region the centers have left stretch across it. A lost limb
 //! leaves a connected region of such voxels; stray ones (along a surface
@@ -114,11 +116,14 @@ pub fn coverage(
     }
     let grid = &seq.grid;
     let n = traj.centers;
-    let first = &seq.frames[0].indices();
+    // The reference frame, where the centers were placed: their cells there
+    // are the volume they stand for.
+    let r = traj.reference;
+    let first = &seq.frames[r].indices();
     let cell_voxels = first.len() as Real / n.max(1) as Real;
     // Each cell's frame-0 reach; a cell empty in frame 0 (a center the
     // refinement moved off the volume) takes the typical cell radius.
-    let (owners0, dist0) = nearest(grid, first, traj.frame(0), vec![NO_OWNER; first.len()]);
+    let (owners0, dist0) = nearest(grid, first, traj.frame(r), vec![NO_OWNER; first.len()]);
     let typical = 0.5 * (cell_voxels.max(1.0)).cbrt() * grid.voxel_size;
     let mut reach = vec![0.0 as Real; n];
     for (&o, &d) in owners0.iter().zip(&dist0) {
@@ -138,13 +143,13 @@ pub fn coverage(
         .into_par_iter()
         .map(|f| {
             let voxels = &seq.frames[f].indices();
-            // Frame 0's owners are a good start for any frame's search.
-            let hints = if f == 0 {
+            // The reference's owners are a good start for any frame's search.
+            let hints = if f == r {
                 owners0.clone()
             } else {
                 carry_owners(first, &owners0, voxels)
             };
-            let (owners, dist) = if f == 0 {
+            let (owners, dist) = if f == r {
                 (owners0.clone(), dist0.clone())
             } else {
                 nearest(grid, voxels, traj.frame(f), hints)

@@ -95,6 +95,15 @@ pub struct TrajectoryMetadata {
         skip_serializing_if = "Option::is_none"
     )]
     pub removed: Option<Vec<usize>>,
+    /// The frame the centers were placed in and tracked from
+    /// ([`super::Trajectories::reference`]), when not frame 0.
+    #[serde(
+        rename = "voltrack.reference",
+        with = "text",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub reference: Option<usize>,
     /// The version of voltrack that wrote the file (set by the writer).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub version: Option<String>,

@@ -9,6 +9,10 @@ pub struct Trajectories {
     pub frames: usize,
     pub centers: usize,
     pub positions: Vec<Point3>,
+    /// The frame the centers were placed in and tracked from, forward and
+    /// backward (`params::Reference`); the dynamic mesh deforms this
+    /// frame's mesh. 0 unless the tracking chose another.
+    pub reference: usize,
 }
 
 impl Trajectories {
@@ -17,6 +21,7 @@ impl Trajectories {
             frames,
             centers,
             positions: vec![Point3::origin(); frames * centers],
+            reference: 0,
         }
     }
 
@@ -31,6 +36,7 @@ impl Trajectories {
             frames: frames.len(),
             centers,
             positions: frames.into_iter().flatten().collect(),
+            reference: 0,
         }
     }
 

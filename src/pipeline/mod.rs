@@ -35,6 +35,7 @@ pub fn measure(traj: &Trajectories, seq: &VoxelSequence) -> Quality {
 /// The metadata recording how trajectories were made, for their EXR file.
 pub fn trajectory_metadata(
     seq: &VoxelSequence,
+    traj: &Trajectories,
     voxel: &VoxelParams,
     track: &TrackParams,
     refine: Option<(&RefineParams, &[usize])>,
@@ -46,6 +47,7 @@ pub fn trajectory_metadata(
         frames: Some(seq.frames.len()),
         track: serde_json::to_value(track).ok(),
         first_input: Some(seq.names[0].clone()),
+        reference: (traj.reference != 0).then_some(traj.reference),
         ..Default::default()
     };
     if let Some((r, removed)) = refine {
@@ -176,8 +178,10 @@ pub struct Tracked {
     /// PCAC, DFU and irregularity of the forward-tracked trajectories, when
     /// [`ConvertOptions::measure_tracked`] asked for them.
     pub quality: Option<Quality>,
-    /// Per frame; frame 0 is the Lloyd placement.
+    /// Per frame; the reference frame's is the Lloyd placement.
     pub timings: Vec<FrameTiming>,
+    /// The frame the centers were placed in and tracked from, and why.
+    pub reference: crate::track::ReferenceChoice,
 }
 
 impl Tracked {
@@ -190,6 +194,7 @@ impl Tracked {
                 centers: result.trajectories.centers,
                 quality,
                 timings: result.timings,
+                reference: result.reference,
             },
             result.trajectories,
         )
@@ -263,12 +268,12 @@ pub fn convert(
     let checkpoint = options.checkpoint.as_ref();
     crate::model::PositionFrames::check_temporary_folder()?;
     let sequence = voxelize_sequence(source, &options.voxel, progress)?;
-    let first = sequence.first_mesh.clone().ok_or_else(|| {
-        Error::InvalidInput(format!(
+    if sequence.first_mesh.is_none() {
+        return Err(Error::InvalidInput(format!(
             "{}: voxel input has no mesh to deform; convert needs meshes",
             sequence.names[0]
-        ))
-    })?;
+        )));
+    }
     let mut seconds = vec![
         (Stage::Read, sequence.read_seconds),
         (Stage::Voxelize, sequence.voxelize_seconds),
@@ -292,10 +297,16 @@ pub fn convert(
         None => (trajectories, None),
     };
     let coverage = check_coverage(&trajectories, &sequence, &options.coverage)?;
+    // The mesh the result deforms: the reference frame's, read again unless
+    // it is the first, which voxelising kept.
+    let reference = match trajectories.reference {
+        0 => sequence.first_mesh.clone().expect("checked above"),
+        r => source.mesh(r)?,
+    };
     let clock = Instant::now();
     progress.report(Stage::Deform, 0, 1);
     let mesh = deform_sequence(
-        &first,
+        &reference,
         &trajectories,
         &sequence,
         options.refine.as_ref(),
@@ -370,7 +381,8 @@ fn finished_saved(
     }
 }
 
-/// Deforms `first` (frame 0 as loaded) by trajectories tracked on `seq`,
+/// Deforms `first` (the trajectories' reference frame as loaded) by
+/// trajectories tracked on `seq`,
 /// with the global affinity ω of the final trajectories (its ρ_gp, ρ_gm and
 /// μ from `refine_params`, or their defaults when refinement was skipped).
 /// Returns [`Error::Interrupted`] soon after `progress` asks to stop.

@@ -87,6 +87,7 @@ fn evaluate_moved(
                     frames: hi - lo,
                     centers: n,
                     positions,
+                    reference: 0,
                 };
                 (&local, lo)
             }

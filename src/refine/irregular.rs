@@ -15,7 +15,8 @@ pub fn most_irregular(irregularity: &[Real], count: usize) -> Vec<usize> {
 }
 
 /// Each center's irregularity relative to its spacing: I_i over F times
-/// the squared distance from c_i^0 to the nearest other center in frame 0.
+/// the squared distance from c_i^r to the nearest other center in the
+/// reference frame r, where the centers were placed.
 /// About 1 for a center that keeps its distance to a neighbour (a rigid
 /// part's, however sparse), far above for one that wanders off from all.
 ///
@@ -25,7 +26,7 @@ pub fn most_irregular(irregularity: &[Real], count: usize) -> Vec<usize> {
 /// thin limb one or two centers wide, an extremity) the whole part ranks as
 /// the most irregular, and removing irregular centers removes the part.
 pub fn relative_irregularity(traj: &Trajectories, irregularity: &[Real]) -> Vec<Real> {
-    let first = traj.frame(0);
+    let first = traj.frame(traj.reference);
     let points: Vec<[Real; 3]> = first.iter().map(|p| [p.x, p.y, p.z]).collect();
     if points.len() < 2 {
         return irregularity.to_vec();

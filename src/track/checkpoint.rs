@@ -44,6 +44,26 @@ pub(super) struct Restored {
     pub owners: Vec<u32>,
 }
 
+impl Restored {
+    /// A fresh start (one frame done) for a tracking of `frames` frames
+    /// from the same placement.
+    pub(super) fn for_frames(&self, frames: usize) -> Restored {
+        debug_assert_eq!(self.frames_done, 1);
+        let mut trajectories = Trajectories::new(frames, self.trajectories.centers);
+        trajectories
+            .frame_mut(0)
+            .copy_from_slice(self.trajectories.frame(0));
+        Restored {
+            frames_done: 1,
+            trajectories,
+            cell_counts: self.cell_counts.clone(),
+            timings: self.timings.clone(),
+            affinity: self.affinity.clone(),
+            owners: self.owners.clone(),
+        }
+    }
+}
+
 /// 64-bit FNV-1a over the tool version, the parameters, the grid and every
 /// frame's occupied voxels: two runs with the same fingerprint track the same
 /// way.
@@ -198,7 +218,7 @@ pub(super) fn load(
     let scale = params.length_scale(&seq.bounds);
     let affinity = Affinity::restore(
         params.affinity,
-        super::rho_p(params, seq, scale),
+        super::rho_p(params, seq, 0, scale),
         params.rho_m * scale,
         params.alpha,
         params.mu,

@@ -43,11 +43,15 @@ pub(crate) struct Capacity {
 }
 
 impl Capacity {
-    /// Of the centers `centers0` placed in `seq`'s frame 0, their cells
-    /// assigned afresh.
-    pub(crate) fn of_first_frame(seq: &crate::voxel::VoxelSequence, centers0: &[Point3]) -> Self {
+    /// Of the centers `centers0` placed in `seq`'s frame `placed`, their
+    /// cells assigned afresh.
+    pub(crate) fn of_first_frame(
+        seq: &crate::voxel::VoxelSequence,
+        placed: usize,
+        centers0: &[Point3],
+    ) -> Self {
         use crate::spatial::cells::{assign, CenterIndex, NO_OWNER};
-        let voxels0 = seq.frames[0].indices();
+        let voxels0 = seq.frames[placed].indices();
         let mut owners = vec![NO_OWNER; voxels0.len()];
         assign(
             &seq.grid,

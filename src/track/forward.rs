@@ -52,6 +52,9 @@ pub struct TrackResult {
     pub timings: Vec<FrameTiming>,
     /// Lengths in the input's units: ρ_p, ρ_m, threshold after scaling.
     pub scale: Real,
+    /// The frame the centers were placed in and why
+    /// (`trajectories.reference` is its frame).
+    pub reference: super::ReferenceChoice,
 }
 
 /// The state the tracker carries from one frame to the next.
@@ -81,6 +84,10 @@ pub fn track(seq: &VoxelSequence, params: &TrackParams, progress: Progress) -> R
 /// cancelled through `progress` (then returning [`Error::Interrupted`]) and at
 /// the end; with `checkpoint.resume` it continues from the saved state. The
 /// result is bit-identical to an uninterrupted [`track`].
+///
+/// The centers are placed in the reference frame `params.reference` chooses
+/// ([`super::choose_reference`]) and tracked from it to the last frame, then
+/// from it back to the first; with checkpoints the reference is frame 0.
 pub fn track_with_checkpoints(
     seq: &VoxelSequence,
     params: &TrackParams,
@@ -88,24 +95,95 @@ pub fn track_with_checkpoints(
     progress: Progress,
 ) -> Result<TrackResult> {
     params.validate()?;
-    let frames = seq.frames.len();
-    let n0 = seq.frames[0].len();
-    if params.centers > n0 {
-        return Err(Error::InvalidParameter(format!(
-            "{}: only {n0} occupied voxels for {} centers; lower the number of centers or raise the resolution",
-            seq.names[0],
-            params.centers
-        )));
-    }
     if checkpoint.is_some_and(|c| c.every == 0) {
         return Err(Error::InvalidParameter(
             "the checkpoint interval must be at least 1 frame".into(),
         ));
     }
+    let choice = super::choose_reference(seq, params, checkpoint.is_some())?;
+    let frames = seq.frames.len();
+    let r = choice.frame;
+    if r == 0 {
+        let order: Vec<usize> = (0..frames).collect();
+        let mut result = track_ordered(seq, &order, params, checkpoint, progress, 0, None)?;
+        result.reference = choice;
+        return Ok(result);
+    }
+    log::info!(
+        "tracking from frame {r} ({}) forward, then back to frame 0",
+        seq.names[r]
+    );
+    let forward: Vec<usize> = (r..frames).collect();
+    let backward: Vec<usize> = (0..=r).rev().collect();
+    // One placement for both ways.
+    let scale = params.length_scale(&seq.bounds);
+    let placed = first_frame(seq, &forward, params, scale, None, progress)?;
+    let placed_back = placed.for_frames(backward.len());
+    let ahead = track_ordered(seq, &forward, params, None, progress, 0, Some(placed))?;
+    let behind = track_ordered(
+        seq,
+        &backward,
+        params,
+        None,
+        progress,
+        forward.len() - 1,
+        Some(placed_back),
+    )?;
+    let n = params.centers;
+    let mut trajectories = Trajectories::new(frames, n);
+    trajectories.reference = r;
+    let (mut cell_counts, mut timings) = (Vec::with_capacity(frames), Vec::with_capacity(frames));
+    for (k, &f) in backward.iter().enumerate().rev().filter(|&(k, _)| k > 0) {
+        trajectories
+            .frame_mut(f)
+            .copy_from_slice(behind.trajectories.frame(k));
+        cell_counts.push(behind.cell_counts[k].clone());
+        timings.push(behind.timings[k]);
+    }
+    for (k, &f) in forward.iter().enumerate() {
+        trajectories
+            .frame_mut(f)
+            .copy_from_slice(ahead.trajectories.frame(k));
+        cell_counts.push(ahead.cell_counts[k].clone());
+        timings.push(ahead.timings[k]);
+    }
+    Ok(TrackResult {
+        trajectories,
+        cell_counts,
+        timings,
+        scale: ahead.scale,
+        reference: choice,
+    })
+}
+
+/// Tracks through the frames `order` (indices into `seq`, each next to the
+/// one before): the centers are placed in `order[0]`, unless `placed_already`
+/// holds that placement. Progress counts on from `done_before` frames of
+/// `seq.frames.len()`.
+fn track_ordered(
+    seq: &VoxelSequence,
+    order: &[usize],
+    params: &TrackParams,
+    checkpoint: Option<&Checkpointing>,
+    progress: Progress,
+    done_before: usize,
+    placed_already: Option<Restored>,
+) -> Result<TrackResult> {
+    let (frames, total) = (order.len(), seq.frames.len());
+    let placed = order[0];
+    let n0 = seq.frames[placed].len();
+    if params.centers > n0 {
+        return Err(Error::InvalidParameter(format!(
+            "{}: only {n0} occupied voxels for {} centers; lower the number of centers or raise the resolution",
+            seq.names[placed],
+            params.centers
+        )));
+    }
+    debug_assert!(checkpoint.is_none() || order.iter().enumerate().all(|(k, &f)| k == f));
     let fingerprint = checkpoint.map(|_| checkpoint::fingerprint(seq, params));
     let scale = params.length_scale(&seq.bounds);
     let grid = &seq.grid;
-    progress.report(Stage::Track, 0, frames);
+    progress.report(Stage::Track, done_before, total);
 
     let resume = match checkpoint {
         Some(c) if c.resume && c.path().exists() => Some(c),
@@ -119,8 +197,9 @@ pub fn track_with_checkpoints(
         }
         _ => None,
     };
-    let started = match resume {
-        Some(c) => {
+    let started = match (placed_already, resume) {
+        (Some(placed), _) => placed,
+        (None, Some(c)) => {
             let r = checkpoint::load(c, fingerprint.expect("fingerprinted"), seq, params)?;
             log::info!(
                 "resuming from {} after {} of {frames} frames",
@@ -129,7 +208,7 @@ pub fn track_with_checkpoints(
             );
             r
         }
-        None => first_frame(seq, params, scale, checkpoint, progress)?,
+        (None, None) => first_frame(seq, order, params, scale, checkpoint, progress)?,
     };
     let Restored {
         frames_done: first,
@@ -139,12 +218,12 @@ pub fn track_with_checkpoints(
         affinity,
         owners,
     } = started;
-    progress.report(Stage::Track, first, frames);
+    progress.report(Stage::Track, done_before + first, total);
 
-    let prev_voxels: std::sync::Arc<[u32]> = seq.frames[first - 1].indices().into();
+    let prev_voxels: std::sync::Arc<[u32]> = seq.frames[order[first - 1]].indices().into();
     let capacity = params
         .reclaim
-        .then(|| super::claims::Capacity::of_first_frame(seq, traj.frame(0)));
+        .then(|| super::claims::Capacity::of_first_frame(seq, placed, traj.frame(0)));
     let mut tracker = Tracker {
         capacity,
         grid,
@@ -181,9 +260,9 @@ pub fn track_with_checkpoints(
         );
         Ok(())
     };
-    for f in first..frames {
+    for (f, &at) in order.iter().enumerate().skip(first) {
         let start = Instant::now();
-        let voxels: std::sync::Arc<[u32]> = seq.frames[f].indices().into();
+        let voxels: std::sync::Arc<[u32]> = seq.frames[at].indices().into();
         let (prev, voxels) = (traj.frame(f - 1), &voxels);
         let fits = tracker.fits(prev);
         let kept = tracker.track_frame(prev, guesses(&traj, f, params), &fits, voxels, progress);
@@ -210,13 +289,13 @@ pub fn track_with_checkpoints(
         traj.frame_mut(f).copy_from_slice(&centers);
         cell_counts.push(counts);
         log::debug!(
-            "frame {f}: {:?} guess kept, {} iterations, energy {energy:.4e}, {:.3} s",
+            "frame {at}: {:?} guess kept, {} iterations, energy {energy:.4e}, {:.3} s",
             timing.kept_guess,
             timing.iterations,
             timing.total
         );
         timings.push(timing);
-        progress.report(Stage::Track, f + 1, frames);
+        progress.report(Stage::Track, done_before + f + 1, total);
         if checkpoint.is_some_and(|c| (f + 1) % c.every == 0 || f + 1 == frames) {
             save(&tracker, &traj, &cell_counts, &timings)?;
             saved = f + 1;
@@ -227,27 +306,29 @@ pub fn track_with_checkpoints(
         cell_counts,
         timings,
         scale,
+        reference: Default::default(),
     })
 }
 
-/// A fresh start: the centers placed in frame 0 (Lloyd), their cells, the
-/// first affinity; a refinement checkpoint of an earlier run is removed,
-/// since it refined tracking this run starts over.
+/// A fresh start: the centers placed in frame `order[0]` (Lloyd), their
+/// cells, the first affinity; a refinement checkpoint of an earlier run is
+/// removed, since it refined tracking this run starts over.
 fn first_frame(
     seq: &VoxelSequence,
+    order: &[usize],
     params: &TrackParams,
     scale: Real,
     checkpoint: Option<&Checkpointing>,
     progress: Progress,
 ) -> Result<Restored> {
-    let (grid, frames) = (&seq.grid, seq.frames.len());
+    let (grid, frames) = (&seq.grid, order.len());
     if let Some(stale) = checkpoint.map(|c| c.refine_path()).filter(|p| p.exists()) {
         // It refined the tracking this run starts over, not this run's.
         log::info!("tracking starts over: removing {}", stale.display());
         std::fs::remove_file(&stale).map_err(|e| Error::io(&stale, e))?;
     }
     let start = Instant::now();
-    let voxels0 = &seq.frames[0].indices();
+    let voxels0 = &seq.frames[order[0]].indices();
     let placed = seed_centers_until(
         grid,
         voxels0,
@@ -270,7 +351,7 @@ fn first_frame(
         &mut owners,
         false,
     );
-    let reach = super::rho_p(params, seq, scale);
+    let reach = super::rho_p(params, seq, order[0], scale);
     let affinity = Affinity::initial(
         &centers0,
         params.affinity,
@@ -285,7 +366,8 @@ fn first_frame(
         ..Default::default()
     };
     log::info!(
-        "frame 0: {} centers placed; ρ_p {reach:.4}, {:.1} neighbours each",
+        "frame {}: {} centers placed; ρ_p {reach:.4}, {:.1} neighbours each",
+        order[0],
         params.centers,
         affinity.mean_neighbors()
     );

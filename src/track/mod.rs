@@ -10,10 +10,12 @@ pub mod checkpoint;
 mod claims;
 mod forward;
 pub mod lloyd;
+mod reference;
 
 pub use checkpoint::Checkpointing;
 pub(crate) use forward::cell_moments;
 pub use forward::{predict, track, track_with_checkpoints, TrackResult};
+pub use reference::{check_reference, choose_reference, ReferenceChoice};
 
 /// The start a frame's kept run came from (see `forward::guesses`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -64,15 +66,16 @@ pub struct FrameTiming {
     pub kept_guess: Guess,
 }
 
-/// ρ_p in the input's units (see [`crate::params::TrackParams::rho_p`]), from frame 0's
-/// occupied volume.
+/// ρ_p in the input's units (see [`crate::params::TrackParams::rho_p`]), from the
+/// occupied volume of frame `placed`, the one the centers are placed in.
 fn rho_p(
     params: &crate::params::TrackParams,
     seq: &crate::voxel::VoxelSequence,
+    placed: usize,
     scale: crate::math::Real,
 ) -> crate::math::Real {
     params.rho_p_in_units(
         scale,
-        seq.frames[0].len() as crate::math::Real * seq.grid.voxel_size.powi(3),
+        seq.frames[placed].len() as crate::math::Real * seq.grid.voxel_size.powi(3),
     )
 }

@@ -10,4 +10,6 @@ pub use voxelize::voxelize;
 pub(crate) use voxelize::voxelize_detailed;
 pub use winding::winding_number;
 mod sequence;
+mod topology;
 pub use sequence::{voxelize_sequence, VoxelParams, VoxelSequence};
+pub use topology::{frame_topology, FrameTopology};

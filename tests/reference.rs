@@ -1,0 +1,200 @@
+//! Issue 47: the reference frame. A ball that parts from a slab
+//! ([`voltrack::fixtures::parting`]): deforming frame 0, where the two are
+//! merged, keeps them joined for the rest of the take; `Reference::Auto`
+//! deforms the first frame where they are apart instead, tracking from it
+//! forward and back.
+
+use voltrack::fixtures::{parting, PARTING_APART, PARTING_FRAMES};
+use voltrack::math::Real;
+use voltrack::params::{Reference, TrackParams};
+use voltrack::pipeline::{convert, Conversion, ConvertOptions, Measurements};
+use voltrack::voxel::{voxelize_sequence, VoxelParams};
+use voltrack::{Error, Progress, TriangleMesh};
+
+fn frames() -> Vec<TriangleMesh> {
+    (0..PARTING_FRAMES).map(parting).collect()
+}
+
+fn options(reference: Reference) -> ConvertOptions {
+    ConvertOptions {
+        voxel: VoxelParams {
+            resolution: 48,
+            ..Default::default()
+        },
+        track: TrackParams {
+            centers: 150,
+            reference,
+            ..Default::default()
+        },
+        measure_tracked: true,
+        ..Default::default()
+    }
+}
+
+/// Connected pieces of `mesh` through shared vertices.
+fn pieces(mesh: &TriangleMesh) -> usize {
+    let mut parent: Vec<usize> = (0..mesh.positions.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for t in &mesh.triangles {
+        for k in 1..3 {
+            let (a, b) = (
+                root(&mut parent, t[0] as usize),
+                root(&mut parent, t[k] as usize),
+            );
+            parent[a] = b;
+        }
+    }
+    let used: std::collections::BTreeSet<usize> = mesh
+        .triangles
+        .iter()
+        .map(|t| root(&mut parent, t[0] as usize))
+        .collect();
+    used.len()
+}
+
+/// The largest distance from the result to the input in each frame, % of
+/// the diagonal.
+fn worst_fit(conv: &Conversion, input: &dyn voltrack::model::FrameSource) -> Vec<Real> {
+    let measured = Measurements::of(conv, input, Progress::none()).unwrap();
+    measured
+        .fit
+        .frames
+        .iter()
+        .map(|f| f.two_sided.max)
+        .collect()
+}
+
+#[test]
+fn auto_deforms_the_first_frame_where_the_parts_are_apart() {
+    let input = frames();
+    let auto = convert(&input, &options(Reference::Auto), Progress::none()).unwrap();
+    let r = auto.tracked.reference.frame;
+    assert_eq!(r, PARTING_APART, "{}", auto.tracked.reference.why);
+    assert_eq!(auto.trajectories.reference, r);
+    assert_eq!(auto.mesh.reference, r);
+    let t = &auto.tracked.reference.topology;
+    assert_eq!((t[0].parts, t[r].parts), (1, 2));
+    // The mesh is that frame's, as loaded, in that frame.
+    assert_eq!(auto.mesh.base.triangles, input[r].triangles);
+    assert_eq!(
+        auto.mesh.frames.get(r).unwrap().into_owned(),
+        input[r].positions
+    );
+    assert_eq!(pieces(&auto.mesh.base), 2);
+
+    let first = convert(&input, &options(Reference::First), Progress::none()).unwrap();
+    assert_eq!(first.tracked.reference.frame, 0);
+    assert_eq!(pieces(&first.mesh.base), 1);
+    let (auto_fit, first_fit) = (worst_fit(&auto, &input), worst_fit(&first, &input));
+    let last = PARTING_FRAMES - 1;
+    eprintln!("largest distance to the input per frame, % of the diagonal:\n  from frame 0: {first_fit:.3?}\n  from frame {r}: {auto_fit:.3?}");
+    // Frame 0's mesh stretches a membrane from the slab to the ball once they
+    // part; the reference's has none, and fits as closely where they touch.
+    assert!(
+        first_fit[last] > 3.0 * auto_fit[last],
+        "last frame: {} % from frame 0, {} % from frame {r}",
+        first_fit[last],
+        auto_fit[last]
+    );
+    // Apart, the result fits as closely as the input's meshing allows.
+    let apart = auto_fit[PARTING_APART..]
+        .iter()
+        .copied()
+        .fold(0.0, Real::max);
+    assert!(apart < 1.0, "{auto_fit:?} against {first_fit:?}");
+}
+
+#[test]
+fn tracking_back_from_the_last_frame_is_tracking_the_reversed_take_forward() {
+    let input = frames();
+    let reversed: Vec<TriangleMesh> = input.iter().rev().cloned().collect();
+    let voxel = VoxelParams {
+        resolution: 40,
+        ..Default::default()
+    };
+    let params = |reference| TrackParams {
+        centers: 80,
+        reference,
+        ..Default::default()
+    };
+    let seq = voxelize_sequence(&input, &voxel, Progress::none()).unwrap();
+    let back = voltrack::track::track(
+        &seq,
+        &params(Reference::Frame(PARTING_FRAMES - 1)),
+        Progress::none(),
+    )
+    .unwrap();
+    let seq = voxelize_sequence(&reversed, &voxel, Progress::none()).unwrap();
+    let forward =
+        voltrack::track::track(&seq, &params(Reference::First), Progress::none()).unwrap();
+    assert_eq!(back.trajectories.reference, PARTING_FRAMES - 1);
+    for f in 0..PARTING_FRAMES {
+        assert_eq!(
+            back.trajectories.frame(f),
+            forward.trajectories.frame(PARTING_FRAMES - 1 - f),
+            "frame {f}"
+        );
+        assert_eq!(
+            back.cell_counts[f],
+            forward.cell_counts[PARTING_FRAMES - 1 - f]
+        );
+    }
+}
+
+#[test]
+fn a_reference_in_the_middle_tracks_both_ways_from_it() {
+    let input = frames();
+    let voxel = VoxelParams {
+        resolution: 40,
+        ..Default::default()
+    };
+    let seq = voxelize_sequence(&input, &voxel, Progress::none()).unwrap();
+    let middle = |reference| {
+        voltrack::track::track(
+            &seq,
+            &TrackParams {
+                centers: 80,
+                reference,
+                ..Default::default()
+            },
+            Progress::none(),
+        )
+    };
+    let r = 5;
+    let both = middle(Reference::Frame(r)).unwrap();
+    assert_eq!(both.trajectories.reference, r);
+    assert_eq!(both.cell_counts.len(), PARTING_FRAMES);
+    assert_eq!(both.timings.len(), PARTING_FRAMES);
+    // Placed in frame r: every cell there is a Lloyd cell, none empty.
+    assert!(both.cell_counts[r].iter().all(|&c| c > 0));
+    assert_eq!(
+        middle(Reference::Frame(r)).unwrap().trajectories,
+        both.trajectories
+    );
+
+    // Frames past the end, and a reference with checkpoints, are refused
+    // before any tracking.
+    let past = middle(Reference::Frame(PARTING_FRAMES));
+    assert!(matches!(past, Err(Error::InvalidParameter(m)) if m.contains("past the last frame")));
+    let checkpoint = voltrack::track::Checkpointing::new(
+        std::env::temp_dir().join("voltrack-reference-never-written"),
+    );
+    let refused = voltrack::track::track_with_checkpoints(
+        &seq,
+        &TrackParams {
+            centers: 80,
+            reference: Reference::Frame(2),
+            ..Default::default()
+        },
+        Some(&checkpoint),
+        Progress::none(),
+    );
+    assert!(matches!(refused, Err(Error::InvalidParameter(m)) if m.contains("checkpoint")));
+    assert!(!checkpoint.dir.exists());
+}
