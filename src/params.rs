@@ -486,6 +486,12 @@ pub struct DeformParams {
     /// export, so memory stops growing with the frames. The output is the
     /// same either way. Default [`DYNAMIC_MESH_MEMORY`] (16 MiB); any value.
     pub memory: usize,
+    /// Cut the take where its solid's parts merge or part, and deform a
+    /// mesh of each stretch's own (`deform::segments`): one frame's mesh keeps
+    /// its parts, so merged surfaces would stay (hidden) or parted ones be
+    /// joined by a membrane. Meshes with texture coordinates keep one mesh
+    /// (their textures cannot be joined). Default true.
+    pub segments: bool,
 }
 
 /// [`DeformParams::memory`]'s default: 16 MiB, some 700 frames of a
@@ -524,6 +530,7 @@ impl Default for DeformParams {
             smoothing: 10,
             blending: Blending::DualQuaternion,
             memory: DYNAMIC_MESH_MEMORY,
+            segments: true,
         }
     }
 }

@@ -4,9 +4,11 @@
 //! deforms the first frame where they are apart instead, tracking from it
 //! forward and back.
 
-use voltrack::fixtures::{parting, PARTING_APART, PARTING_FRAMES};
+use voltrack::fixtures::{
+    parting, thrown, PARTING_APART, PARTING_FRAMES, THROWN_CAUGHT, THROWN_FRAMES, THROWN_RELEASE,
+};
 use voltrack::math::Real;
-use voltrack::params::{Reference, TrackParams};
+use voltrack::params::{DeformParams, Reference, TrackParams};
 use voltrack::pipeline::{convert, Conversion, ConvertOptions, Measurements};
 use voltrack::voxel::{voxelize_sequence, VoxelParams};
 use voltrack::{Error, Progress, TriangleMesh};
@@ -16,7 +18,15 @@ fn frames() -> Vec<TriangleMesh> {
 }
 
 fn options(reference: Reference) -> ConvertOptions {
+    with_segments(reference, false)
+}
+
+fn with_segments(reference: Reference, segments: bool) -> ConvertOptions {
     ConvertOptions {
+        deform: DeformParams {
+            segments,
+            ..Default::default()
+        },
         voxel: VoxelParams {
             resolution: 48,
             ..Default::default()
@@ -108,6 +118,117 @@ fn auto_deforms_the_first_frame_where_the_parts_are_apart() {
         .copied()
         .fold(0.0, Real::max);
     assert!(apart < 1.0, "{auto_fit:?} against {first_fit:?}");
+}
+
+#[test]
+fn segments_give_the_merged_frames_a_mesh_of_their_own() {
+    let input = frames();
+    let conv = convert(
+        &input,
+        &with_segments(Reference::Auto, true),
+        Progress::none(),
+    )
+    .unwrap();
+    let segments: Vec<_> = conv
+        .segments
+        .iter()
+        .map(|s| (s.frames.clone(), s.reference, s.parts))
+        .collect();
+    // Merged, then apart; each deforms the frame in its middle.
+    let (a, b) = (
+        (PARTING_APART - 1) / 2,
+        PARTING_APART + (PARTING_FRAMES - PARTING_APART - 1) / 2,
+    );
+    assert_eq!(
+        segments,
+        vec![
+            (0..PARTING_APART, a, 1),
+            (PARTING_APART..PARTING_FRAMES, b, 2)
+        ]
+    );
+    // One mesh: frame a's and frame b's side by side; in each frame the other
+    // shrunk onto one point, its triangles without area.
+    let (na, nb) = (input[a].positions.len(), input[b].positions.len());
+    assert_eq!(conv.mesh.base.positions.len(), na + nb);
+    assert_eq!(
+        conv.mesh.base.triangles.len(),
+        input[a].triangles.len() + input[b].triangles.len()
+    );
+    for f in 0..PARTING_FRAMES {
+        let p = conv.mesh.frames.get(f).unwrap();
+        let hidden = if f < PARTING_APART {
+            na..na + nb
+        } else {
+            0..na
+        };
+        assert!(
+            p[hidden.clone()].iter().all(|q| *q == p[hidden.start]),
+            "frame {f}"
+        );
+    }
+    assert_eq!(
+        &conv.mesh.frames.get(a).unwrap()[..na],
+        &input[a].positions[..]
+    );
+    assert_eq!(
+        &conv.mesh.frames.get(b).unwrap()[na..],
+        &input[b].positions[..]
+    );
+    let fit = worst_fit(&conv, &input);
+    let one = convert(
+        &input,
+        &with_segments(Reference::Auto, false),
+        Progress::none(),
+    )
+    .unwrap();
+    let one_fit = worst_fit(&one, &input);
+    eprintln!("largest distance per frame, segments: {fit:.3?}\n  one mesh: {one_fit:.3?}");
+    // The merged frames no longer keep the ball's and the slab's surfaces
+    // inside the merged volume; the others are as before.
+    for f in 0..PARTING_APART {
+        assert!(
+            fit[f] < 0.3 * one_fit[f],
+            "frame {f}: {fit:?} against {one_fit:?}"
+        );
+    }
+    assert!(fit.iter().all(|&d| d < 2.0), "{fit:?}");
+
+    // The same through the GLB writer: every frame's positions as written.
+    let mut glb = Vec::new();
+    voltrack::export::gltf::write_dynamic_glb_to(
+        &mut glb,
+        &conv.mesh,
+        &Default::default(),
+        Progress::none(),
+    )
+    .unwrap();
+    assert!(glb.len() > 1000);
+}
+
+#[test]
+fn a_ball_held_thrown_and_caught_is_three_segments_cut_where_it_leaves_and_lands() {
+    let input: Vec<TriangleMesh> = (0..THROWN_FRAMES).map(thrown).collect();
+    let conv = convert(
+        &input,
+        &with_segments(Reference::Auto, true),
+        Progress::none(),
+    )
+    .unwrap();
+    let cuts: Vec<(usize, usize)> = conv
+        .segments
+        .iter()
+        .map(|s| (s.frames.start, s.parts))
+        .collect();
+    assert_eq!(cuts.len(), 3, "{:?}", conv.segments);
+    assert_eq!((cuts[0], cuts[1].1, cuts[2].1), ((0, 1), 2, 1));
+    // Cut where the ball leaves the slab and where it lands, within 2 frames.
+    assert!(cuts[1].0.abs_diff(THROWN_RELEASE) <= 2, "{cuts:?}");
+    assert!(cuts[2].0.abs_diff(THROWN_CAUGHT) <= 2, "{cuts:?}");
+    // Tracked from the first frame where the ball is in the air.
+    assert_eq!(conv.trajectories.reference, cuts[1].0);
+    let fit = worst_fit(&conv, &input);
+    eprintln!("thrown: segments {:?}, largest distance per frame: {fit:.3?}", conv.segments);
+    assert!(fit.iter().all(|&d| d < 3.0), "{fit:?}");
 }
 
 #[test]

@@ -981,6 +981,13 @@ fn print_conversion(
             "resolution": voxel.resolution,
             "centers": traj.centers,
             "reference": reference_json(conv),
+            "segments": conv.segments.iter().map(|s| serde_json::json!({
+                "first": s.frames.start,
+                "last": s.frames.end - 1,
+                "reference": s.reference,
+                "input": conv.sequence.names[s.reference],
+                "parts": s.parts,
+            })).collect::<Vec<_>>(),
             "removed": conv.refined.as_ref().map(|r| &r.removed),
             "seconds": stages,
             // In percent of the input's bounding-box diagonal, as printed.
@@ -1035,6 +1042,12 @@ fn print_conversion(
         "reference: frame {} ({}), {}",
         reference.frame, conv.sequence.names[reference.frame], reference.why
     );
+    if conv.segments.len() > 1 {
+        println!(
+            "segments (the input's parts merge or part): {}",
+            segments_text(&conv.segments)
+        );
+    }
     for (stage, s) in seconds {
         println!(
             "  {:>9} {:>8.2} s  {:>5.1} %",
@@ -1064,6 +1077,24 @@ fn print_conversion(
         println!("{}", w.message);
     }
     Ok(())
+}
+
+/// The segments in a line: `frames 0-17 from 0 (2 parts), …`.
+pub(crate) fn segments_text(segments: &[voltrack::deform::segments::Segment]) -> String {
+    segments
+        .iter()
+        .map(|s| {
+            format!(
+                "frames {}-{} from {} ({} part{})",
+                s.frames.start,
+                s.frames.end - 1,
+                s.reference,
+                s.parts,
+                if s.parts == 1 { "" } else { "s" }
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// The reference frame for `--json`: which, the input it is, what was

@@ -334,6 +334,14 @@ pub enum BlendArg {
     Linear,
 }
 
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SegmentsArg {
+    /// Cut where the input's parts merge or part, a mesh of its own for each stretch
+    Auto,
+    /// One mesh for the whole take
+    Off,
+}
+
 #[derive(Args)]
 pub struct ConvertArgs {
     #[command(flatten)]
@@ -397,6 +405,9 @@ pub struct ConvertArgs {
     /// Blending of the centers' motions
     #[arg(long, value_enum, default_value = "dq", help_heading = "Mesh")]
     pub blend: BlendArg,
+    /// Where the input's parts merge or part (a ball thrown, caught), cut the take and deform a mesh of each stretch's own, all in one mesh (the others' triangles shrunk to a point while one is shown); off keeps one mesh
+    #[arg(long, value_enum, default_value = "auto", help_heading = "Mesh")]
+    pub segments: SegmentsArg,
     /// Rounds of fitting every frame's mesh onto its input surface, keeping its frame-0 edges as far as it can (0: off, the mesh stays as blended) (range: 0..=1000)
     #[arg(long, default_value_t = ConformParams::default().iterations, help_heading = "Mesh")]
     pub conform_iterations: usize,
@@ -486,6 +497,7 @@ impl ConvertArgs {
                 BlendArg::Dq => Blending::DualQuaternion,
                 BlendArg::Linear => Blending::Linear,
             },
+            segments: self.segments == SegmentsArg::Auto,
             ..Default::default()
         }
     }

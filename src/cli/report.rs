@@ -325,6 +325,14 @@ fn input_html(input: &ReportInput) -> String {
                 escape(&conv.tracked.reference.why)
             ),
         ),
+        (
+            "Segments",
+            if conv.segments.len() > 1 {
+                escape(&super::segments_text(&conv.segments))
+            } else {
+                "one: the parts neither merge nor part".into()
+            },
+        ),
         ("Vertices", conv.mesh.base.positions.len().to_string()),
         ("Triangles", conv.mesh.base.triangles.len().to_string()),
         (

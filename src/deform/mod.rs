@@ -10,6 +10,7 @@
 
 mod blend;
 mod conform;
+pub mod segments;
 
 pub use blend::DualQuaternion;
 pub use conform::{conform, conform_frame};

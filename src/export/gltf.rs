@@ -335,7 +335,7 @@ fn dynamic_glb(
     let first = frames.get(0)?.into_owned();
     let normals = options
         .normals
-        .then(|| FrameNormals::new(&mesh.base.triangles, &first));
+        .then(|| FrameNormals::new(&mesh.base, &first));
     let base = TriangleMesh {
         positions: first,
         triangles: mesh.base.triangles.clone(),

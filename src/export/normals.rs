@@ -4,9 +4,11 @@
 
 use crate::math::{Point3, Vector3};
 
-/// Area-weighted vertex normals with vertices welded by identical frame-0
-/// position, so a UV seam (duplicated vertices) shares one normal instead of
-/// showing as a crease.
+/// Area-weighted vertex normals with vertices welded by identical position
+/// in the mesh as loaded, so a UV seam (duplicated vertices) shares one
+/// normal instead of showing as a crease. (Not by their frame-0 positions:
+/// a segmented mesh's hidden vertices all sit on one point there,
+/// `deform::segments`.)
 pub(crate) struct FrameNormals<'a> {
     triangles: &'a [[u32; 3]],
     /// Per vertex, the first vertex at the same frame-0 position.
@@ -17,10 +19,10 @@ pub(crate) struct FrameNormals<'a> {
 }
 
 impl<'a> FrameNormals<'a> {
-    pub fn new(triangles: &'a [[u32; 3]], frame0: &[Point3]) -> Self {
-        let weld = crate::model::mesh::weld_by_position(frame0);
+    pub fn new(base: &'a crate::model::TriangleMesh, frame0: &[Point3]) -> Self {
+        let weld = crate::model::mesh::weld_by_position(&base.positions);
         let mut n = FrameNormals {
-            triangles,
+            triangles: &base.triangles,
             weld,
             base: Vec::new(),
         };

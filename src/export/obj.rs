@@ -82,7 +82,7 @@ pub fn write_obj_sequence(dir: &Path, mesh: &DynamicMesh, name: &str) -> Result<
         .collect();
     // Each frame's own normals (welded at UV seams, as the GLB's), so every
     // file is smooth-shaded where it is imported.
-    let normals = super::normals::FrameNormals::new(&mesh.base.triangles, &mesh.frames.get(0)?);
+    let normals = super::normals::FrameNormals::new(&mesh.base, &mesh.frames.get(0)?);
     let normals = &normals;
     let files = names
         .into_iter()

@@ -76,7 +76,7 @@ pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32, name: &str) -> Resul
             .map(|uv| kept.iter().map(|&v| uv[v]).collect()),
         ..Default::default()
     };
-    let all_normals = FrameNormals::new(&base.triangles, &first).base;
+    let all_normals = FrameNormals::new(base, &first).base;
     let normals: Vec<_> = kept.iter().map(|&v| all_normals[v]).collect();
     let cache = path.file_name().unwrap_or_default().to_string_lossy();
     let write_cache = |w: &mut BufWriter<File>| {

@@ -398,7 +398,7 @@ fn mesh_bytes(
     sidecar: &str,
 ) -> Result<Vec<u8>> {
     let frame0 = mesh.frames.get(0)?;
-    let normals = FrameNormals::new(&mesh.base.triangles, &frame0).base;
+    let normals = FrameNormals::new(&mesh.base, &frame0).base;
     let uv1: Vec<[f32; 2]> = (0..layout.vertices).map(|v| layout.uv(v)).collect();
     // glTF numbers UV sets from 0: a mesh without UVs of its own repeats the
     // texel addresses there.

@@ -59,6 +59,18 @@ impl Trajectories {
         &mut self.positions[frame * self.centers..(frame + 1) * self.centers]
     }
 
+    /// The frames `frames` alone, tracked from `reference` among them
+    /// (counted from `frames.start`).
+    pub fn window(&self, frames: std::ops::Range<usize>, reference: usize) -> Trajectories {
+        Trajectories {
+            frames: frames.len(),
+            centers: self.centers,
+            positions: self.positions[frames.start * self.centers..frames.end * self.centers]
+                .to_vec(),
+            reference,
+        }
+    }
+
     /// One center's path through all frames.
     pub fn trajectory(&self, center: usize) -> impl Iterator<Item = Point3> + '_ {
         (0..self.frames).map(move |f| self.get(f, center))

@@ -1,6 +1,7 @@
 //! The stages strung together, as the commands use them: each function takes
 //! its inputs and options and returns a result the CLI prints or writes.
 
+use crate::deform::segments::{plan_segments, union_of_segments, FrameRange, Segment};
 use crate::deform::{conform, deform_with};
 use crate::error::{Error, Result, Saved};
 use crate::metrics::{fit_outliers, fit_to_input, Coverage, FitOutliers, Quality, SequenceFit};
@@ -211,6 +212,10 @@ pub struct Conversion {
     /// What refinement did (None when skipped).
     pub refined: Option<Refinement>,
     pub mesh: DynamicMesh,
+    /// The stretches of the take with a mesh of their own
+    /// ([`crate::deform::segments`]): one, the whole take, unless the
+    /// input's parts merge or part.
+    pub segments: Vec<Segment>,
     /// Input volume the final centers' cells do not reach, per frame, at
     /// [`ConvertOptions::coverage`]: frames where a part was lost.
     pub coverage: Coverage,
@@ -297,28 +302,88 @@ pub fn convert(
         None => (trajectories, None),
     };
     let coverage = check_coverage(&trajectories, &sequence, &options.coverage)?;
-    // The mesh the result deforms: the reference frame's, read again unless
-    // it is the first, which voxelising kept.
-    let reference = match trajectories.reference {
-        0 => sequence.first_mesh.clone().expect("checked above"),
-        r => source.mesh(r)?,
+    let segments = plan_segments_of(&trajectories, &sequence, &tracked, options);
+    // The meshes the result deforms: each segment's reference frame's, read
+    // again unless it is the first, which voxelising kept.
+    let mut references = segments
+        .iter()
+        .map(|s| match s.reference {
+            0 => Ok(sequence.first_mesh.clone().expect("checked above")),
+            r => source.mesh(r),
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let (segments, references) = if segments.len() > 1
+        && references
+            .iter()
+            .any(|m| m.uvs.is_some() || m.texture.is_some())
+    {
+        log::warn!(
+            "the input's parts merge or part ({} stretches), but its meshes carry texture coordinates, which one mesh for all stretches cannot: one mesh deforms the whole take",
+            segments.len()
+        );
+        let whole = Segment {
+            frames: 0..sequence.frames.len(),
+            reference: trajectories.reference,
+            parts: segments[0].parts,
+        };
+        let reference = match whole.reference {
+            0 => sequence.first_mesh.clone().expect("checked above"),
+            r => source.mesh(r)?,
+        };
+        (vec![whole], vec![reference])
+    } else {
+        let one = std::mem::take(&mut references);
+        (segments, one)
     };
     let clock = Instant::now();
     progress.report(Stage::Deform, 0, 1);
-    let mesh = deform_sequence(
-        &reference,
-        &trajectories,
-        &sequence,
-        options.refine.as_ref(),
-        &options.deform,
-        progress,
-    )
-    .map_err(|e| finished_saved(e, checkpoint, &sequence, options.refine.as_ref()))?;
+    let saved = |e| finished_saved(e, checkpoint, &sequence, options.refine.as_ref());
+    let omega = sequence_affinity(&trajectories, &sequence, options.refine.as_ref(), progress)
+        .map_err(saved)?;
+    let whole = segments.len() == 1;
+    let meshes = segments
+        .iter()
+        .zip(&references)
+        .map(|(segment, mesh)| {
+            if whole {
+                return deform_with(mesh, &trajectories, &omega, &options.deform, progress);
+            }
+            let window = trajectories.window(
+                segment.frames.clone(),
+                segment.reference - segment.frames.start,
+            );
+            deform_with(mesh, &window, &omega, &options.deform, progress)
+        })
+        .collect::<Result<Vec<_>>>()
+        .map_err(saved)?;
     progress.report(Stage::Deform, 1, 1);
     seconds.push((Stage::Deform, clock.elapsed().as_secs_f64()));
     let clock = Instant::now();
-    let mesh = conform(mesh, source, &sequence.bounds, &options.conform, progress)
-        .map_err(|e| finished_saved(e, checkpoint, &sequence, options.refine.as_ref()))?;
+    let mut meshes = segments
+        .iter()
+        .zip(meshes)
+        .map(|(segment, mesh)| {
+            if whole {
+                return conform(mesh, source, &sequence.bounds, &options.conform, progress);
+            }
+            let frames = FrameRange {
+                source,
+                range: segment.frames.clone(),
+            };
+            conform(mesh, &frames, &sequence.bounds, &options.conform, progress)
+        })
+        .collect::<Result<Vec<_>>>()
+        .map_err(saved)?;
+    let mesh = if whole {
+        meshes.pop().expect("one segment")
+    } else {
+        union_of_segments(
+            &segments,
+            meshes,
+            trajectories.reference,
+            options.deform.memory,
+        )?
+    };
     if options.conform.iterations > 0 {
         seconds.push((Stage::Conform, clock.elapsed().as_secs_f64()));
     }
@@ -328,9 +393,58 @@ pub fn convert(
         tracked,
         refined,
         mesh,
+        segments,
         coverage,
         seconds,
     })
+}
+
+/// The segments of the conversion ([`crate::deform::segments`]): one,
+/// the whole take, unless [`DeformParams::segments`] asks for them; the
+/// frames' parts as the reference's choice measured them, or measured now.
+fn plan_segments_of(
+    traj: &Trajectories,
+    seq: &VoxelSequence,
+    tracked: &Tracked,
+    options: &ConvertOptions,
+) -> Vec<Segment> {
+    let frames = seq.frames.len();
+    if !options.deform.segments {
+        return vec![Segment {
+            frames: 0..frames,
+            reference: traj.reference,
+            parts: tracked
+                .reference
+                .topology
+                .get(traj.reference)
+                .map_or(0, |t| t.parts),
+        }];
+    }
+    let measured;
+    let topology = if tracked.reference.topology.len() == frames {
+        &tracked.reference.topology
+    } else {
+        measured = crate::track::frame_topologies(seq, options.track.centers);
+        &measured
+    };
+    let segments = plan_segments(topology, traj.reference);
+    if segments.len() > 1 {
+        log::info!(
+            "{} segments where the parts merge or part: {}",
+            segments.len(),
+            segments
+                .iter()
+                .map(|s| format!(
+                    "frames {}-{} from frame {}",
+                    s.frames.start,
+                    s.frames.end - 1,
+                    s.reference
+                ))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    segments
 }
 
 /// [`crate::metrics::coverage()`] of the final trajectories, logging the
@@ -382,9 +496,8 @@ fn finished_saved(
 }
 
 /// Deforms `first` (the trajectories' reference frame as loaded) by
-/// trajectories tracked on `seq`,
-/// with the global affinity ω of the final trajectories (its ρ_gp, ρ_gm and
-/// μ from `refine_params`, or their defaults when refinement was skipped).
+/// trajectories tracked on `seq`, with the global affinity ω of the final
+/// trajectories ([`sequence_affinity`]).
 /// Returns [`Error::Interrupted`] soon after `progress` asks to stop.
 pub fn deform_sequence(
     first: &TriangleMesh,
@@ -394,6 +507,19 @@ pub fn deform_sequence(
     deform_params: &DeformParams,
     progress: Progress,
 ) -> Result<DynamicMesh> {
+    let omega = sequence_affinity(traj, seq, refine_params, progress)?;
+    deform_with(first, traj, &omega, deform_params, progress)
+}
+
+/// The global affinity ω of trajectories tracked on `seq` (its ρ_gp, ρ_gm
+/// and μ from `refine_params`, or their defaults when refinement was
+/// skipped), which binds a mesh to the centers.
+pub fn sequence_affinity(
+    traj: &Trajectories,
+    seq: &VoxelSequence,
+    refine_params: Option<&RefineParams>,
+    progress: Progress,
+) -> Result<crate::refine::SparseAffinity> {
     let rp = refine_params.cloned().unwrap_or_default();
     let scale = rp.length_scale(&seq.bounds);
     let mut cells = SequenceCells::single_pass(seq).stopping_with(progress);
@@ -408,5 +534,5 @@ pub fn deform_sequence(
     if cells.cancelled() {
         return Err(Error::Interrupted { saved: None });
     }
-    deform_with(first, traj, &omega, deform_params, progress)
+    Ok(omega)
 }

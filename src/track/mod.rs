@@ -15,7 +15,7 @@ mod reference;
 pub use checkpoint::Checkpointing;
 pub(crate) use forward::cell_moments;
 pub use forward::{predict, track, track_with_checkpoints, TrackResult};
-pub use reference::{check_reference, choose_reference, ReferenceChoice};
+pub use reference::{check_reference, choose_reference, frame_topologies, ReferenceChoice};
 
 /// The start a frame's kept run came from (see `forward::guesses`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]

@@ -57,15 +57,7 @@ pub fn choose_reference(
             "the first frame: with checkpoints the tracking starts there".into(),
         )),
         Reference::Auto => {
-            let topology: Vec<FrameTopology> = seq
-                .frames
-                .par_iter()
-                .map(|frame| {
-                    let indices = frame.indices();
-                    let speck = indices.len() / (2 * params.centers.max(1));
-                    frame_topology(&seq.grid, &indices, speck.max(1))
-                })
-                .collect();
+            let topology = frame_topologies(seq, params.centers);
             let best = topology.iter().map(FrameTopology::separation).max();
             let frame = topology
                 .iter()
@@ -102,6 +94,20 @@ pub fn choose_reference(
             })
         }
     }
+}
+
+/// Every frame's parts and tunnels ([`frame_topology`]), parts smaller than
+/// half a center's share of the frame's voxels (of `centers` centers) left
+/// out: no center could follow them.
+pub fn frame_topologies(seq: &VoxelSequence, centers: usize) -> Vec<FrameTopology> {
+    seq.frames
+        .par_iter()
+        .map(|frame| {
+            let indices = frame.indices();
+            let speck = indices.len() / (2 * centers.max(1));
+            frame_topology(&seq.grid, &indices, speck.max(1))
+        })
+        .collect()
 }
 
 /// Whether `reference` can be the reference of a sequence of `frames`
