@@ -227,7 +227,10 @@ fn a_ball_held_thrown_and_caught_is_three_segments_cut_where_it_leaves_and_lands
     // Tracked from the first frame where the ball is in the air.
     assert_eq!(conv.trajectories.reference, cuts[1].0);
     let fit = worst_fit(&conv, &input);
-    eprintln!("thrown: segments {:?}, largest distance per frame: {fit:.3?}", conv.segments);
+    eprintln!(
+        "thrown: segments {:?}, largest distance per frame: {fit:.3?}",
+        conv.segments
+    );
     assert!(fit.iter().all(|&d| d < 3.0), "{fit:?}");
 }
 

@@ -116,6 +116,7 @@ pub fn track_with_checkpoints(
     let forward: Vec<usize> = (r..frames).collect();
     let backward: Vec<usize> = (0..=r).rev().collect();
     // One placement for both ways.
+    room_for_centers(seq, r, params)?;
     let scale = params.length_scale(&seq.bounds);
     let placed = first_frame(seq, &forward, params, scale, None, progress)?;
     let placed_back = placed.for_frames(backward.len());
@@ -156,6 +157,19 @@ pub fn track_with_checkpoints(
     })
 }
 
+/// Whether frame `placed` of `seq` has an occupied voxel for every center.
+fn room_for_centers(seq: &VoxelSequence, placed: usize, params: &TrackParams) -> Result<()> {
+    let n0 = seq.frames[placed].len();
+    if params.centers > n0 {
+        return Err(Error::InvalidParameter(format!(
+            "{}: only {n0} occupied voxels for {} centers; lower the number of centers or raise the resolution",
+            seq.names[placed],
+            params.centers
+        )));
+    }
+    Ok(())
+}
+
 /// Tracks through the frames `order` (indices into `seq`, each next to the
 /// one before): the centers are placed in `order[0]`, unless `placed_already`
 /// holds that placement. Progress counts on from `done_before` frames of
@@ -171,14 +185,7 @@ fn track_ordered(
 ) -> Result<TrackResult> {
     let (frames, total) = (order.len(), seq.frames.len());
     let placed = order[0];
-    let n0 = seq.frames[placed].len();
-    if params.centers > n0 {
-        return Err(Error::InvalidParameter(format!(
-            "{}: only {n0} occupied voxels for {} centers; lower the number of centers or raise the resolution",
-            seq.names[placed],
-            params.centers
-        )));
-    }
+    room_for_centers(seq, placed, params)?;
     debug_assert!(checkpoint.is_none() || order.iter().enumerate().all(|(k, &f)| k == f));
     let fingerprint = checkpoint.map(|_| checkpoint::fingerprint(seq, params));
     let scale = params.length_scale(&seq.bounds);

@@ -312,6 +312,14 @@ mod tests {
     use super::*;
     use crate::math::Point3;
 
+    fn topo(parts: usize, tunnels: usize, specks: usize) -> FrameTopology {
+        FrameTopology {
+            parts,
+            tunnels,
+            specks,
+        }
+    }
+
     fn grid(n: usize) -> GridSpec {
         GridSpec {
             origin: Point3::origin(),
@@ -336,14 +344,7 @@ mod tests {
         let cube = voxels(&g, |x, y, z| {
             (2..6).contains(&x) && (2..6).contains(&y) && (2..6).contains(&z)
         });
-        assert_eq!(
-            frame_topology(&g, &cube, 1),
-            FrameTopology {
-                parts: 1,
-                tunnels: 0,
-                specks: 0
-            }
-        );
+        assert_eq!(frame_topology(&g, &cube, 1), topo(1, 0, 0));
         // A ring: one part, one tunnel.
         let ring = voxels(&g, |x, y, z| {
             (1..10).contains(&x)
@@ -351,14 +352,7 @@ mod tests {
                 && z == 4
                 && !((3..7).contains(&x) && (3..7).contains(&y))
         });
-        assert_eq!(
-            frame_topology(&g, &ring, 1),
-            FrameTopology {
-                parts: 1,
-                tunnels: 1,
-                specks: 0
-            }
-        );
+        assert_eq!(frame_topology(&g, &ring, 1), topo(1, 1, 0));
         assert_eq!(frame_topology(&g, &ring, 1).separation(), 0);
         // A hollow box: one part, its cavity filled.
         let shell = voxels(&g, |x, y, z| {
@@ -366,14 +360,7 @@ mod tests {
             let core = |c: usize| (3..8).contains(&c);
             inside(x) && inside(y) && inside(z) && !(core(x) && core(y) && core(z))
         });
-        assert_eq!(
-            frame_topology(&g, &shell, 1),
-            FrameTopology {
-                parts: 1,
-                tunnels: 0,
-                specks: 0
-            }
-        );
+        assert_eq!(frame_topology(&g, &shell, 1), topo(1, 0, 0));
         // A ring whose hole is walled in on both sides is a cavity, no tunnel.
         let lidded = voxels(&g, |x, y, z| {
             (1..10).contains(&x)
@@ -389,35 +376,14 @@ mod tests {
                 && (1..4).contains(&z)
                 || (x, y, z) == (10, 10, 10)
         });
-        assert_eq!(
-            frame_topology(&g, &two, 2),
-            FrameTopology {
-                parts: 2,
-                tunnels: 0,
-                specks: 1
-            }
-        );
-        assert_eq!(
-            frame_topology(&g, &two, 1),
-            FrameTopology {
-                parts: 3,
-                tunnels: 0,
-                specks: 0
-            }
-        );
+        assert_eq!(frame_topology(&g, &two, 2), topo(2, 0, 1));
+        assert_eq!(frame_topology(&g, &two, 1), topo(3, 0, 0));
         assert_eq!(frame_topology(&g, &two, 2).separation(), 2);
         // Two voxels sharing only a corner are one part.
         let corner = voxels(&g, |x, y, z| {
             (x, y, z) == (3, 3, 3) || (x, y, z) == (4, 4, 4)
         });
-        assert_eq!(
-            frame_topology(&g, &corner, 1),
-            FrameTopology {
-                parts: 1,
-                tunnels: 0,
-                specks: 0
-            }
-        );
+        assert_eq!(frame_topology(&g, &corner, 1), topo(1, 0, 0));
         assert_eq!(frame_topology(&g, &[], 1), FrameTopology::default());
     }
 }
