@@ -14,8 +14,9 @@
 //!   other than the defaults; `VOLTRACK_FRAMES`: each take cut to its first
 //!   frames; `VOLTRACK_RECLAIM=1` (`--reclaim`),
 //!   `VOLTRACK_ABSOLUTE_IRREGULARITY=1` (`--absolute-irregularity`);
-//!   `VOLTRACK_REFERENCE`: `first`, `middle` (each take's middle frame) or
-//!   a frame number (`--reference`; default `auto`);
+//!   `VOLTRACK_REFERENCE`: `first`, `middle` (each take's middle frame),
+//!   `auto-middle` (of the frames `auto` would choose among, the one
+//!   nearest the middle) or a frame number (`--reference`; default `auto`);
 //! - `VOLTRACK_FAMILY_JSON=FILE`: also write every take's figures as JSON
 //!   lines (per-frame errors included), for tables before and after a change.
 
@@ -60,6 +61,16 @@ fn frames_text(frames: &[usize]) -> String {
         })
         .collect::<Vec<_>>()
         .join(",")
+}
+
+/// The frame of the most parts less tunnels nearest the middle of the take.
+fn middle_most_separate(topology: &[voltrack::voxel::FrameTopology]) -> usize {
+    let best = topology.iter().map(|t| t.separation()).max().unwrap_or(0);
+    let middle = topology.len().saturating_sub(1) / 2;
+    (0..topology.len())
+        .filter(|&f| topology[f].separation() == best)
+        .min_by_key(|&f| f.abs_diff(middle))
+        .unwrap_or(0)
 }
 
 fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
@@ -130,6 +141,19 @@ fn main() {
         options.track.reference = match std::env::var("VOLTRACK_REFERENCE").as_deref() {
             Ok("first") => Reference::First,
             Ok("middle") => Reference::Frame(spec.frames / 2),
+            // The most separate frame nearest the middle (a candidate rule).
+            Ok("auto-middle") => {
+                let seq = voltrack::voxel::voxelize_sequence(
+                    &take.meshes,
+                    &options.voxel,
+                    Default::default(),
+                )
+                .expect("voxelising");
+                Reference::Frame(middle_most_separate(&voltrack::track::frame_topologies(
+                    &seq,
+                    options.track.centers,
+                )))
+            }
             Ok(k) => Reference::Frame(
                 k.parse()
                     .expect("VOLTRACK_REFERENCE: first, middle or a frame"),

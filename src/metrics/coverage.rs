@@ -284,8 +284,8 @@ pub struct FitOutliers {
     /// Per frame, the 95th percentile of the two-sided distance between the
     /// result and the input, in percent of the bounding-box diagonal.
     pub p95: Vec<Real>,
-    /// The lower quartile of `p95` over the frames after the first (frame 0
-    /// is the input itself).
+    /// The lower quartile of `p95` over the frames but those that are their
+    /// input (the reference frames).
     pub usual: Real,
     /// max(`fit_ratio` × `usual`, `fit_floor`): frames above it are flagged.
     pub limit: Real,
@@ -293,15 +293,22 @@ pub struct FitOutliers {
 }
 
 /// Flags the frames of `fit` whose two-sided 95th percentile is above
-/// max(`params.fit_ratio` × its lower quartile over the frames after the
-/// first, `params.fit_floor`).
-pub fn fit_outliers(fit: &SequenceFit, params: &CoverageParams) -> crate::Result<FitOutliers> {
+/// max(`params.fit_ratio` × its lower quartile, `params.fit_floor`), both
+/// over the frames but `exact`, those whose result is their input (the
+/// frames a mesh was deformed from: frame 0 unless the tracking or the
+/// segments chose others).
+pub fn fit_outliers(
+    fit: &SequenceFit,
+    exact: &[usize],
+    params: &CoverageParams,
+) -> crate::Result<FitOutliers> {
     params.validate()?;
     let p95: Vec<Real> = fit.frames.iter().map(|f| f.two_sided.p95).collect();
     let mut later: Vec<Real> = p95
         .iter()
-        .skip(1)
-        .copied()
+        .enumerate()
+        .filter(|(f, _)| !exact.contains(f))
+        .map(|(_, &v)| v)
         .filter(|v| v.is_finite())
         .collect();
     later.sort_by(Real::total_cmp);
@@ -314,7 +321,7 @@ pub fn fit_outliers(fit: &SequenceFit, params: &CoverageParams) -> crate::Result
     let flagged = p95
         .iter()
         .enumerate()
-        .skip(1)
+        .filter(|(f, _)| !exact.contains(f))
         .filter(|(_, &v)| v > limit)
         .map(|(f, _)| f)
         .collect();

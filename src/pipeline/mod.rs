@@ -156,7 +156,8 @@ impl Measurements {
             Some(&conv.sequence),
             progress,
         )?;
-        let outliers = fit_outliers(&fit, params)?;
+        let exact: Vec<usize> = conv.segments.iter().map(|s| s.reference).collect();
+        let outliers = fit_outliers(&fit, &exact, params)?;
         Ok((fit, outliers))
     }
 }
