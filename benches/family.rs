@@ -22,6 +22,7 @@
 
 use std::io::Write;
 use std::time::Instant;
+use voltrack::deform::segments::most_separate_near_middle;
 use voltrack::fixtures::family::{build, family, score, TakeSpec};
 use voltrack::metrics::coverage::runs;
 use voltrack::params::Reference;
@@ -61,16 +62,6 @@ fn frames_text(frames: &[usize]) -> String {
         })
         .collect::<Vec<_>>()
         .join(",")
-}
-
-/// The frame of the most parts less tunnels nearest the middle of the take.
-fn middle_most_separate(topology: &[voltrack::voxel::FrameTopology]) -> usize {
-    let best = topology.iter().map(|t| t.separation()).max().unwrap_or(0);
-    let middle = topology.len().saturating_sub(1) / 2;
-    (0..topology.len())
-        .filter(|&f| topology[f].separation() == best)
-        .min_by_key(|&f| f.abs_diff(middle))
-        .unwrap_or(0)
 }
 
 fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
@@ -149,10 +140,8 @@ fn main() {
                     Default::default(),
                 )
                 .expect("voxelising");
-                Reference::Frame(middle_most_separate(&voltrack::track::frame_topologies(
-                    &seq,
-                    options.track.centers,
-                )))
+                let topology = voltrack::track::frame_topologies(&seq, options.track.centers);
+                Reference::Frame(most_separate_near_middle(&topology, 0..topology.len()))
             }
             Ok(k) => Reference::Frame(
                 k.parse()

@@ -33,17 +33,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             seq.names[f], t.parts, t.tunnels, t.specks
         );
     }
-    let best = choice
-        .topology
-        .iter()
-        .map(|t| t.separation())
-        .max()
-        .unwrap_or(0);
-    let middle = choice.topology.len().saturating_sub(1) / 2;
-    let central = (0..choice.topology.len())
-        .filter(|&f| choice.topology[f].separation() == best)
-        .min_by_key(|&f| f.abs_diff(middle))
-        .unwrap_or(0);
+    let central = voltrack::deform::segments::most_separate_near_middle(
+        &choice.topology,
+        0..choice.topology.len(),
+    );
     println!("most separate nearest the middle: frame {central}");
     println!(
         "reference: frame {} ({}), {} [{seconds:.2} s for {} frames]",

@@ -76,19 +76,7 @@ pub fn plan_segments(topology: &[FrameTopology], reference: usize) -> Vec<Segmen
     }
     runs.into_iter()
         .map(|(frames, parts)| {
-            // The frame of the most parts less tunnels nearest the middle:
-            // the mesh deforms least far to either end.
-            let best = frames
-                .clone()
-                .map(|f| topology[f].separation())
-                .max()
-                .expect("a segment holds frames");
-            let middle = frames.start + (frames.len() - 1) / 2;
-            let reference = frames
-                .clone()
-                .filter(|&f| topology[f].separation() == best)
-                .min_by_key(|&f| f.abs_diff(middle))
-                .expect("the best is one of them");
+            let reference = most_separate_near_middle(topology, frames.clone());
             Segment {
                 frames,
                 reference,
@@ -96,6 +84,23 @@ pub fn plan_segments(topology: &[FrameTopology], reference: usize) -> Vec<Segmen
             }
         })
         .collect()
+}
+
+/// Of the frames `frames` (non-empty, indices into `topology`), the one
+/// nearest their middle among those of the most parts less tunnels (the
+/// earlier of two as near): the mesh deformed from it goes least far to
+/// either end.
+pub fn most_separate_near_middle(topology: &[FrameTopology], frames: Range<usize>) -> usize {
+    let best = frames
+        .clone()
+        .map(|f| topology[f].separation())
+        .max()
+        .expect("at least one frame");
+    let middle = frames.start + (frames.len() - 1) / 2;
+    frames
+        .filter(|&f| topology[f].separation() == best)
+        .min_by_key(|&f| f.abs_diff(middle))
+        .expect("the best is one of them")
 }
 
 /// The frames `range` of `source`, as a source of their own.

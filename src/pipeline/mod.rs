@@ -306,12 +306,13 @@ pub fn convert(
     let segments = plan_segments_of(&trajectories, &sequence, &tracked, options);
     // The meshes the result deforms: each segment's reference frame's, read
     // again unless it is the first, which voxelising kept.
+    let mesh_of = |r: usize| match r {
+        0 => Ok(sequence.first_mesh.clone().expect("checked above")),
+        r => source.mesh(r),
+    };
     let mut references = segments
         .iter()
-        .map(|s| match s.reference {
-            0 => Ok(sequence.first_mesh.clone().expect("checked above")),
-            r => source.mesh(r),
-        })
+        .map(|s| mesh_of(s.reference))
         .collect::<Result<Vec<_>>>()?;
     let (segments, references) = if segments.len() > 1
         && references
@@ -327,10 +328,7 @@ pub fn convert(
             reference: trajectories.reference,
             parts: segments[0].parts,
         };
-        let reference = match whole.reference {
-            0 => sequence.first_mesh.clone().expect("checked above"),
-            r => source.mesh(r)?,
-        };
+        let reference = mesh_of(whole.reference)?;
         (vec![whole], vec![reference])
     } else {
         let one = std::mem::take(&mut references);
