@@ -23,7 +23,7 @@
 use std::io::Write;
 use std::time::Instant;
 use voltrack::deform::segments::most_separate_near_middle;
-use voltrack::fixtures::family::{build, family, score, TakeSpec};
+use voltrack::fixtures::family::{build, family, score_stretches, stretches, TakeSpec};
 use voltrack::metrics::coverage::runs;
 use voltrack::params::Reference;
 use voltrack::pipeline::{convert, ConvertOptions, Measurements};
@@ -157,7 +157,11 @@ fn main() {
         let lost = voltrack::pipeline::lost_parts(&conv, Some((&fit, &outliers)));
         let warned = lost.flagged.clone();
         let result = conv.mesh.frames.to_vec().expect("reading the result");
-        let s = score(&take, conv.mesh.reference, &result);
+        let s = score_stretches(
+            &stretches(&conv.segments, &take.meshes, |r| take.truth_from(r)),
+            take.diagonal,
+            &result,
+        );
         let missed: Vec<usize> = s
             .lost
             .iter()
