@@ -12,7 +12,7 @@
 //! - `VOLTRACK_SEED`: the conversion's seed (`--seed`), default 0;
 //! - `VOLTRACK_RESOLUTION`, `VOLTRACK_CENTERS`, `VOLTRACK_CONFORM_ITERATIONS`:
 //!   other than the defaults; `VOLTRACK_FRAMES`: each take cut to its first
-//!   frames; `VOLTRACK_RECLAIM=1` (`--reclaim`),
+//!   frames; `VOLTRACK_RECLAIM=0` (`--reclaim off`),
 //!   `VOLTRACK_ABSOLUTE_IRREGULARITY=1` (`--absolute-irregularity`);
 //!   `VOLTRACK_REFERENCE`: `first`, `middle` (each take's middle frame),
 //!   `auto-middle` (of the frames `auto` would choose among, the one
@@ -84,7 +84,9 @@ fn main() {
     if let Some(n) = env("VOLTRACK_CONFORM_ITERATIONS") {
         options.conform.iterations = n;
     }
-    options.track.reclaim = env::<u8>("VOLTRACK_RECLAIM") == Some(1);
+    if env::<u8>("VOLTRACK_RECLAIM") == Some(0) {
+        options.track.reclaim = false;
+    }
     if env::<u8>("VOLTRACK_ABSOLUTE_IRREGULARITY") == Some(1) {
         options
             .refine
@@ -102,9 +104,9 @@ fn main() {
         options.track.seed,
         rayon::current_num_threads(),
         if options.track.reclaim {
-            ", reclaim"
-        } else {
             ""
+        } else {
+            ", no reclaiming"
         },
         if options
             .refine

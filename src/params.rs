@@ -153,20 +153,22 @@ pub struct TrackParams {
     /// worse and the galloping trotter's legs clearly worse
     /// (docs/measurements.md). Default 1 (the paper's iteration); in (0, 2).
     pub tracking_over_relaxation: Real,
-    /// Once a frame has converged, move the centers whose cells hold far
-    /// less than their frame-0 volume (starved) toward the voxels that
-    /// other cells hold only by stretching past their frame-0 reach, and
-    /// iterate again, for up to 3 rounds while each leaves the volume held
-    /// by stretching a fifth smaller (`track::claims`). Why: a thin part
-    /// that moves several of its widths in a frame leaves its centers
-    /// behind with empty cells, which the centroid term cannot pull, while
-    /// the few cells nearest to where it went stretch across it; each
-    /// volume element keeps about its volume, so a starved cell's volume is
-    /// where the stretched cells' excess is. Frames where no cell is
-    /// starved are tracked as before. Default false: it keeps more thin
-    /// parts on the generated family but worsens the galloping trotter's
-    /// worst frames (docs/measurements.md).
-    #[serde(default)]
+    /// Once a frame has converged, find the centers whose cells hold far
+    /// less than their frame-0 volume (starved), group them into parts by
+    /// their affinity links, and turn each part as one rigid body about
+    /// where it hangs from the other centers toward the frame's volume that
+    /// no other cell's rigid motion carries there; iterate again, for up to
+    /// 3 rounds while each leaves that volume a fifth smaller
+    /// (`track::claims`). Why: a thin part that moves several of its widths
+    /// in a frame leaves its centers behind with empty cells, which the
+    /// centroid term cannot pull, while the cells nearest to where it went
+    /// stretch across it; a limb turns about its joint, so turning the
+    /// stranded centers together finds where it went and keeps their order
+    /// along it. Frames where no cell is starved are tracked as before.
+    /// Default true (issue 46: on the generated family it keeps parts that
+    /// the paper's tracking loses; the shared sequences are unchanged:
+    /// docs/measurements.md); false is the tracking of 657cfbf.
+    #[serde(default = "default_reclaim")]
     pub reclaim: bool,
     /// Most Lloyd iterations placing the centers in frame 0; they stop earlier
     /// once no center moves farther than `threshold`. Default 1000 (the
@@ -207,7 +209,7 @@ impl Default for TrackParams {
             screening_unsettled: 0.01,
             screening_block: 1,
             tracking_over_relaxation: 1.0,
-            reclaim: false,
+            reclaim: true,
             lloyd_iterations: 1000,
             over_relaxation: 1.8,
             absolute_units: false,
@@ -369,6 +371,10 @@ pub struct RefineParams {
 /// centers. Each gradient is written once and read twice per evaluation,
 /// which costs little beside assigning every frame's cells.
 pub const REFINE_GRADIENT_MEMORY: usize = 16 << 20;
+
+fn default_reclaim() -> bool {
+    TrackParams::default().reclaim
+}
 
 fn default_relative_irregularity() -> bool {
     true

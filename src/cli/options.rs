@@ -106,9 +106,9 @@ pub struct TrackArgs {
     /// The guesses' runs up to the screening assign blocks of N³ voxels, each by its voxels' centroid; the kept run goes on on voxels. 2 tracks in a little over half the time, with a little worse correspondence; 1 screens on voxels (range: 1..=8)
     #[arg(long, value_name = "N", default_value_t = TrackParams::default().screening_block)]
     pub screening_block: usize,
-    /// Move centers left without volume (a limb that moved several of its widths leaves them behind) to the volume that cells hold only by stretching, once a frame has converged; keeps more thin parts, but worsens some fast takes' worst frames
-    #[arg(long)]
-    pub reclaim: bool,
+    /// Once a frame has converged, turn the centers a fast limb left without volume, as one part about its joint, toward the volume no other cell's motion carries there: on keeps fast thin parts; off is the paper's tracking
+    #[arg(long, value_name = "WHEN", default_value = "on")]
+    pub reclaim: Switch,
     /// Over-relaxation of the tracking iterations: each step goes ω times the way to the paper's update; 1 is the paper's (range: 0 < ω < 2)
     #[arg(long, value_name = "ω", default_value_t = TrackParams::default().tracking_over_relaxation)]
     pub tracking_over_relaxation: f64,
@@ -175,7 +175,7 @@ impl TrackArgs {
             screening_unsettled: self.screening_unsettled,
             screening_block: self.screening_block,
             tracking_over_relaxation: self.tracking_over_relaxation,
-            reclaim: self.reclaim,
+            reclaim: self.reclaim == Switch::On,
             lloyd_iterations: self.lloyd_iterations,
             over_relaxation: self.over_relaxation,
             absolute_units: self.absolute_units,
@@ -332,6 +332,12 @@ pub enum InterpolationArg {
 pub enum BlendArg {
     Dq,
     Linear,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Switch {
+    On,
+    Off,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]

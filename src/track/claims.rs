@@ -1,25 +1,27 @@
-//! Volume that a cell holds only by stretching is claimed by starved cells.
+//! Starved parts turn about their joint to the volume no other cell carries.
 //!
 //! A thin part that moves several of its widths in a frame leaves its
 //! centers behind: their Voronoi cells in the new frame are empty or nearly
-//! (no voxel is nearest to them), while the cells of the few centers nearest
-//! to where the part went stretch across it. The centroid term, which only
-//! sees a center's own cell, has nothing to pull the stranded centers with,
-//! and the stretched cells' centers cannot cover the part alone.
+//! (no voxel is nearest to them), while the cells of the centers nearest to
+//! where the part went stretch across it. The centroid term, which only
+//! sees a center's own cell, has nothing to pull the stranded centers with.
 //!
 //! Each volume element keeps about its volume from frame to frame (the
 //! subject's volume is nearly conserved), so a cell far below its frame-0
-//! share is starved, and the voxels a cell holds beyond its frame-0 reach
-//! are loose. A starved center takes, as its data target, the centroid of
-//! its own voxels and as many loose voxels as it lacks, those it would win
-//! first if its cell grew as a power cell: the ones least nearer to their
-//! owner than to it (|v − c_i|² − |v − c_owner|² smallest). It then moves
-//! toward the part it lost, with its neighbours' rigid motion, until its
-//! Voronoi cell holds voxels again and it is no longer starved.
+//! share is starved. The volume the starved part should hold is the part
+//! of the new frame that the other cells' motions do not carry there:
+//! each kept cell of the frame before, moved by its center's rigid motion,
+//! covers where its volume went, and what is left uncovered is where the
+//! lost part went. The starved centers tied by strong links are one part,
+//! which hangs from the kept centers it is linked to (a limb from the body,
+//! however weakly the affinity now ties them); it is turned as one rigid
+//! body about that joint to the turn that brings its centers nearest to the
+//! uncovered volume. Turned whole, its centers keep their order along the
+//! limb, which moving each center to its own nearest volume would not.
 
-use crate::math::{Point3, Real};
+use crate::math::{Point3, Real, Rotation3, Vector3};
 use crate::model::GridSpec;
-use crate::spatial::cells::{Assignment, CellStats};
+use crate::spatial::cells::CellStats;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
@@ -27,11 +29,14 @@ use rayon::prelude::*;
 /// frame's volume).
 pub(crate) const STARVED: Real = 0.3;
 
-/// A voxel is loose when it lies farther than this many times its cell's
-/// frame-0 reach from the cell's center.
-pub(crate) const LOOSE_REACH: Real = 1.5;
+/// Links at least this strong tie starved centers into one part.
+const PART_LINK: Real = 0.5;
 
-/// Each center's volume in frame 0: what it should keep.
+/// Axes and angles of the turns tried about a starved part's joint.
+const TURN_AXES: usize = 64;
+const TURN_STEPS: usize = 18;
+
+/// Each center's volume in the frame it was placed in: what it should keep.
 #[derive(Clone, Debug)]
 pub(crate) struct Capacity {
     /// Voxels of each cell in frame 0.
@@ -83,71 +88,253 @@ impl Capacity {
         }
     }
 
-    /// The data targets of the starved centers of `cur` whose cells `cells`
-    /// and `stats` hold: (center, centroid of its voxels and its claim); and
-    /// how many voxels are loose.
-    pub(crate) fn claims(
+    /// Which centers are starved, of cells `stats` in a frame of
+    /// `occupied` voxels.
+    pub(crate) fn starved(&self, stats: &CellStats, occupied: usize) -> Vec<bool> {
+        let scale = occupied as Real / self.total;
+        (0..stats.count.len())
+            .map(|i| (stats.count[i] as Real) < STARVED * self.count[i] * scale)
+            .collect()
+    }
+
+    /// Where the `starved` centers of `cur` go: each starved part that
+    /// hangs from kept centers (`links(i)`: center i's affinity links)
+    /// turned about its joint toward `uncarried`, the frame's voxel
+    /// centers no kept cell carries. Largest parts first, each taking the
+    /// volume within two reaches of where it lands, so that two parts do not
+    /// claim one limb. A part moves only where the turn brings its centers
+    /// on average within one frame-0 reach of that volume and halves their
+    /// squared distances to it (each counted to at most two reaches).
+    pub(crate) fn claims<I>(
         &self,
-        grid: &GridSpec,
-        cells: &Assignment,
         cur: &[Point3],
-        stats: &CellStats,
-    ) -> (Vec<(usize, Point3)>, usize) {
-        let Some(coords) = cells.voxel_coords() else {
-            return (Vec::new(), 0);
-        };
-        let scale = coords.len() as Real / self.total;
-        let starved: Vec<usize> = (0..cur.len())
-            .filter(|&i| (stats.count[i] as Real) < STARVED * self.count[i] * scale)
-            .collect();
-        let at = |c: &[u16; 3]| grid.center_at(c.map(usize::from));
-        // Loose voxels: (position, squared distance to their owner).
-        let loose: Vec<(Point3, Real)> = coords
-            .par_iter()
-            .zip(&cells.owners)
-            .filter_map(|(c, &o)| {
-                let p = at(c);
-                let d2 = (p - cur[o as usize]).norm_squared();
-                let r = LOOSE_REACH * self.reach[o as usize];
-                (d2 > r * r).then_some((p, d2))
-            })
-            .collect();
-        if loose.is_empty() || starved.is_empty() {
-            return (Vec::new(), loose.len());
-        }
-        let points: Vec<[Real; 3]> = loose.iter().map(|(p, _)| [p.x, p.y, p.z]).collect();
-        let tree =
-            ImmutableKdTree::<Real, 3>::new_from_slice(&points).expect("finite voxel positions");
-        let claims = starved
-            .par_iter()
-            .map(|&i| {
-                let want = (self.count[i] * scale).round() as usize;
-                let lack = want.saturating_sub(stats.count[i] as usize).max(1);
-                let c = cur[i];
-                let k = (4 * lack).clamp(1, loose.len());
-                let found = tree
-                    .query(&[c.x, c.y, c.z])
-                    .nearest_n::<SquaredEuclidean<Real>>(
-                        std::num::NonZeroUsize::new(k).expect("k > 0"),
-                    )
-                    .execute();
-                let mut by_excess: Vec<(Real, usize)> = found
+        starved: &[bool],
+        uncarried: &[Point3],
+        links: impl Fn(usize) -> I,
+    ) -> Vec<(usize, Point3)>
+    where
+        I: Iterator<Item = (usize, Real)>,
+    {
+        let turns = joint_turns();
+        let mut taken = vec![false; uncarried.len()];
+        let mut claims = Vec::new();
+        for StarvedPart { members, anchors } in starved_parts(starved, links) {
+            let free: Vec<[Real; 3]> = uncarried
+                .iter()
+                .zip(&taken)
+                .filter(|(_, &t)| !t)
+                .map(|(p, _)| [p.x, p.y, p.z])
+                .collect();
+            if free.is_empty() {
+                break;
+            }
+            let tree =
+                ImmutableKdTree::<Real, 3>::new_from_slice(&free).expect("finite voxel positions");
+            let weight: Real = anchors.iter().map(|a| a.1).sum();
+            let joint = Point3::from(
+                anchors
                     .iter()
-                    .map(|nb| (nb.distance - loose[nb.item as usize].1, nb.item as usize))
-                    .collect();
-                by_excess.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                by_excess.truncate(lack);
-                let own = stats.count[i] as Real;
-                let mut sum = match stats.centroid(i, grid) {
-                    Some(x) => x.coords * own,
-                    None => nalgebra::Vector3::zeros(),
-                };
-                for &(_, j) in &by_excess {
-                    sum += loose[j].0.coords;
+                    .map(|&(j, w)| cur[j].coords * w)
+                    .sum::<Vector3>()
+                    / weight,
+            );
+            let reach =
+                members.iter().map(|&i| self.reach[i]).sum::<Real>() / members.len() as Real;
+            let cap2 = (2.0 * reach).powi(2);
+            let cost = |turn: &Rotation3| -> Real {
+                members
+                    .iter()
+                    .map(|&i| {
+                        let p = joint + turn * (cur[i] - joint);
+                        let nearest = tree
+                            .query(&[p.x, p.y, p.z])
+                            .nearest_one::<SquaredEuclidean<Real>>()
+                            .execute();
+                        nearest.distance.min(cap2)
+                    })
+                    .sum()
+            };
+            let here = cost(&Rotation3::identity());
+            // The least cost, the smallest turn of equal ones.
+            let (best, k) = turns
+                .par_iter()
+                .enumerate()
+                .map(|(k, t)| (cost(t), k))
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+                .expect("turns to try");
+            let turn = &turns[k];
+            log::debug!(
+                "starved part of {} centers: {:.2} reaches from the uncarried volume, {:.2} turned by {:.0}°",
+                members.len(),
+                (here / members.len() as Real).sqrt() / reach,
+                (best / members.len() as Real).sqrt() / reach,
+                turn.angle().to_degrees()
+            );
+            if best >= 0.5 * here || best / members.len() as Real >= reach * reach {
+                continue;
+            }
+            let moved: Vec<Point3> = members
+                .iter()
+                .map(|&i| joint + turn * (cur[i] - joint))
+                .collect();
+            for (t, p) in taken.iter_mut().zip(uncarried) {
+                *t = *t || moved.iter().any(|c| (c - p).norm_squared() < cap2);
+            }
+            claims.extend(members.iter().copied().zip(moved));
+        }
+        claims
+    }
+}
+
+/// A starved part: its centers, and the kept centers it is linked to with
+/// the links' weights.
+struct StarvedPart {
+    members: Vec<usize>,
+    anchors: Vec<(usize, Real)>,
+}
+
+/// The starved centers tied by links of at least [`PART_LINK`] (`links(i)`:
+/// center i's affinity links), as parts with the kept centers each is
+/// linked to and how strongly (its joint: however weak, a limb's links to
+/// the body it turns on are the ones the affinity weakens); largest parts
+/// first, those linked to no kept center left out.
+fn starved_parts<I>(starved: &[bool], links: impl Fn(usize) -> I) -> Vec<StarvedPart>
+where
+    I: Iterator<Item = (usize, Real)>,
+{
+    let mut seen = vec![false; starved.len()];
+    let mut parts = Vec::new();
+    for s in (0..starved.len()).filter(|&s| starved[s]) {
+        if seen[s] {
+            continue;
+        }
+        seen[s] = true;
+        let (mut members, mut anchors) = (vec![s], Vec::new());
+        let mut k = 0;
+        while k < members.len() {
+            let i = members[k];
+            k += 1;
+            for (j, w) in links(i).filter(|&(j, w)| j != i && w > 0.0) {
+                if !starved[j] {
+                    anchors.push((j, w));
+                } else if w >= PART_LINK && !seen[j] {
+                    seen[j] = true;
+                    members.push(j);
                 }
-                (i, Point3::from(sum / (own + by_excess.len() as Real)))
-            })
-            .collect();
-        (claims, loose.len())
+            }
+        }
+        if !anchors.is_empty() {
+            parts.push(StarvedPart { members, anchors });
+        }
+    }
+    parts.sort_by_key(|p| std::cmp::Reverse(p.members.len()));
+    parts
+}
+
+/// The turns tried about a joint: [`TURN_AXES`] axes spread evenly over the
+/// sphere (a Fibonacci lattice), by [`TURN_STEPS`] angles up to a half turn.
+fn joint_turns() -> Vec<Rotation3> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let axes: Vec<nalgebra::Unit<Vector3>> = (0..TURN_AXES)
+        .map(|k| {
+            let z = 1.0 - 2.0 * (k as f64 + 0.5) / TURN_AXES as f64;
+            let r = (1.0 - z * z).sqrt();
+            let t = golden * k as f64;
+            nalgebra::Unit::new_normalize(Vector3::new(r * t.cos(), r * t.sin(), z))
+        })
+        .collect();
+    (1..=TURN_STEPS)
+        .flat_map(|s| {
+            let angle = std::f64::consts::PI * s as f64 / TURN_STEPS as f64;
+            axes.iter()
+                .map(move |a| Rotation3::from_axis_angle(a, angle))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each center's affinity links.
+    type Links = Vec<Vec<(usize, Real)>>;
+
+    /// A body center at the joint (1, 0, 0) and a leg of four starved
+    /// centers along x from it, linked to each other and weakly to the
+    /// body; each of reach 0.3.
+    fn leg() -> (Capacity, Vec<Point3>, Vec<bool>, Links) {
+        let cur = vec![
+            Point3::new(1.0, 0.0, 0.0),
+            Point3::new(1.5, 0.0, 0.0),
+            Point3::new(2.0, 0.0, 0.0),
+            Point3::new(2.5, 0.0, 0.0),
+            Point3::new(3.0, 0.0, 0.0),
+        ];
+        let capacity = Capacity {
+            count: vec![10.0; 5],
+            reach: vec![0.3; 5],
+            total: 50.0,
+        };
+        let mut links = vec![vec![(1, 0.05)], vec![(0, 0.05), (2, 1.0)]];
+        links.extend((2..5).map(|i| {
+            let mut l = vec![(i - 1, 1.0)];
+            if i < 4 {
+                l.push((i + 1, 1.0));
+            }
+            l
+        }));
+        (capacity, cur, vec![false, true, true, true, true], links)
+    }
+
+    /// Voxel centers filling a bar of half-width 0.15 from `a` to `b`.
+    fn bar(a: Point3, b: Point3) -> Vec<Point3> {
+        let steps = 40;
+        let mut out = Vec::new();
+        for k in 0..=steps {
+            let c = a + (b - a) * (k as Real / steps as Real);
+            for (dx, dz) in [(0.0, 0.0), (0.1, 0.0), (-0.1, 0.0), (0.0, 0.1), (0.0, -0.1)] {
+                out.push(c + Vector3::new(dx, 0.0, dz));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn a_leg_left_behind_turns_about_its_joint_to_where_the_volume_went() {
+        let (capacity, cur, starved, links) = leg();
+        // The leg went up: turned 90° about z through the joint.
+        let went = bar(Point3::new(1.0, 0.3, 0.0), Point3::new(1.0, 2.2, 0.0));
+        let claims = capacity.claims(&cur, &starved, &went, |i| links[i].iter().copied());
+        assert_eq!(
+            claims.iter().map(|c| c.0).collect::<Vec<_>>(),
+            vec![1, 2, 3, 4]
+        );
+        for &(i, p) in &claims {
+            let want = Point3::new(1.0, cur[i].x - 1.0, 0.0);
+            assert!((p - want).norm() < 0.3, "center {i} at {p}, not {want}");
+        }
+    }
+
+    #[test]
+    fn a_part_stays_where_no_turn_brings_it_near_the_volume_or_nothing_holds_it() {
+        let (capacity, cur, starved, links) = leg();
+        // Far from anything the leg can reach by turning.
+        let far = bar(Point3::new(9.0, 9.0, 0.0), Point3::new(9.0, 11.0, 0.0));
+        assert!(capacity
+            .claims(&cur, &starved, &far, |i| links[i].iter().copied())
+            .is_empty());
+        // Linked to no kept center: nothing to turn about.
+        let went = bar(Point3::new(1.0, 0.3, 0.0), Point3::new(1.0, 2.2, 0.0));
+        let loose = |i: usize| {
+            links[i]
+                .iter()
+                .copied()
+                .filter(move |&(j, _)| j != 0 && i != 0)
+        };
+        assert!(capacity.claims(&cur, &starved, &went, loose).is_empty());
+        // No starved center.
+        assert!(capacity
+            .claims(&cur, &[false; 5], &went, |i| links[i].iter().copied())
+            .is_empty());
     }
 }

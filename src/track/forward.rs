@@ -421,11 +421,11 @@ fn guesses(traj: &Trajectories, f: usize, params: &TrackParams) -> Vec<(Guess, V
     starts
 }
 
-/// Most rounds of moving starved centers to the volume they lost, per frame.
+/// Most rounds of turning starved parts toward the volume they lost, per frame.
 const MAX_RECLAIMS: usize = 3;
 
 /// A round of reclaiming is kept when it leaves less than this share of the
-/// loose volume.
+/// volume no kept cell carries.
 const RECLAIM_GAIN: Real = 0.8;
 
 /// One run of a frame's iterations from one guess.
@@ -632,9 +632,9 @@ impl<'a> Tracker<'a> {
         }
     }
 
-    /// Moves the starved centers of a converged run to the volume they
-    /// lost (see `track::claims`) and iterates again, as long as that
-    /// leaves clearly less volume loose.
+    /// Turns the starved parts of a converged run toward the volume no kept
+    /// cell carries (see `track::claims`) and iterates again, as long as
+    /// that leaves clearly less of that volume.
     fn reclaim(
         &self,
         mut run: Run,
@@ -647,7 +647,13 @@ impl<'a> Tracker<'a> {
         };
         for _ in 0..MAX_RECLAIMS {
             let stats = self.refresh(&mut run);
-            let (claims, loose) = capacity.claims(self.grid, &run.cells, &run.cur, &stats);
+            let starved = capacity.starved(&stats, run.cells.owners.len());
+            if !starved.contains(&true) {
+                break;
+            }
+            let uncarried = self.uncarried(&run.cur, &starved, fits, &run.cells);
+            let claims =
+                capacity.claims(&run.cur, &starved, &uncarried, |i| self.affinity.pairs(i));
             if claims.is_empty() {
                 break;
             }
@@ -664,22 +670,80 @@ impl<'a> Tracker<'a> {
             trial.converged = false;
             self.iterate(&mut trial, prev, fits, self.threshold2, progress)?;
             let stats = self.refresh(&mut trial);
-            let (_, loose_after) = capacity.claims(self.grid, &trial.cells, &trial.cur, &stats);
+            let starved = capacity.starved(&stats, trial.cells.owners.len());
+            let after = self
+                .uncarried(&trial.cur, &starved, fits, &trial.cells)
+                .len();
             log::debug!(
-                "reclaim: {} starved centers, loose voxels {loose} -> {loose_after}",
-                claims.len()
+                "reclaim: {} starved centers turned, uncarried voxels {} -> {after}",
+                claims.len(),
+                uncarried.len()
             );
             run.timing.add_dropped(&FrameTiming {
                 iterations: trial.timing.iterations - run.timing.iterations,
                 ..Default::default()
             });
-            if (loose_after as Real) < RECLAIM_GAIN * loose as Real {
+            if (after as Real) < RECLAIM_GAIN * uncarried.len() as Real {
                 run = trial;
             } else {
                 break;
             }
         }
         Some(run)
+    }
+
+    /// The voxels of this frame (`cells`') that no kept center carries
+    /// there: frame f-1's cells of the centers not `starved`, each voxel
+    /// moved by its center's rigid motion to `cur` (and grown by a voxel
+    /// each way, which a turned cell leaves between its voxels).
+    fn uncarried(
+        &self,
+        cur: &[Point3],
+        starved: &[bool],
+        fits: &RigidFits,
+        cells: &Assignment,
+    ) -> Vec<Point3> {
+        let Some(coords) = cells.voxel_coords() else {
+            return Vec::new();
+        };
+        let motions = fits.fit(cur);
+        let grid = self.grid;
+        let mut carried = vec![0u64; grid.len().div_ceil(64)];
+        let dims = grid.dims;
+        for (&v, &o) in self.prev_voxels.iter().zip(&self.prev_cells.owners) {
+            if o == NO_OWNER || starved[o as usize] {
+                continue;
+            }
+            let p = motions[o as usize].apply(&grid.voxel_center(v as usize));
+            let Some(q) = grid.voxel_at(&p) else {
+                continue;
+            };
+            let [x, y, z] = grid.voxel_coords(q);
+            for (dx, dy, dz) in [
+                (0i64, 0i64, 0i64),
+                (1, 0, 0),
+                (-1, 0, 0),
+                (0, 1, 0),
+                (0, -1, 0),
+                (0, 0, 1),
+                (0, 0, -1),
+            ] {
+                let c = [x as i64 + dx, y as i64 + dy, z as i64 + dz];
+                if c.iter().zip(dims).all(|(&a, d)| a >= 0 && a < d as i64) {
+                    let q = grid.linear_index(c.map(|a| a as usize));
+                    carried[q / 64] |= 1 << (q % 64);
+                }
+            }
+        }
+        coords
+            .iter()
+            .map(|c| c.map(usize::from))
+            .filter(|&c| {
+                let q = grid.linear_index(c);
+                carried[q / 64] & (1 << (q % 64)) == 0
+            })
+            .map(|c| grid.center_at(c))
+            .collect()
     }
 
     /// Brings a run's cells up to its positions and returns their sums.

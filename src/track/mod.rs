@@ -1,7 +1,7 @@
 //! Stage 2: seeding centers in the first frame and tracking them forward
 //! (docs/method.md §2-§5). One file per algorithm: `lloyd` (frame 0), `affinity`
 //! (who moves with whom), `forward` (the frame loop), `claims` (starved
-//! cells' volume, `--reclaim`), `checkpoint` (saving and resuming). The
+//! parts turned about their joint, `--reclaim`), `checkpoint` (saving and resuming). The
 //! Voronoi cells they use are [`crate::spatial::cells`], the weighted rigid
 //! fits [`crate::model::rigid`].
 
