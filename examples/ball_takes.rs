@@ -35,18 +35,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let seconds = clock.elapsed().as_secs_f64();
         let result = conv.mesh.frames.to_vec()?;
         let s = take.score(&input, &conv.segments, &result);
-        let segments: Vec<String> = conv
-            .segments
-            .iter()
-            .map(|s| {
-                format!(
-                    "{}-{} from {}",
-                    s.frames.start,
-                    s.frames.end - 1,
-                    s.reference
-                )
-            })
-            .collect();
+        let segments: Vec<String> = conv.segments.iter().map(ToString::to_string).collect();
         println!(
             "{:<8} mean {:.3} p95 {:.3} max {:.3}  lost {:?}  segments {}  tracked from {}  {seconds:.1} s",
             take.name,

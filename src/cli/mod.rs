@@ -1083,16 +1083,7 @@ fn print_conversion(
 pub(crate) fn segments_text(segments: &[voltrack::deform::segments::Segment]) -> String {
     segments
         .iter()
-        .map(|s| {
-            format!(
-                "frames {}-{} from {} ({} part{})",
-                s.frames.start,
-                s.frames.end - 1,
-                s.reference,
-                s.parts,
-                if s.parts == 1 { "" } else { "s" }
-            )
-        })
+        .map(ToString::to_string)
         .collect::<Vec<_>>()
         .join(", ")
 }

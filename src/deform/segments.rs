@@ -26,6 +26,21 @@ pub struct Segment {
     pub parts: usize,
 }
 
+/// `frames 0-17 from 8 (2 parts)`: its frames, the frame it deforms, its parts.
+impl std::fmt::Display for Segment {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "frames {}-{} from {} ({} part{})",
+            self.frames.start,
+            self.frames.end - 1,
+            self.reference,
+            self.parts,
+            if self.parts == 1 { "" } else { "s" }
+        )
+    }
+}
+
 /// Fewest frames a segment holds: a change of parts shorter than this
 /// (two surfaces brushing for a frame) joins the stretch before it.
 pub const MIN_SEGMENT_FRAMES: usize = 3;

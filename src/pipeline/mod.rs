@@ -433,12 +433,7 @@ fn plan_segments_of(
             segments.len(),
             segments
                 .iter()
-                .map(|s| format!(
-                    "frames {}-{} from frame {}",
-                    s.frames.start,
-                    s.frames.end - 1,
-                    s.reference
-                ))
+                .map(ToString::to_string)
                 .collect::<Vec<_>>()
                 .join(", ")
         );
