@@ -14,6 +14,8 @@
 //!   other than the defaults; `VOLTRACK_FRAMES`: each take cut to its first
 //!   frames; `VOLTRACK_RECLAIM=0` (`--reclaim off`),
 //!   `VOLTRACK_ABSOLUTE_IRREGULARITY=1` (`--absolute-irregularity`);
+//!   `VOLTRACK_THRESHOLD`, `VOLTRACK_CONVERGENCE_WINDOW` (`--threshold`,
+//!   `--convergence-window`);
 //!   `VOLTRACK_REFERENCE`: `first`, `middle` (each take's middle frame),
 //!   `auto-middle` (of the frames `auto` would choose among, the one
 //!   nearest the middle) or a frame number (`--reference`; default `auto`);
@@ -74,6 +76,7 @@ fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
 fn main() {
     let which = std::env::var("VOLTRACK_FAMILY").unwrap_or_else(|_| "all".into());
     let mut options = ConvertOptions::default();
+    let defaults = options.track.clone();
     options.track.seed = env("VOLTRACK_SEED").unwrap_or(0);
     if let Some(r) = env("VOLTRACK_RESOLUTION") {
         options.voxel.resolution = r;
@@ -87,6 +90,12 @@ fn main() {
     if env::<u8>("VOLTRACK_RECLAIM") == Some(0) {
         options.track.reclaim = false;
     }
+    if let Some(t) = env("VOLTRACK_THRESHOLD") {
+        options.track.threshold = t;
+    }
+    if let Some(w) = env("VOLTRACK_CONVERGENCE_WINDOW") {
+        options.track.convergence_window = w;
+    }
     if env::<u8>("VOLTRACK_ABSOLUTE_IRREGULARITY") == Some(1) {
         options
             .refine
@@ -98,7 +107,7 @@ fn main() {
         .ok()
         .map(|p| std::fs::File::create(p).expect("creating the JSON file"));
     println!(
-        "family at resolution {}, {} centers, seed {}, threads {}{}{}",
+        "family at resolution {}, {} centers, seed {}, threads {}{}{}{}",
         options.voxel.resolution,
         options.track.centers,
         options.track.seed,
@@ -116,6 +125,16 @@ fn main() {
             ", absolute irregularity"
         } else {
             ""
+        },
+        if (options.track.threshold, options.track.convergence_window)
+            == (defaults.threshold, defaults.convergence_window)
+        {
+            String::new()
+        } else {
+            format!(
+                ", threshold {:e}, convergence window {}",
+                options.track.threshold, options.track.convergence_window
+            )
         }
     );
     println!(

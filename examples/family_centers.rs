@@ -11,7 +11,8 @@
 //! by more than 10 voxels, and the worst part's median error in its worst
 //! frame. `VOLTRACK_SEED`, `VOLTRACK_RESOLUTION`, `VOLTRACK_CENTERS`,
 //! `VOLTRACK_REFINE=1` (refine before measuring), `VOLTRACK_FRAMES=1` (a
-//! line per frame too).
+//! line per frame too), `VOLTRACK_THRESHOLD`, `VOLTRACK_CONVERGENCE_WINDOW`
+//! (the tracker's `--threshold`, `--convergence-window`).
 
 use voltrack::fixtures::family::{build, family, TakeSpec};
 use voltrack::math::Real;
@@ -51,10 +52,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ..Default::default()
         };
         let seq = voxelize_sequence(&take.meshes, &voxel, Default::default())?;
+        let defaults = TrackParams::default();
         let params = TrackParams {
             seed: env("VOLTRACK_SEED").unwrap_or(0),
             centers: env("VOLTRACK_CENTERS").unwrap_or(1000),
-            ..Default::default()
+            threshold: env("VOLTRACK_THRESHOLD").unwrap_or(defaults.threshold),
+            convergence_window: env("VOLTRACK_CONVERGENCE_WINDOW")
+                .unwrap_or(defaults.convergence_window),
+            ..defaults
         };
         let clock = std::time::Instant::now();
         let tracked = voltrack::track::track(&seq, &params, Default::default())?;
