@@ -645,13 +645,18 @@ impl<'a> Tracker<'a> {
         let Some(capacity) = &self.capacity else {
             return Some(run);
         };
+        // The starved centers and the volume no kept cell carries, of the
+        // run kept so far: a kept round's are those its check measured.
+        let stats = self.refresh(&mut run);
+        let mut starved = capacity.starved(&stats, run.cells.owners.len());
+        if !starved.contains(&true) {
+            return Some(run);
+        }
+        let mut uncarried = self.uncarried(&run.cur, &starved, fits, &run.cells);
         for _ in 0..MAX_RECLAIMS {
-            let stats = self.refresh(&mut run);
-            let starved = capacity.starved(&stats, run.cells.owners.len());
             if !starved.contains(&true) {
                 break;
             }
-            let uncarried = self.uncarried(&run.cur, &starved, fits, &run.cells);
             let claims =
                 capacity.claims(&run.cur, &starved, &uncarried, |i| self.affinity.pairs(i));
             if claims.is_empty() {
@@ -670,21 +675,20 @@ impl<'a> Tracker<'a> {
             trial.converged = false;
             self.iterate(&mut trial, prev, fits, self.threshold2, progress)?;
             let stats = self.refresh(&mut trial);
-            let starved = capacity.starved(&stats, trial.cells.owners.len());
-            let after = self
-                .uncarried(&trial.cur, &starved, fits, &trial.cells)
-                .len();
+            let starved_after = capacity.starved(&stats, trial.cells.owners.len());
+            let after = self.uncarried(&trial.cur, &starved_after, fits, &trial.cells);
             log::debug!(
-                "reclaim: {} starved centers turned, uncarried voxels {} -> {after}",
+                "reclaim: {} starved centers turned, uncarried voxels {} -> {}",
                 claims.len(),
-                uncarried.len()
+                uncarried.len(),
+                after.len()
             );
             run.timing.add_dropped(&FrameTiming {
                 iterations: trial.timing.iterations - run.timing.iterations,
                 ..Default::default()
             });
-            if (after as Real) < RECLAIM_GAIN * uncarried.len() as Real {
-                run = trial;
+            if (after.len() as Real) < RECLAIM_GAIN * uncarried.len() as Real {
+                (run, starved, uncarried) = (trial, starved_after, after);
             } else {
                 break;
             }
