@@ -10,6 +10,8 @@
 //! - `VOLTRACK_FAMILY`: `all` (default), `dev` (the takes tuning may look
 //!   at), `held-out` (the others), or names (prefixes), comma-separated;
 //! - `VOLTRACK_SEED`: the conversion's seed (`--seed`), default 0;
+//!   `VOLTRACK_ATTEMPTS`: `--attempts`, default 2 (a row ends with the seeds
+//!   tried when there were more than one);
 //! - `VOLTRACK_RESOLUTION`, `VOLTRACK_CENTERS`, `VOLTRACK_CONFORM_ITERATIONS`:
 //!   other than the defaults; `VOLTRACK_FRAMES`: each take cut to its first
 //!   frames; `VOLTRACK_RECLAIM=0` (`--reclaim off`),
@@ -28,7 +30,7 @@ use voltrack::deform::segments::most_separate_near_middle;
 use voltrack::fixtures::family::{build, family, score_stretches, stretches, TakeSpec};
 use voltrack::metrics::coverage::runs;
 use voltrack::params::Reference;
-use voltrack::pipeline::{convert, ConvertOptions, Measurements};
+use voltrack::pipeline::{convert, ConvertOptions};
 
 /// A take is within bounds when its correspondence maximum is at most this.
 const MAX_BOUND: f64 = 8.0;
@@ -78,6 +80,9 @@ fn main() {
     let mut options = ConvertOptions::default();
     let defaults = options.track.clone();
     options.track.seed = env("VOLTRACK_SEED").unwrap_or(0);
+    if let Some(a) = env("VOLTRACK_ATTEMPTS") {
+        options.attempts = a;
+    }
     if let Some(r) = env("VOLTRACK_RESOLUTION") {
         options.voxel.resolution = r;
     }
@@ -107,10 +112,11 @@ fn main() {
         .ok()
         .map(|p| std::fs::File::create(p).expect("creating the JSON file"));
     println!(
-        "family at resolution {}, {} centers, seed {}, threads {}{}{}{}",
+        "family at resolution {}, {} centers, seed {}, attempts {}, threads {}{}{}{}",
         options.voxel.resolution,
         options.track.centers,
         options.track.seed,
+        options.attempts,
         rayon::current_num_threads(),
         if options.track.reclaim {
             ""
@@ -172,11 +178,8 @@ fn main() {
         };
         let clock = Instant::now();
         let conv = convert(&take.meshes, &options, Default::default()).expect("converting");
-        let (fit, outliers) = Measurements::fit_of(&conv, &take.meshes, Default::default())
-            .expect("measuring the fit");
         let seconds = clock.elapsed().as_secs_f64();
-        let lost = voltrack::pipeline::lost_parts(&conv, Some((&fit, &outliers)));
-        let warned = lost.flagged.clone();
+        let warned = conv.lost_parts().flagged;
         let result = conv.mesh.frames.to_vec().expect("reading the result");
         let s = score_stretches(
             &stretches(&conv.segments, &take.meshes, |r| take.truth_from(r)),
@@ -209,6 +212,19 @@ fn main() {
             } + &match conv.mesh.reference {
                 0 => String::new(),
                 r => format!("  reference {r}"),
+            } + &if conv.attempts.len() > 1 {
+                let tried: Vec<String> = conv
+                    .attempts
+                    .iter()
+                    .map(|a| format!("{} ({} warned)", a.seed, a.warned.len()))
+                    .collect();
+                format!(
+                    "  seeds {}, kept {}",
+                    tried.join(", "),
+                    conv.attempts[conv.kept].seed
+                )
+            } else {
+                String::new()
             }
         );
         std::io::stdout().flush().ok();
@@ -245,7 +261,7 @@ fn main() {
                 "per_frame_mean": s.per_frame_mean, "worst_part": s.worst_part,
                 "far_thresholds": FAR_PROFILE, "far_profile": profile,
                 "coverage": conv.coverage.frames.iter().map(|c| c.lost_share).collect::<Vec<_>>(),
-                "fit_p95": outliers.p95,
+                "fit_p95": conv.fit_outliers.p95, "attempts": conv.attempts, "kept": conv.kept,
             });
             writeln!(out, "{line}").expect("writing the JSON file");
         }

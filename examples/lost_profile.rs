@@ -11,7 +11,7 @@
 //! evaluate.py.
 
 use voltrack::metrics::{fit::far_profile, Surface};
-use voltrack::pipeline::{convert, ConvertOptions, Measurements};
+use voltrack::pipeline::{convert, ConvertOptions};
 
 /// Distances (percent of the diagonal) the far regions are measured at.
 const DISTANCES: [f64; 5] = [1.0, 1.5, 2.0, 3.0, 5.0];
@@ -20,8 +20,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for dir in std::env::args().skip(1) {
         let source = voltrack::io::FrameFiles::discover(&[dir.clone().into()])?;
         let conv = convert(&source, &ConvertOptions::default(), Default::default())?;
-        let (fit, outliers) = Measurements::fit_of(&conv, &source, Default::default())?;
-        let lost = voltrack::pipeline::lost_parts(&conv, Some((&fit, &outliers)));
+        let lost = conv.lost_parts();
         if let Ok(out) = std::env::var("VOLTRACK_GLB_DIR") {
             let name = std::path::Path::new(&dir)
                 .file_name()

@@ -142,7 +142,7 @@ fn the_score_measures_against_the_truth() {
 /// `cargo bench --bench family`.
 #[test]
 fn a_subset_converts_within_bounds_and_every_lost_frame_is_warned() {
-    use voltrack::pipeline::{convert, ConvertOptions, Measurements};
+    use voltrack::pipeline::{convert, ConvertOptions};
     let mut options = ConvertOptions::default();
     options.voxel.resolution = 128;
     options.track.centers = 500;
@@ -157,9 +157,7 @@ fn a_subset_converts_within_bounds_and_every_lost_frame_is_warned() {
         let spec = family().into_iter().find(|s| s.name == name).unwrap();
         let take = build(&short(&spec, 24));
         let conv = convert(&take.meshes, &options, Default::default()).unwrap();
-        let (fit, outliers) =
-            Measurements::fit_of(&conv, &take.meshes, Default::default()).unwrap();
-        let warned = voltrack::pipeline::lost_parts(&conv, Some((&fit, &outliers))).flagged;
+        let warned = conv.lost_parts().flagged;
         let s = score(
             &take,
             conv.mesh.reference,

@@ -71,8 +71,8 @@ fn pieces(mesh: &TriangleMesh) -> usize {
 
 /// The largest distance from the result to the input in each frame, % of
 /// the diagonal.
-fn worst_fit(conv: &Conversion, input: &dyn voltrack::model::FrameSource) -> Vec<Real> {
-    let measured = Measurements::of(conv, input, Progress::none()).unwrap();
+fn worst_fit(conv: &Conversion) -> Vec<Real> {
+    let measured = Measurements::of(conv).unwrap();
     measured
         .fit
         .frames
@@ -102,7 +102,7 @@ fn auto_deforms_the_first_frame_where_the_parts_are_apart() {
     let first = convert(&input, &options(Reference::First), Progress::none()).unwrap();
     assert_eq!(first.tracked.reference.frame, 0);
     assert_eq!(pieces(&first.mesh.base), 1);
-    let (auto_fit, first_fit) = (worst_fit(&auto, &input), worst_fit(&first, &input));
+    let (auto_fit, first_fit) = (worst_fit(&auto), worst_fit(&first));
     let last = PARTING_FRAMES - 1;
     eprintln!("largest distance to the input per frame, % of the diagonal:\n  from frame 0: {first_fit:.3?}\n  from frame {r}: {auto_fit:.3?}");
     // Frame 0's mesh stretches a membrane from the slab to the ball once they
@@ -175,14 +175,14 @@ fn segments_give_the_merged_frames_a_mesh_of_their_own() {
         &conv.mesh.frames.get(b).unwrap()[na..],
         &input[b].positions[..]
     );
-    let fit = worst_fit(&conv, &input);
+    let fit = worst_fit(&conv);
     let one = convert(
         &input,
         &with_segments(Reference::Auto, false),
         Progress::none(),
     )
     .unwrap();
-    let one_fit = worst_fit(&one, &input);
+    let one_fit = worst_fit(&one);
     eprintln!("largest distance per frame, segments: {fit:.3?}\n  one mesh: {one_fit:.3?}");
     // The merged frames no longer keep the ball's and the slab's surfaces
     // inside the merged volume; the others are as before.
@@ -227,7 +227,7 @@ fn a_ball_held_thrown_and_caught_is_three_segments_cut_where_it_leaves_and_lands
     assert!(cuts[2].0.abs_diff(THROWN_CAUGHT) <= 2, "{cuts:?}");
     // Tracked from the first frame where the ball is in the air.
     assert_eq!(conv.trajectories.reference, cuts[1].0);
-    let fit = worst_fit(&conv, &input);
+    let fit = worst_fit(&conv);
     eprintln!(
         "thrown: segments {:?}, largest distance per frame: {fit:.3?}",
         conv.segments

@@ -49,7 +49,18 @@ fn single_guess(centers: usize) -> TrackParams {
     }
 }
 
+/// One conversion (`attempts: 1`): the tests of the detector need the
+/// placement that loses the leg, not the attempt that keeps it.
 fn convert_with(name: &str, resolution: usize, track: TrackParams) -> (Conversion, Measurements) {
+    convert_attempts(name, resolution, track, 1)
+}
+
+fn convert_attempts(
+    name: &str,
+    resolution: usize,
+    track: TrackParams,
+    attempts: usize,
+) -> (Conversion, Measurements) {
     let files = voltrack::io::FrameFiles::discover(&[fixture(name)]).unwrap();
     let voxel = VoxelParams {
         resolution,
@@ -65,12 +76,13 @@ fn convert_with(name: &str, resolution: usize, track: TrackParams) -> (Conversio
             conform: Default::default(),
             checkpoint: None,
             measure_tracked: true,
+            attempts,
             ..Default::default()
         },
         Progress::none(),
     )
     .unwrap();
-    let measured = Measurements::of(&conv, &files, Progress::none()).unwrap();
+    let measured = Measurements::of(&conv).unwrap();
     (conv, measured)
 }
 
@@ -192,9 +204,7 @@ fn coverage_flags_a_leg_whose_centers_stayed_behind() {
 fn the_detector_flags_the_frames_where_the_tracker_loses_the_leg() {
     let (conv, measured) = convert_with("swinging_leg", 48, single_guess(150));
     let errors = leg_errors(&conv.trajectories, conv.sequence.grid.voxel_size);
-    let flagged =
-        voltrack::pipeline::lost_parts(&conv, Some((&measured.fit, &measured.fit_outliers)))
-            .flagged;
+    let flagged = conv.lost_parts().flagged;
     for (f, (mean, max)) in errors.iter().enumerate() {
         eprintln!(
             "frame {f}: leg centers off by {mean:.1} (max {max:.1}) voxels; lost volume {:.2} %, fit p95 {:.2} %",
@@ -275,6 +285,44 @@ fn the_tracker_keeps_the_swinging_leg() {
         "a center of the leg strays {worst:.1} voxels from the leg's motion"
     );
     assert!(conv.coverage.flagged.is_empty());
+}
+
+/// Each attempt is the conversion its seed gives alone; the result kept is
+/// the one warned of the fewest frames (the first on a tie), and the
+/// attempts stop at the first that warns of none.
+#[test]
+fn the_attempt_warned_of_the_fewest_frames_is_kept() {
+    let track = |seed| TrackParams {
+        seed,
+        ..single_guess(150)
+    };
+    let (conv, _) = convert_attempts("swinging_leg", 48, track(0), 3);
+    let seeds: Vec<u64> = conv.attempts.iter().map(|a| a.seed).collect();
+    eprintln!("attempts {:?}, kept {}", conv.attempts, conv.kept);
+    assert_eq!(seeds, (0..seeds.len() as u64).collect::<Vec<_>>());
+    assert!(
+        !conv.attempts[0].warned.is_empty(),
+        "the paper's single guess kept the leg at seed 0: give this test a placement that loses it"
+    );
+    for (k, attempt) in conv.attempts.iter().enumerate() {
+        let (alone, _) = convert_with("swinging_leg", 48, track(attempt.seed));
+        assert_eq!(attempt.warned, alone.lost_parts().flagged, "attempt {k}");
+        let last = k + 1 == conv.attempts.len();
+        assert!(
+            last || !attempt.warned.is_empty(),
+            "attempt {k} warned of none yet was not the last"
+        );
+    }
+    assert!(conv.attempts.len() == 3 || conv.attempts.last().unwrap().warned.is_empty());
+    let fewest = conv.attempts.iter().map(|a| a.warned.len()).min().unwrap();
+    let first_fewest = conv
+        .attempts
+        .iter()
+        .position(|a| a.warned.len() == fewest)
+        .unwrap();
+    assert_eq!(conv.kept, first_fewest);
+    assert_eq!(conv.lost_parts().flagged, conv.attempts[conv.kept].warned);
+    assert_eq!(conv.seed(), conv.attempts[conv.kept].seed);
 }
 
 /// The bending bar tracks well: no frame is flagged.
@@ -371,6 +419,8 @@ fn convert_warns_after_its_summary_and_the_report_marks_the_frames() {
         "--single-guess",
         "--reclaim",
         "off",
+        "--attempts",
+        "1",
         "-o",
         "out.glb",
         "--report",
@@ -408,6 +458,8 @@ fn convert_warns_after_its_summary_and_the_report_marks_the_frames() {
             "--single-guess",
             "--reclaim",
             "off",
+            "--attempts",
+            "1",
             "-o",
             "plain.glb",
         ],

@@ -587,75 +587,48 @@ fn convert(args: ConvertArgs) -> Result<()> {
         coverage: CoverageParams::default(),
         checkpoint: plan.checkpoint.clone(),
         measure_tracked: args.report.is_some(),
+        attempts: args.attempts,
     };
     let conv = pipeline::convert(source, &options, bars.progress())?;
-    // Measured before the output is written: a frame that cannot be read
-    // again (or changed) fails the run with an earlier output still in place.
     let measured = match &args.report {
-        Some(_) => Some(pipeline::Measurements::of(&conv, source, bars.progress())?),
+        Some(_) => Some(pipeline::Measurements::of(&conv)?),
         None => None,
-    };
-    let fit_only = match (&measured, plan.format) {
-        // Trajectories alone: the mesh was not fitted and is not written.
-        (None, OutputFormat::Exr) => None,
-        (None, _) => Some(pipeline::Measurements::fit_of(
-            &conv,
-            source,
-            bars.progress(),
-        )?),
-        (Some(_), _) => None,
     };
     let clock = std::time::Instant::now();
     bars.progress().report(Stage::Export, 0, 1);
     let out = &args.output;
-    // The fit is measured before every GLB is written.
-    let fit = measured
-        .as_ref()
-        .map(|m| &m.fit)
-        .or(fit_only.as_ref().map(|f| &f.0));
-    let mut written = write_output(&args, &plan, &conv, fit, bars.progress())?;
+    let mut written = write_output(&args, &plan, &conv, &conv.fit, bars.progress())?;
     bars.progress().report(Stage::Export, 1, 1);
     let mut seconds = conv.seconds.clone();
-    if let Some(s) = measured
-        .as_ref()
-        .map(|m| m.fit.seconds)
-        .or(fit_only.as_ref().map(|f| f.0.seconds))
-    {
-        seconds.push((Stage::Fit, s));
-    }
     seconds.push((Stage::Export, clock.elapsed().as_secs_f64()));
-    let fit = match (&args.report, measured) {
-        (Some(path), Some(measured)) => {
-            // Arguments need not be UTF-8 (file names): shown as well as they can be.
-            let command = std::env::args_os()
-                .map(|a| a.to_string_lossy().into_owned())
-                .collect::<Vec<_>>()
-                .join(" ");
-            let report = report::ReportInput {
-                seconds: &seconds,
-                output: Some(out),
-                output_bytes: Some(output_size(out)),
-                gltf: written.gltf.as_ref(),
-                command: Some(&command),
-                ..report::ReportInput::new(
-                    &conv,
-                    &measured,
-                    source.paths(),
-                    &plan.voxel,
-                    &plan.track,
-                    plan.refine.as_ref(),
-                    &plan.deform,
-                    &plan.conform,
-                )
-            };
-            report::write_report(path, &report)?;
-            written.notes.push(format!("report: {}", path.display()));
-            Some((measured.fit, measured.fit_outliers))
-        }
-        _ => fit_only,
-    };
+    if let (Some(path), Some(measured)) = (&args.report, measured) {
+        // Arguments need not be UTF-8 (file names): shown as well as they can be.
+        let command = std::env::args_os()
+            .map(|a| a.to_string_lossy().into_owned())
+            .collect::<Vec<_>>()
+            .join(" ");
+        let report = report::ReportInput {
+            seconds: &seconds,
+            output: Some(out),
+            output_bytes: Some(output_size(out)),
+            gltf: written.gltf.as_ref(),
+            command: Some(&command),
+            ..report::ReportInput::new(
+                &conv,
+                &measured,
+                source.paths(),
+                &plan.voxel,
+                &plan.track,
+                plan.refine.as_ref(),
+                &plan.deform,
+                &plan.conform,
+            )
+        };
+        report::write_report(path, &report)?;
+        written.notes.push(format!("report: {}", path.display()));
+    }
     bars.finish();
-    print_conversion(&args, &plan, &conv, &seconds, fit.as_ref(), written)
+    print_conversion(&args, &plan, &conv, &seconds, written)
 }
 
 /// What `convert` checked before reading a frame, and what it will run with.
@@ -689,6 +662,13 @@ fn convert_plan(args: &ConvertArgs) -> Result<ConvertPlan> {
     }
     deform.validate()?;
     conform.validate()?;
+    if !(1..=100).contains(&args.attempts) {
+        return Err(voltrack::Error::InvalidParameter(format!(
+            "--attempts must be in 1..=100, got {}",
+            args.attempts
+        ))
+        .into());
+    }
     if let Some(name) = &args.name {
         voltrack::model::check_name(name)?;
     }
@@ -750,7 +730,7 @@ fn write_output(
     args: &ConvertArgs,
     plan: &ConvertPlan,
     conv: &pipeline::Conversion,
-    fit: Option<&voltrack::metrics::SequenceFit>,
+    fit: &voltrack::metrics::SequenceFit,
     progress: voltrack::Progress,
 ) -> Result<Written> {
     let (out, name, format) = (&args.output, &plan.name, plan.format);
@@ -772,11 +752,16 @@ fn write_output(
                 .as_ref()
                 .map(|r| r.removed.clone())
                 .unwrap_or_default();
+            // The seed the kept attempt was tracked with.
+            let track = voltrack::params::TrackParams {
+                seed: conv.seed(),
+                ..track.clone()
+            };
             let meta = pipeline::trajectory_metadata(
                 &conv.sequence,
                 &conv.trajectories,
                 voxel,
-                track,
+                &track,
                 refine.as_ref().map(|r| (r, removed.as_slice())),
             );
             voltrack::export::exr::write_trajectories_exr(out, &conv.trajectories, &meta)?;
@@ -822,7 +807,7 @@ fn write_gltf(
     format: OutputFormat,
     conv: &pipeline::Conversion,
     source: &FrameFiles,
-    fit: Option<&voltrack::metrics::SequenceFit>,
+    fit: &voltrack::metrics::SequenceFit,
     name: &str,
     progress: voltrack::Progress,
 ) -> Result<(voltrack::export::gltf::GltfExportReport, Vec<String>)> {
@@ -843,9 +828,9 @@ fn write_gltf(
         frame_names,
         // The sizes and errors of the bases tried, for --json and the report.
         rate_distortion: args.json || args.report.is_some(),
-        ..args.gltf_options(name.to_string(), fit)
+        ..args.gltf_options(name.to_string(), Some(fit))
     };
-    let fit_summary = fit.map(|f| (f.summary(), f.diagonal));
+    let s = fit.summary();
     let bounded = args.basis_by_fit();
     let write = if format == OutputFormat::Gltf {
         voltrack::export::gltf::write_dynamic_gltf
@@ -855,12 +840,8 @@ fn write_gltf(
     let report = write(out, &conv.mesh, &gltf, progress)?;
     // The basis' error in percent of the fit's diagonal, as the fit.
     let animation = conv.mesh.frames.bounds()?.diagonal();
-    let as_fit = |e: Real| {
-        fit_summary.map_or(100.0 * e, |(_, d)| {
-            100.0 * e * animation / d.max(Real::MIN_POSITIVE)
-        })
-    };
-    if let (Some(k), Some((s, _))) = (report.basis, fit_summary) {
+    let as_fit = |e: Real| 100.0 * e * animation / fit.diagonal.max(Real::MIN_POSITIVE);
+    if let Some(k) = report.basis {
         let (mean, max) = (
             as_fit(report.reconstruction_error_mean),
             as_fit(report.reconstruction_error_max),
@@ -929,10 +910,6 @@ fn print_conversion(
     plan: &ConvertPlan,
     conv: &pipeline::Conversion,
     seconds: &[(Stage, f64)],
-    fit: Option<&(
-        voltrack::metrics::SequenceFit,
-        voltrack::metrics::FitOutliers,
-    )>,
     written: Written,
 ) -> Result<()> {
     let (out, name, format, voxel) = (&args.output, &plan.name, plan.format, &plan.voxel);
@@ -958,7 +935,7 @@ fn print_conversion(
         format,
         OutputFormat::Glb | OutputFormat::Gltf | OutputFormat::Vat | OutputFormat::Pc2
     );
-    let lost = pipeline::lost_parts(conv, fit.as_ref().map(|f| (&f.0, &f.1)));
+    let lost = conv.lost_parts();
     let warnings = lost.warnings();
     if args.json {
         let mut stages: serde_json::Map<String, serde_json::Value> = seconds
@@ -991,8 +968,10 @@ fn print_conversion(
             "removed": conv.refined.as_ref().map(|r| &r.removed),
             "seconds": stages,
             // In percent of the input's bounding-box diagonal, as printed.
-            "fit_percent": fit.as_ref().map(|f| f.0.summary()),
-            "fit_outliers": fit.as_ref().map(|f| &f.1),
+            "fit_percent": conv.fit.summary(),
+            "fit_outliers": &conv.fit_outliers,
+            "seed": conv.seed(),
+            "attempts": &conv.attempts,
             "coverage": &conv.coverage,
             "lost_parts": &lost,
             "warnings": warnings.iter().map(|w| &w.message).collect::<Vec<_>>(),
@@ -1057,13 +1036,14 @@ fn print_conversion(
         );
     }
     println!("  {:>9} {:>8.2} s", "total", total);
-    if let Some((fit, _)) = &fit {
-        let s = fit.summary();
-        println!(
-            "fit to the input: mean {:.3} %, p95 {:.3} %, max {:.3} % of the diagonal",
-            s.mean, s.p95, s.max
-        );
+    if conv.attempts.len() > 1 {
+        println!("{}", attempts_text(conv));
     }
+    let s = conv.fit.summary();
+    println!(
+        "fit to the input: mean {:.3} %, p95 {:.3} %, max {:.3} % of the diagonal",
+        s.mean, s.p95, s.max
+    );
     for n in notes {
         println!("{n}");
     }
@@ -1077,6 +1057,20 @@ fn print_conversion(
         println!("{}", w.message);
     }
     Ok(())
+}
+
+/// The attempts in a line: `seeds tried: 0 (12 frames warned of), 1 (3); kept seed 1`.
+pub(crate) fn attempts_text(conv: &pipeline::Conversion) -> String {
+    let each = conv
+        .attempts
+        .iter()
+        .map(|a| format!("{} ({} frames warned of)", a.seed, a.warned.len()))
+        .collect::<Vec<_>>()
+        .join(", ");
+    format!(
+        "seeds tried: {each}; kept seed {}, warned of the fewest (the first on a tie)",
+        conv.seed()
+    )
 }
 
 /// The segments in a line: `frames 0-17 from 0 (2 parts), …`.

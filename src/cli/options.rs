@@ -397,6 +397,9 @@ pub struct ConvertArgs {
     pub vat_power_of_two: bool,
     #[command(flatten, next_help_heading = "Tracking")]
     pub track: TrackArgs,
+    /// Conversions at most, each with the next seed, while the result warns of a lost part; the one warned of the fewest frames is kept (1: convert once) (range: 1..=100)
+    #[arg(long, default_value_t = voltrack::pipeline::ConvertOptions::default().attempts, help_heading = "Tracking")]
+    pub attempts: usize,
     /// Skip irregular-center removal and the global optimisation
     #[arg(long, conflicts_with_all = ["remove", "batches", "no_optimise", "beta_hat", "rho_gp", "rho_gm", "global_iterations"], help_heading = "Refinement")]
     pub no_refine: bool,

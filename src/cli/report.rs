@@ -333,6 +333,18 @@ fn input_html(input: &ReportInput) -> String {
                 "one: the parts neither merge nor part".into()
             },
         ),
+        (
+            "Seed",
+            if conv.attempts.len() > 1 {
+                escape(&super::attempts_text(conv))
+            } else {
+                format!(
+                    "{}, warned of {} frames",
+                    conv.attempts[0].seed,
+                    conv.attempts[0].warned.len()
+                )
+            },
+        ),
         ("Vertices", conv.mesh.base.positions.len().to_string()),
         ("Triangles", conv.mesh.base.triangles.len().to_string()),
         (
@@ -585,10 +597,7 @@ fn warning_html(input: &ReportInput) -> String {
 
 /// The frames where the conversion may have lost a part.
 fn lost_parts(input: &ReportInput) -> voltrack::metrics::LostParts {
-    voltrack::pipeline::lost_parts(
-        input.conversion,
-        Some((&input.measurements.fit, &input.measurements.fit_outliers)),
-    )
+    input.conversion.lost_parts()
 }
 
 /// `s` with its first letter upper case.

@@ -65,7 +65,7 @@ fn report_of_a_conversion() {
         Progress::none(),
     )
     .unwrap();
-    let measured = Measurements::of(&conv, &files, Progress::none()).unwrap();
+    let measured = Measurements::of(&conv).unwrap();
 
     // The fit: frame 0 is the input mesh itself; later frames are close (the
     // bar bends by up to 0.84 rad) but not exact.
@@ -343,7 +343,7 @@ fn report_of_a_conversion() {
         Progress::none(),
     )
     .unwrap();
-    let measured = Measurements::of(&conv, &files, Progress::none()).unwrap();
+    let measured = Measurements::of(&conv).unwrap();
     assert!(measured.refined.is_none());
     let html = report_html(&ReportInput::new(
         &conv,

@@ -117,10 +117,9 @@ pub struct Measurements {
 impl Measurements {
     /// Measures `conv`, made with [`ConvertOptions::measure_tracked`] (the
     /// forward-tracked trajectories were measured when tracked): the refined
-    /// trajectories by assigning cells in every frame again, and the fit of
-    /// the dynamic mesh to each input frame, read again from `source` one at
-    /// a time (progress is reported as `Stage::Fit`, one step per frame).
-    pub fn of(conv: &Conversion, source: &dyn FrameSource, progress: Progress) -> Result<Self> {
+    /// trajectories by assigning cells in every frame again; the fit is
+    /// the one `convert` measured.
+    pub fn of(conv: &Conversion) -> Result<Self> {
         let tracked = conv.tracked.quality.clone().ok_or_else(|| {
             Error::InvalidParameter("the conversion did not measure its forward-tracked trajectories: set ConvertOptions::measure_tracked".into())
         })?;
@@ -128,7 +127,7 @@ impl Measurements {
             .refined
             .as_ref()
             .map(|_| measure(&conv.trajectories, &conv.sequence));
-        let (fit, fit_outliers) = Self::fit_of(conv, source, progress)?;
+        let (fit, fit_outliers) = (conv.fit.clone(), conv.fit_outliers.clone());
         Ok(Measurements {
             tracked,
             refined,
@@ -136,39 +135,6 @@ impl Measurements {
             fit_outliers,
         })
     }
-
-    /// The result's fit to every input frame and the frames fitted far worse
-    /// than the rest: the part of [`Measurements::of`] every conversion's
-    /// summary shows, since a lost part often leaves no input volume empty.
-    pub fn fit_of(
-        conv: &Conversion,
-        source: &dyn FrameSource,
-        progress: Progress,
-    ) -> Result<(SequenceFit, FitOutliers)> {
-        let params = &conv.coverage.params;
-        let diagonal = conv.sequence.bounds.diagonal();
-        let far = params.far_distances(diagonal, conv.sequence.grid.voxel_size);
-        let fit = fit_to_input(
-            &conv.mesh,
-            source,
-            diagonal,
-            far,
-            Some(&conv.sequence),
-            progress,
-        )?;
-        let exact: Vec<usize> = conv.segments.iter().map(|s| s.reference).collect();
-        let outliers = fit_outliers(&fit, &exact, params)?;
-        Ok((fit, outliers))
-    }
-}
-
-/// The frames where `conv` may have lost a part: from its unreached volume
-/// and, when measured ([`Measurements::fit_of`]), its fit to the input.
-pub fn lost_parts(
-    conv: &Conversion,
-    fit: Option<(&SequenceFit, &FitOutliers)>,
-) -> crate::metrics::LostParts {
-    crate::metrics::lost_parts(&conv.coverage, fit)
 }
 
 /// What forward tracking gave besides the trajectories, which refinement
@@ -220,9 +186,40 @@ pub struct Conversion {
     /// Input volume the final centers' cells do not reach, per frame, at
     /// [`ConvertOptions::coverage`]: frames where a part was lost.
     pub coverage: Coverage,
-    /// Seconds each stage took in this run (a resumed run's, not the
-    /// interrupted one's before it).
+    /// The mesh's fit to every input frame, read again from the source.
+    pub fit: SequenceFit,
+    /// The frames fitted far worse than the rest.
+    pub fit_outliers: FitOutliers,
+    /// Every attempt made ([`ConvertOptions::attempts`]), in order: this
+    /// result is `attempts[kept]`'s.
+    pub attempts: Vec<Attempt>,
+    /// Which of `attempts` this result is.
+    pub kept: usize,
+    /// Seconds each stage took in this run, summed over the attempts (a
+    /// resumed run's, not the interrupted one's before it).
     pub seconds: Vec<(Stage, f64)>,
+}
+
+/// One conversion of the input with one seed, and what it warned of.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Attempt {
+    /// The center placement's seed ([`TrackParams::seed`]).
+    pub seed: u64,
+    /// The frames where it may have lost a part ([`Conversion::lost_parts`]).
+    pub warned: Vec<usize>,
+}
+
+impl Conversion {
+    /// The seed this result was tracked with: the kept attempt's.
+    pub fn seed(&self) -> u64 {
+        self.attempts[self.kept].seed
+    }
+
+    /// The frames where this result may have lost a part, from its
+    /// unreached volume and its fit to the input.
+    pub fn lost_parts(&self) -> crate::metrics::LostParts {
+        crate::metrics::lost_parts(&self.coverage, Some((&self.fit, &self.fit_outliers)))
+    }
 }
 
 /// The options of every stage of [`convert`].
@@ -245,6 +242,15 @@ pub struct ConvertOptions {
     /// 3F × N matrix and its eigen-decomposition, which a conversion does
     /// not otherwise need. Default false.
     pub measure_tracked: bool,
+    /// How many conversions to make at most, each with the next seed
+    /// ([`TrackParams::seed`] + 0, 1, ...), while every one so far warns of a
+    /// lost part; the one that warns of the fewest frames is kept (the
+    /// first on a tie). Where a thin part is lost, whether it is turns on
+    /// where the centers were placed, and the warnings, which need no
+    /// ground truth, tell the draws apart. A take that warns of nothing is
+    /// converted once. Default 2; at least 1. Only the first attempt saves
+    /// to and resumes from `checkpoint`.
+    pub attempts: usize,
 }
 
 impl Default for ConvertOptions {
@@ -258,6 +264,7 @@ impl Default for ConvertOptions {
             coverage: CoverageParams::default(),
             checkpoint: None,
             measure_tracked: false,
+            attempts: 2,
         }
     }
 }
@@ -266,12 +273,20 @@ impl Default for ConvertOptions {
 /// given), refine, deform and conform to the input surfaces: the whole
 /// pipeline up to export, reading the frames of `source` as each stage
 /// needs them.
+///
+/// Converts again with the next seed while the result warns of a lost part,
+/// up to [`ConvertOptions::attempts`] times, and keeps the result that
+/// warns of the fewest frames; the input is voxelised once.
 pub fn convert(
     source: &dyn FrameSource,
     options: &ConvertOptions,
     progress: Progress,
 ) -> Result<Conversion> {
-    let checkpoint = options.checkpoint.as_ref();
+    if options.attempts == 0 {
+        return Err(Error::InvalidParameter(
+            "attempts must be at least 1".into(),
+        ));
+    }
     crate::model::PositionFrames::check_temporary_folder()?;
     let sequence = voxelize_sequence(source, &options.voxel, progress)?;
     if sequence.first_mesh.is_none() {
@@ -284,9 +299,87 @@ pub fn convert(
         (Stage::Read, sequence.read_seconds),
         (Stage::Voxelize, sequence.voxelize_seconds),
     ];
+    let mut attempts: Vec<Attempt> = Vec::new();
+    let mut kept: Option<Conversion> = None;
+    let mut sequence = Some(sequence);
+    for k in 0..options.attempts {
+        // Voxelised once: the last attempt takes the sequence, the others a copy.
+        let voxels = if k + 1 < options.attempts {
+            sequence.clone()
+        } else {
+            sequence.take()
+        }
+        .expect("the attempts stop after the last");
+        let mut track = options.track.clone();
+        track.seed = options.track.seed.wrapping_add(k as u64);
+        let checkpoint = if k == 0 {
+            options.checkpoint.as_ref()
+        } else {
+            None
+        };
+        let conv = convert_voxelized(source, voxels, options, &track, checkpoint, progress)?;
+        let warned = conv.lost_parts().flagged;
+        add_seconds(&mut seconds, &conv.seconds);
+        attempts.push(Attempt {
+            seed: track.seed,
+            warned,
+        });
+        let fewest = kept
+            .as_ref()
+            .map_or(usize::MAX, |c| attempts[c.kept].warned.len());
+        let warned = attempts[k].warned.len();
+        if warned < fewest {
+            kept = Some(Conversion { kept: k, ..conv });
+        }
+        if warned == 0 {
+            break;
+        }
+        if k + 1 < options.attempts {
+            log::warn!(
+                "seed {}: {warned} frames may have lost a part; converting again with seed {}",
+                track.seed,
+                track.seed.wrapping_add(1)
+            );
+        }
+    }
+    let mut conv = kept.expect("at least one attempt");
+    if attempts.len() > 1 {
+        log::info!(
+            "kept seed {}'s result ({} frames warned of)",
+            attempts[conv.kept].seed,
+            attempts[conv.kept].warned.len()
+        );
+    }
+    conv.attempts = attempts;
+    conv.seconds = seconds;
+    Ok(conv)
+}
+
+/// Adds each stage's seconds in `more` to its entry in `seconds`, in the
+/// order stages first appear.
+fn add_seconds(seconds: &mut Vec<(Stage, f64)>, more: &[(Stage, f64)]) {
+    for &(stage, s) in more {
+        match seconds.iter_mut().find(|(t, _)| *t == stage) {
+            Some((_, total)) => *total += s,
+            None => seconds.push((stage, s)),
+        }
+    }
+}
+
+/// One attempt of [`convert`]: everything after voxelising, with `track`'s
+/// seed, measured against the input.
+fn convert_voxelized(
+    source: &dyn FrameSource,
+    sequence: VoxelSequence,
+    options: &ConvertOptions,
+    track: &TrackParams,
+    checkpoint: Option<&Checkpointing>,
+    progress: Progress,
+) -> Result<Conversion> {
+    let mut seconds = Vec::new();
     let clock = Instant::now();
     let (tracked, trajectories) = Tracked::split(
-        track_with_checkpoints(&sequence, &options.track, checkpoint, progress)?,
+        track_with_checkpoints(&sequence, track, checkpoint, progress)?,
         options.measure_tracked,
     );
     seconds.push((Stage::Track, clock.elapsed().as_secs_f64()));
@@ -386,6 +479,16 @@ pub fn convert(
     if options.conform.iterations > 0 {
         seconds.push((Stage::Conform, clock.elapsed().as_secs_f64()));
     }
+    let (fit, fit_outliers) = fit_with_outliers(
+        &mesh,
+        &segments,
+        &sequence,
+        &coverage.params,
+        source,
+        progress,
+    )?;
+    seconds.push((Stage::Fit, fit.seconds));
+    let warned = crate::metrics::lost_parts(&coverage, Some((&fit, &fit_outliers))).flagged;
     Ok(Conversion {
         sequence,
         trajectories,
@@ -394,8 +497,33 @@ pub fn convert(
         mesh,
         segments,
         coverage,
+        fit,
+        fit_outliers,
+        attempts: vec![Attempt {
+            seed: track.seed,
+            warned,
+        }],
+        kept: 0,
         seconds,
     })
+}
+
+/// The fit of `mesh` to every frame of `source` and the frames fitted far
+/// worse than the rest (exact in `segments`' reference frames).
+fn fit_with_outliers(
+    mesh: &DynamicMesh,
+    segments: &[Segment],
+    sequence: &VoxelSequence,
+    params: &CoverageParams,
+    source: &dyn FrameSource,
+    progress: Progress,
+) -> Result<(SequenceFit, FitOutliers)> {
+    let diagonal = sequence.bounds.diagonal();
+    let far = params.far_distances(diagonal, sequence.grid.voxel_size);
+    let fit = fit_to_input(mesh, source, diagonal, far, Some(sequence), progress)?;
+    let exact: Vec<usize> = segments.iter().map(|s| s.reference).collect();
+    let outliers = fit_outliers(&fit, &exact, params)?;
+    Ok((fit, outliers))
 }
 
 /// The segments of the conversion ([`crate::deform::segments`]): one,
