@@ -318,12 +318,9 @@ pub fn convert(
             None
         };
         let conv = convert_voxelized(source, voxels, options, &track, checkpoint, progress)?;
-        let warned = conv.lost_parts().flagged;
         add_seconds(&mut seconds, &conv.seconds);
-        attempts.push(Attempt {
-            seed: track.seed,
-            warned,
-        });
+        // The attempt as `convert_voxelized` recorded it, warnings and all.
+        attempts.push(conv.attempts[0].clone());
         let fewest = kept
             .as_ref()
             .map_or(usize::MAX, |c| attempts[c.kept].warned.len());
