@@ -36,6 +36,7 @@ pub struct Checkpointing {
 }
 
 impl Checkpointing {
+    /// Checkpoints in `dir`, with the other fields at their defaults.
     pub fn new(dir: impl Into<PathBuf>) -> Self {
         Checkpointing {
             dir: dir.into(),

@@ -67,6 +67,7 @@
 // `!(x > 0.0)` is how a NaN is refused along with the out-of-range values;
 // `x <= 0.0` would let it through.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
+#![warn(missing_docs)]
 
 pub mod checkpoint;
 pub mod deform;

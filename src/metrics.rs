@@ -28,8 +28,12 @@ fn as_percent<S: serde::Serializer>(share: &Real, s: S) -> Result<S::Ok, S::Erro
 /// PCAC, DFU and irregularity of one set of trajectories (docs/method.md §6, §8).
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Quality {
+    /// PCA compactness of the trajectories ([`pcac`]; lower is simpler).
     pub pcac: Real,
+    /// Deviation from uniformity of the cells' volumes, mean over the frames
+    /// ([`dfu`]; 0 when all cells hold the same number of voxels).
     pub dfu: Real,
+    /// Deviation from uniformity per frame.
     pub dfu_per_frame: Vec<Real>,
     /// I_i per center, in the trajectories' order.
     pub irregularity: Vec<Real>,

@@ -697,6 +697,7 @@ impl ConformParams {
         Ok(())
     }
 
+    /// Factor from this struct's lengths to the input's units.
     pub fn length_scale(&self, bounds: &crate::model::mesh::Aabb) -> Real {
         length_scale(self.absolute_units, bounds)
     }
@@ -903,13 +904,18 @@ pub const MEMORY: Span = Span::open_closed(0.0, 1e9 * (1u64 << 30) as Real);
 /// A range of a real parameter, each end open or closed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Span {
+    /// Lower end.
     pub lo: Real,
+    /// Upper end.
     pub hi: Real,
+    /// Whether `lo` itself is outside the span.
     pub lo_open: bool,
+    /// Whether `hi` itself is outside the span.
     pub hi_open: bool,
 }
 
 impl Span {
+    /// `[lo, hi]`: both ends included.
     pub const fn closed(lo: Real, hi: Real) -> Self {
         Span {
             lo,
@@ -918,6 +924,7 @@ impl Span {
             hi_open: false,
         }
     }
+    /// `(lo, hi)`: both ends excluded.
     pub const fn open(lo: Real, hi: Real) -> Self {
         Span {
             lo,
@@ -926,6 +933,7 @@ impl Span {
             hi_open: true,
         }
     }
+    /// `(lo, hi]`: `lo` excluded, `hi` included.
     pub const fn open_closed(lo: Real, hi: Real) -> Self {
         Span {
             lo,
@@ -934,6 +942,7 @@ impl Span {
             hi_open: false,
         }
     }
+    /// `[lo, hi)`: `lo` included, `hi` excluded.
     pub const fn closed_open(lo: Real, hi: Real) -> Self {
         Span {
             lo,

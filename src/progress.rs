@@ -8,18 +8,27 @@
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Stage {
+    /// Reading the input frames.
     Read,
+    /// Voxelising every frame on the common grid (stage 1).
     Voxelize,
+    /// Tracking the centers through the frames (stage 2).
     Track,
+    /// Removing irregular centers and the global optimisation (stage 3).
     Refine,
+    /// Moving the reference frame's mesh by the centers (stage 4).
     Deform,
+    /// Fitting the deformed mesh to every frame's input (stage 4).
     Conform,
     /// Measuring the result against every input frame.
     Fit,
+    /// Writing an output (stage 5).
     Export,
 }
 
 impl Stage {
+    /// The stage's name in lower case (`"read"`, `"fit"`), as progress and
+    /// timings show it.
     pub fn name(self) -> &'static str {
         match self {
             Stage::Read => "read",
@@ -38,7 +47,9 @@ impl Stage {
 /// stage. It can also ask the work to stop (Ctrl-C): long stages poll
 /// [`ProgressSink::cancelled`] and return [`crate::Error::Interrupted`].
 pub trait ProgressSink: Sync {
+    /// `done` of `total` units of `stage`'s work are finished.
     fn report(&self, stage: Stage, done: usize, total: usize);
+    /// Whether the work should stop; never, unless overridden.
     fn cancelled(&self) -> bool {
         false
     }
@@ -55,9 +66,11 @@ impl<F: Fn(Stage, usize, usize) + Sync> ProgressSink for F {
 pub struct Progress<'a>(pub Option<&'a dyn ProgressSink>);
 
 impl<'a> Progress<'a> {
+    /// No callback: reports go nowhere and nothing is ever cancelled.
     pub fn none() -> Self {
         Progress(None)
     }
+    /// Passes `(stage, done, total)` to the callback, if there is one.
     pub fn report(&self, stage: Stage, done: usize, total: usize) {
         if let Some(sink) = self.0 {
             sink.report(stage, done, total);

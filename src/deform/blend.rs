@@ -7,11 +7,14 @@ use nalgebra::{Quaternion, Rotation3, Vector3};
 /// real + ε dual; a unit dual quaternion is a rigid motion.
 #[derive(Clone, Copy, Debug)]
 pub struct DualQuaternion {
+    /// The rotation, a unit quaternion for a rigid motion.
     pub real: Quaternion<Real>,
+    /// Half the translation times the rotation, `t · real / 2`.
     pub dual: Quaternion<Real>,
 }
 
 impl DualQuaternion {
+    /// The unit dual quaternion of a rigid motion.
     pub fn from_rigid(m: &Rigid) -> Self {
         let rot = Rotation3::from_matrix_unchecked(m.rotation);
         let real = *UnitQuaternion::from_rotation_matrix(&rot).quaternion();

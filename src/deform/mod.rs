@@ -29,6 +29,7 @@ use std::num::NonZeroUsize;
 /// A vertex's centers and their normalised weights.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Binding {
+    /// (center index, weight), nearest first; the weights sum to 1.
     pub centers: Vec<(u32, Real)>,
 }
 

@@ -120,7 +120,9 @@ pub fn most_separate_near_middle(topology: &[FrameTopology], frames: Range<usize
 
 /// The frames `range` of `source`, as a source of their own.
 pub struct FrameRange<'a> {
+    /// The whole sequence.
     pub source: &'a dyn FrameSource,
+    /// The frames of `source` this one holds; its frame 0 is `range.start`.
     pub range: Range<usize>,
 }
 

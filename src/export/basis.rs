@@ -46,7 +46,12 @@ pub enum BasisChoice {
     /// What `--basis auto` and `--compress` use, with the result's own fit to
     /// the input as the bounds: the basis adds no more error than the result
     /// already has.
-    Bounded { mean: Real, max: Real },
+    Bounded {
+        /// Bound on the mean vertex error, in scene units.
+        mean: Real,
+        /// Bound on the largest vertex error, in scene units.
+        max: Real,
+    },
 }
 
 /// Longest sequence [`BasisChoice::Auto`] encodes with one target per frame
@@ -136,7 +141,9 @@ pub fn check_frames(mesh: &DynamicMesh) -> Result<()> {
 /// vertex of every frame (Euclidean distance per vertex).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct BasisError {
+    /// The largest distance.
     pub max: Real,
+    /// The mean distance.
     pub mean: Real,
 }
 
@@ -175,6 +182,7 @@ impl MorphBasis {
         }
     }
 
+    /// Number of morph targets.
     pub fn targets(&self) -> usize {
         self.mix.len()
     }
@@ -272,7 +280,9 @@ pub fn choose(
 /// A compact basis [`choose`] measured on the way to its choice.
 #[derive(Clone, Debug)]
 pub struct BasisTrial {
+    /// The basis measured.
     pub basis: MorphBasis,
+    /// Its reconstruction error.
     pub error: BasisError,
 }
 

@@ -154,6 +154,7 @@ pub struct GltfExportReport {
 pub struct RateRow {
     /// Principal components (None: one target per frame).
     pub components: Option<usize>,
+    /// Morph targets the basis takes.
     pub targets: usize,
     /// The file's size with this basis.
     pub bytes: u64,
@@ -161,6 +162,7 @@ pub struct RateRow {
     /// animation's diagonal ([`GltfExportReport::reconstruction_error_max`]:
     /// with the quantisation for a compressed file).
     pub error_max: Real,
+    /// The mean error, same unit.
     pub error_mean: Real,
     /// Whether it is the basis written.
     pub chosen: bool,
@@ -808,7 +810,9 @@ pub enum MorphDeltas<'a> {
     /// target); NORMAL deltas per target, relative to the mesh's normals
     /// (which must then be present), as many as `positions` when given.
     Stored {
+        /// Per target, one POSITION delta per vertex.
         positions: Vec<Vec<[f32; 3]>>,
+        /// Per target, one NORMAL delta per vertex, if normals are animated.
         normals: Option<Vec<Vec<[f32; 3]>>>,
     },
     /// Computed from a dynamic mesh's frames as they are written.
@@ -833,13 +837,16 @@ pub enum Interpolation {
 /// Morph-target animation of a mesh: at keyframe k the positions are
 /// `base + Σ_t weights[k][t] · positions(t)`, likewise the normals.
 pub struct MorphAnimation<'a> {
+    /// The targets' deltas, stored or computed.
     pub deltas: MorphDeltas<'a>,
     /// One weight vector (one entry per target) per keyframe; the first is
     /// also the mesh's default weights, what viewers show unanimated.
     pub weights: Vec<Vec<f32>>,
     /// Keyframe times in seconds, increasing, one per weight vector.
     pub times: Vec<f32>,
+    /// How the weights change between keyframes.
     pub interpolation: Interpolation,
+    /// One name per target, written as the mesh's `extras.targetNames`.
     pub target_names: Vec<String>,
 }
 

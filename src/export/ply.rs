@@ -3,13 +3,19 @@
 use crate::model::mesh::TriangleMesh;
 use std::io::Write;
 
+/// How [`write_ply`] encodes the vertices and faces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PlyEncoding {
+    /// Text, one vertex or face per line.
     Ascii,
+    /// Binary, least significant byte first.
     BinaryLittleEndian,
+    /// Binary, most significant byte first.
     BinaryBigEndian,
 }
 
+/// Writes the positions (as doubles) and triangles of `mesh` as a PLY file
+/// to `out`; UVs, normals and texture are left out.
 pub fn write_ply(
     out: &mut impl Write,
     mesh: &TriangleMesh,

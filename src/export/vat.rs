@@ -158,12 +158,15 @@ impl VatOptions {
 /// being the image's first (top) row. Texels no vertex uses are zero.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct VatLayout {
+    /// Vertices per frame.
     pub vertices: usize,
+    /// Frames in the texture.
     pub frames: usize,
     /// Texture width: vertices per row.
     pub width: usize,
     /// Texture height: at least frames × rows per frame.
     pub height: usize,
+    /// Texture rows one frame takes: vertices divided by `width`, rounded up.
     pub rows_per_frame: usize,
 }
 
@@ -204,17 +207,23 @@ impl VatLayout {
 pub struct VatInfo {
     /// "voltrack VERSION"; first, so [`SIDECAR_MARK`] is near the start.
     pub software: String,
-    /// File names of the texture and the mesh, beside the sidecar.
+    /// File name of the texture, beside the sidecar.
     pub texture: String,
+    /// File name of the mesh, beside the sidecar.
     pub mesh: String,
+    /// Capture rate, frames per second ([`VatOptions::fps`]).
     pub fps: f32,
+    /// Frames in the texture.
     pub frames: usize,
+    /// Vertices per frame, as in the mesh.
     pub vertices: usize,
-    /// Texture size in texels.
+    /// Texture width in texels.
     pub width: usize,
+    /// Texture height in texels.
     pub height: usize,
     /// Texture rows per frame: frame f starts at row f × rows_per_frame.
     pub rows_per_frame: usize,
+    /// Whether both sides are powers of two ([`VatOptions::power_of_two`]).
     pub power_of_two: bool,
     /// How the texels are laid out, in words.
     pub layout: String,
@@ -226,15 +235,17 @@ pub struct VatInfo {
     pub uv: String,
     /// rows_per_frame / height: add f × this to the UV's v for frame f.
     pub frame_v_step: f64,
-    /// Bounds of every position of every frame, for shaders that take
-    /// normalised textures.
+    /// Lowest corner of the box around every position of every frame, for
+    /// shaders that take normalised textures.
     pub bounds_min: [Real; 3],
+    /// Highest corner of that box.
     pub bounds_max: [Real; 3],
 }
 
 /// What [`write_vat`] wrote.
 #[derive(Clone, Debug, PartialEq)]
 pub struct VatReport {
+    /// Where each vertex of each frame went in the texture.
     pub layout: VatLayout,
     /// Sizes of the texture, the mesh and the sidecar.
     pub bytes: [u64; 3],

@@ -16,6 +16,9 @@ use std::path::Path;
 /// Largest external buffer file read.
 const MAX_BUFFER_BYTES: u64 = 1 << 32;
 
+/// Decodes a glTF or GLB file (`bytes`, read from `path`) into one mesh:
+/// every triangle primitive of the default scene, node transforms applied.
+/// External buffers are read from files named relative to `path`.
 pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     let invalid = |e: &dyn std::fmt::Display| {
         let text = e.to_string();

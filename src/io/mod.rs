@@ -134,6 +134,7 @@ impl FrameFiles {
         FrameFiles { paths, stamps }
     }
 
+    /// The frame files, in frame order.
     pub fn paths(&self) -> &[PathBuf] {
         &self.paths
     }

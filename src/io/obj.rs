@@ -12,6 +12,10 @@ use std::path::Path;
 /// Material libraries larger than this are skipped (they are optional).
 const MAX_MTL_BYTES: u64 = 64 << 20;
 
+/// Decodes an OBJ file (`bytes`, read from `path`) into one mesh, polygons
+/// triangulated: UVs and normals when every object has them, and the
+/// texture (PNG or JPEG) of the first material used. Material libraries and
+/// textures are found relative to `path`.
 pub fn read_obj(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     // tobj splits lines at LF only, and takes a byte-order mark for part of
     // the first word (a first `v` line missed shifts every face by one).

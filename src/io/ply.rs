@@ -205,6 +205,8 @@ impl<'a> Body<'a> {
     }
 }
 
+/// Decodes a PLY file (ASCII or binary; `bytes`, read from `path`) into
+/// one mesh, with its normals and UVs when present.
 pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     let raw = super::strip_bom(bytes);
     // Lines may end in a lone CR; a binary body is read from the bytes as

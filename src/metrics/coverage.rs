@@ -60,11 +60,13 @@ pub struct FrameCoverage {
 /// Every frame's [`FrameCoverage`] and the frames flagged.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Coverage {
+    /// Per frame, what the cells left unreached.
     pub frames: Vec<FrameCoverage>,
     /// Frames whose `lost_share` is at least `params.min_share`, in order.
     pub flagged: Vec<usize>,
     /// Mean occupied voxels per cell in frame 0: the unit of `min_region`.
     pub cell_voxels: Real,
+    /// The parameters measured with.
     pub params: CoverageParams,
 }
 
@@ -289,6 +291,8 @@ pub struct FitOutliers {
     pub usual: Real,
     /// max(`fit_ratio` × `usual`, `fit_floor`): frames above it are flagged.
     pub limit: Real,
+    /// Frames whose `p95` is above `limit`, in order (never a reference
+    /// frame).
     pub flagged: Vec<usize>,
 }
 

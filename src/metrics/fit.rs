@@ -31,8 +31,11 @@ use std::time::Instant;
 /// Mean, 95th percentile and maximum of a set of distances.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct DistanceSummary {
+    /// The (weighted) mean distance.
     pub mean: Real,
+    /// The smallest distance with at least 95 % of the weight at or below it.
     pub p95: Real,
+    /// The largest distance.
     pub max: Real,
 }
 
@@ -106,6 +109,7 @@ pub struct FarRegion {
     /// Its area (the area weights of its vertices), in percent of the
     /// surface's area.
     pub share: Real,
+    /// Vertices in it.
     pub vertices: usize,
     /// The largest distance in it, in percent of the diagonal.
     pub farthest: Real,
@@ -114,7 +118,9 @@ pub struct FarRegion {
 /// A triangle surface borrowed from a mesh or a dynamic mesh's frame.
 #[derive(Clone, Copy, Debug)]
 pub struct Surface<'a> {
+    /// Vertex positions.
     pub positions: &'a [Point3],
+    /// Triangles, indices into `positions`.
     pub triangles: &'a [[u32; 3]],
 }
 

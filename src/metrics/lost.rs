@@ -28,9 +28,11 @@ pub struct FrameLoss {
     /// `unreached_percent`, in percent).
     #[serde(rename = "unreached_percent", serialize_with = "super::as_percent")]
     pub unreached: Real,
-    /// The largest region of the input's surface far from the result, and
-    /// of the result's far from the input (None without a mesh).
+    /// The largest region of the input's surface far from the result (None
+    /// without a mesh).
     pub far_input: Option<FarRegion>,
+    /// The largest region of the result's surface far from the input (None
+    /// without a mesh).
     pub far_result: Option<FarRegion>,
     /// The frame's fit is far worse than the sequence's usual.
     pub fit_outlier: bool,
@@ -39,6 +41,7 @@ pub struct FrameLoss {
 /// Every frame's [`FrameLoss`] and the frames warned of.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct LostParts {
+    /// What each frame shows, in order.
     pub frames: Vec<FrameLoss>,
     /// Frames with unreached volume ([`Coverage::flagged`]).
     pub unreached: Vec<usize>,
@@ -52,6 +55,7 @@ pub struct LostParts {
     /// The distances past which a region counted as far
     /// ([`CoverageParams::far_distances`]; None without a fit).
     pub far_distances: Option<FarDistances>,
+    /// The parameters measured with.
     pub params: CoverageParams,
 }
 
@@ -110,6 +114,7 @@ fn counts(region: Option<FarRegion>, params: &CoverageParams) -> bool {
 pub struct LostPartWarning {
     /// The frames warned of, in order.
     pub frames: Vec<usize>,
+    /// The sentence shown to the user.
     pub message: String,
 }
 

@@ -12,7 +12,10 @@ use super::{PositionFrames, TriangleMesh};
 /// by the deform stage, read by the exporters and the metrics.
 #[derive(Debug)]
 pub struct DynamicMesh {
+    /// The mesh every frame shares: connectivity, UVs, normals, texture, and
+    /// the reference frame's positions.
     pub base: TriangleMesh,
+    /// Every vertex's position in every frame, in the input's units.
     pub frames: PositionFrames,
     /// The frame whose mesh `base` is ([`super::Trajectories::reference`]).
     pub reference: usize,

@@ -8,6 +8,7 @@ use std::path::Path;
 /// What one frame holds.
 #[derive(Clone, Debug)]
 pub enum Frame {
+    /// A triangle mesh (from OBJ, PLY, glTF/GLB, or memory), to be voxelised.
     Mesh(TriangleMesh),
     /// A voxel frame (`.binvox`): voxelisation is skipped.
     Voxels(GridSpec, Occupancy),
@@ -21,6 +22,7 @@ pub trait FrameSource: Sync {
     /// Number of frames.
     fn len(&self) -> usize;
 
+    /// Whether there is no frame.
     fn is_empty(&self) -> bool {
         self.len() == 0
     }

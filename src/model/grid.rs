@@ -17,8 +17,12 @@ pub const MAX_RESOLUTION: usize = 1600 - 2 * GRID_MARGIN;
 /// `i + dims[0] * (j + dims[1] * k)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GridSpec {
+    /// World position of the grid's lowest corner (that of voxel (0, 0, 0)).
     pub origin: Point3,
+    /// Edge length of a voxel, in world units.
     pub voxel_size: Real,
+    /// Voxels along x, y and z (with [`for_bounds`](Self::for_bounds), the
+    /// margins included).
     pub dims: [usize; 3],
 }
 
@@ -50,19 +54,23 @@ impl GridSpec {
         })
     }
 
+    /// Number of voxels in the grid.
     pub fn len(&self) -> usize {
         self.dims[0] * self.dims[1] * self.dims[2]
     }
 
+    /// Whether the grid has no voxel (some dimension is 0).
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
 
+    /// The linear index of the voxel at grid coordinates (i, j, k).
     #[inline]
     pub fn linear_index(&self, [i, j, k]: [usize; 3]) -> usize {
         i + self.dims[0] * (j + self.dims[1] * k)
     }
 
+    /// The grid coordinates (i, j, k) of the voxel at a linear index.
     #[inline]
     pub fn voxel_coords(&self, index: usize) -> [usize; 3] {
         let i = index % self.dims[0];
@@ -121,16 +129,20 @@ impl GridSpec {
 /// 4 bytes per occupied voxel.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Occupancy {
+    /// Linear indices of the occupied voxels, ascending.
     pub indices: Vec<u32>,
 }
 
 impl Occupancy {
+    /// Number of occupied voxels.
     pub fn len(&self) -> usize {
         self.indices.len()
     }
+    /// Whether no voxel is occupied.
     pub fn is_empty(&self) -> bool {
         self.indices.is_empty()
     }
+    /// Whether the voxel at linear index `index` is occupied.
     pub fn contains(&self, index: u32) -> bool {
         self.indices.binary_search(&index).is_ok()
     }
@@ -166,6 +178,7 @@ impl OccupancyRuns {
     pub fn len(&self) -> usize {
         self.count
     }
+    /// Whether no voxel is occupied.
     pub fn is_empty(&self) -> bool {
         self.count == 0
     }

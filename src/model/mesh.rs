@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 /// first frame can be exported as loaded (UVs, normals, texture).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriangleMesh {
+    /// Vertex positions, in the input's units.
     pub positions: Vec<Point3>,
     /// Counter-clockwise seen from outside, indices into `positions`.
     pub triangles: Vec<[u32; 3]>,
@@ -24,17 +25,22 @@ pub struct TriangleMesh {
 /// Axis-aligned bounding box.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
+    /// The smallest coordinate on each axis.
     pub min: Point3,
+    /// The largest coordinate on each axis.
     pub max: Point3,
 }
 
 impl Aabb {
+    /// The box around nothing (`min` +∞, `max` −∞): growing it by a point
+    /// gives that point's box.
     pub fn empty() -> Self {
         Aabb {
             min: Point3::from([Real::INFINITY; 3]),
             max: Point3::from([Real::NEG_INFINITY; 3]),
         }
     }
+    /// The smallest box around `points` (empty when there are none).
     pub fn from_points<'a>(points: impl IntoIterator<Item = &'a Point3>) -> Self {
         let mut b = Aabb::empty();
         for p in points {
@@ -42,22 +48,27 @@ impl Aabb {
         }
         b
     }
+    /// Enlarges the box to contain `p`.
     pub fn grow(&mut self, p: &Point3) {
         self.min = self.min.inf(p);
         self.max = self.max.sup(p);
     }
+    /// The smallest box containing both boxes.
     pub fn union(&self, other: &Aabb) -> Aabb {
         Aabb {
             min: self.min.inf(&other.min),
             max: self.max.sup(&other.max),
         }
     }
+    /// Whether the box contains no point (`min` exceeds `max` on some axis).
     pub fn is_empty(&self) -> bool {
         (0..3).any(|k| self.min[k] > self.max[k])
     }
+    /// The side lengths, `max − min`.
     pub fn extent(&self) -> Vector3 {
         self.max - self.min
     }
+    /// The largest side length.
     pub fn longest_side(&self) -> Real {
         self.extent().max()
     }
@@ -71,6 +82,8 @@ impl Aabb {
             .fold(0.0, Real::max);
         !self.is_empty() && self.longest_side() > 0.0 && far > 16.0 * self.longest_side()
     }
+    /// Length of the box's diagonal (the unit of figures given in percent of
+    /// the diagonal).
     pub fn diagonal(&self) -> Real {
         self.extent().norm()
     }
@@ -92,6 +105,7 @@ pub(crate) fn weld_by_position(positions: &[Point3]) -> Vec<u32> {
 }
 
 impl TriangleMesh {
+    /// The box around every vertex (triangles or not).
     pub fn bounding_box(&self) -> Aabb {
         Aabb::from_points(&self.positions)
     }

@@ -17,8 +17,11 @@ pub const METADATA_ATTRIBUTE: &str = "voltrack";
 /// The grid trajectories were tracked on.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GridRecord {
+    /// Voxels along x, y and z ([`GridSpec::dims`]).
     pub dims: [usize; 3],
+    /// World position of the grid's lowest corner ([`GridSpec::origin`]).
     pub origin: [Real; 3],
+    /// Edge length of a voxel, in the input's units.
     pub voxel_size: Real,
 }
 
@@ -52,6 +55,7 @@ pub struct TrajectoryMetadata {
         skip_serializing_if = "Option::is_none"
     )]
     pub voxel_size: Option<Real>,
+    /// The grid the trajectories were tracked on.
     #[serde(
         rename = "voltrack.grid",
         default,

@@ -22,7 +22,9 @@ pub const POSITION_BYTES: usize = 24;
 
 /// What a [`FrameStore`] holds: three reals, a point or a vector.
 pub trait Triple: Copy + std::fmt::Debug + PartialEq {
+    /// The three components, x, y, z.
     fn to_array(self) -> [Real; 3];
+    /// The value of three components, x, y, z.
     fn from_array(a: [Real; 3]) -> Self;
 }
 
@@ -167,10 +169,12 @@ impl<T: Triple> FrameStore<T> {
             .map_err(|e| Error::InvalidParameter(e.to_string()))
     }
 
+    /// Number of frames appended.
     pub fn len(&self) -> usize {
         self.len
     }
 
+    /// Whether no frame has been appended.
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }

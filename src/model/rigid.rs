@@ -7,11 +7,14 @@ use rayon::prelude::*;
 /// x -> rotation · x + translation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Rigid {
+    /// A proper rotation (orthonormal, determinant 1).
     pub rotation: Matrix3,
+    /// Applied after the rotation, in the input's units.
     pub translation: Vector3,
 }
 
 impl Rigid {
+    /// The motion that moves nothing.
     pub fn identity() -> Self {
         Rigid {
             rotation: Matrix3::identity(),
@@ -19,11 +22,13 @@ impl Rigid {
         }
     }
 
+    /// The image of `p`: rotated, then translated.
     #[inline]
     pub fn apply(&self, p: &Point3) -> Point3 {
         Point3::from(self.rotation * p.coords + self.translation)
     }
 
+    /// The motion undoing this one.
     pub fn inverse(&self) -> Rigid {
         let rt = self.rotation.transpose();
         Rigid {

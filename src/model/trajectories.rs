@@ -6,8 +6,12 @@ use crate::math::Point3;
 /// frame-major (`positions[f * centers + i]` is center i in frame f).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Trajectories {
+    /// Number of frames.
     pub frames: usize,
+    /// Number of centers, the same in every frame.
     pub centers: usize,
+    /// Every center's position in every frame, frame-major, in the input's
+    /// units.
     pub positions: Vec<Point3>,
     /// The frame the centers were placed in and tracked from, forward and
     /// backward (`params::Reference`); the dynamic mesh deforms this
@@ -16,6 +20,8 @@ pub struct Trajectories {
 }
 
 impl Trajectories {
+    /// `centers` centers in each of `frames` frames, all at the origin,
+    /// tracked from frame 0.
     pub fn new(frames: usize, centers: usize) -> Self {
         Trajectories {
             frames,
@@ -40,11 +46,13 @@ impl Trajectories {
         }
     }
 
+    /// Position of center `center` in frame `frame`.
     #[inline]
     pub fn get(&self, frame: usize, center: usize) -> Point3 {
         self.positions[frame * self.centers + center]
     }
 
+    /// Sets the position of center `center` in frame `frame`.
     #[inline]
     pub fn set(&mut self, frame: usize, center: usize, p: Point3) {
         self.positions[frame * self.centers + center] = p;
@@ -55,6 +63,7 @@ impl Trajectories {
         &self.positions[frame * self.centers..(frame + 1) * self.centers]
     }
 
+    /// All centers in one frame, to change.
     pub fn frame_mut(&mut self, frame: usize) -> &mut [Point3] {
         &mut self.positions[frame * self.centers..(frame + 1) * self.centers]
     }

@@ -49,6 +49,7 @@ pub struct OutputPlan {
 }
 
 impl OutputPlan {
+    /// A plan with no output and no input yet.
     pub fn new() -> Self {
         Self::default()
     }

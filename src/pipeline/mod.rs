@@ -171,13 +171,18 @@ impl Tracked {
 
 /// Everything `convert` produces, with its timings.
 pub struct Conversion {
+    /// Every frame on the common voxel grid (stage 1).
     pub sequence: VoxelSequence,
     /// The final trajectories: refined, or as tracked when refinement was
     /// skipped.
     pub trajectories: Trajectories,
+    /// What forward tracking gave besides the trajectories.
     pub tracked: Tracked,
     /// What refinement did (None when skipped).
     pub refined: Option<Refinement>,
+    /// The result: the reference frame's mesh (each segment's, in a take cut
+    /// into segments) animated over every frame, conformed to the input
+    /// unless conforming was skipped.
     pub mesh: DynamicMesh,
     /// The stretches of the take with a mesh of their own
     /// ([`crate::deform::segments`]): one, the whole take, unless the
@@ -225,10 +230,14 @@ impl Conversion {
 /// The options of every stage of [`convert`].
 #[derive(Clone, Debug)]
 pub struct ConvertOptions {
+    /// Voxelisation (stage 1). Default: its defaults.
     pub voxel: VoxelParams,
+    /// Tracking (stage 2). Default: its defaults.
     pub track: TrackParams,
     /// Refinement (docs/method.md §6-§7); None skips it. Default: its defaults.
     pub refine: Option<RefineParams>,
+    /// Deforming the reference frame's mesh by the centers. Default: its
+    /// defaults.
     pub deform: DeformParams,
     /// Fitting every frame to its input; `iterations: 0` skips it.
     pub conform: ConformParams,

@@ -15,20 +15,24 @@ use rayon::prelude::*;
 /// (j, weight) for every j with weight >= μ, ordered by j, i itself included.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SparseAffinity {
+    /// Per center i, (j, ω(i, j)) for the centers j it is tied to.
     pub lists: Vec<Vec<(u32, Real)>>,
 }
 
 impl SparseAffinity {
+    /// Center i's list as (j, weight).
     pub fn pairs(&self, i: usize) -> impl Iterator<Item = (usize, Real)> + Clone + '_ {
         self.lists[i].iter().map(|&(j, w)| (j as usize, w))
     }
 
+    /// ω(i, j); 0 when j is not in i's list.
     pub fn weight(&self, i: usize, j: usize) -> Real {
         self.lists[i]
             .binary_search_by_key(&(j as u32), |e| e.0)
             .map_or(0.0, |k| self.lists[i][k].1)
     }
 
+    /// Mean length of the lists (i itself included).
     pub fn mean_neighbors(&self) -> Real {
         self.lists.iter().map(Vec::len).sum::<usize>() as Real / self.lists.len().max(1) as Real
     }

@@ -32,6 +32,9 @@ pub fn frame_blocks(frames: Range<usize>) -> impl Iterator<Item = Range<usize>> 
         .map(move |start| start..(start + FRAME_BLOCK).min(end))
 }
 
+/// Every frame's Voronoi cells of a [`VoxelSequence`], kept up to date as
+/// the trajectories move; the first frames keep their assignments between
+/// updates.
 pub struct SequenceCells<'a> {
     seq: &'a VoxelSequence,
     /// The kept assignments (the first `cached_frames` frames), created on

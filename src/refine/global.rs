@@ -11,8 +11,13 @@ use rayon::prelude::*;
 
 /// Ê at one set of trajectories, with what its gradient needs.
 pub struct Evaluation {
+    /// Ê = Ês + β̂ Êu.
     pub energy: Real,
+    /// Ês: half the squared distances of the centers from their forward and
+    /// backward predictions, summed.
     pub smooth: Real,
+    /// Êu: half the squared distances of the centers from their cells'
+    /// centroids, summed.
     pub data: Real,
     /// ∇Ês + β̂ ∇Êu with predictions and centroids held fixed, one frame of
     /// vectors per frame (in a temporary file past the memory allowed).
@@ -22,8 +27,11 @@ pub struct Evaluation {
 /// One accepted or final step of the optimisation.
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct Iteration {
+    /// Ê after the step ([`Evaluation::energy`]).
     pub energy: Real,
+    /// Ês after the step ([`Evaluation::smooth`]).
     pub smooth: Real,
+    /// Êu after the step ([`Evaluation::data`]).
     pub data: Real,
     /// Step accepted (0 for the starting point).
     pub lambda: Real,

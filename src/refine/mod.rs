@@ -26,6 +26,7 @@ use std::time::Instant;
 pub struct RefineResult {
     /// The remaining centers' trajectories, in their original order.
     pub trajectories: Trajectories,
+    /// What refinement did.
     pub refinement: Refinement,
 }
 

@@ -280,6 +280,8 @@ impl Candidates {
 }
 
 impl CenterIndex {
+    /// The index over `centers`; its k-d tree and candidate lists are built
+    /// when first needed.
     pub fn new(centers: &[Point3]) -> Self {
         let points: Vec<[Real; 3]> = centers.iter().map(|p| [p.x, p.y, p.z]).collect();
         let n = points.len();
@@ -602,10 +604,12 @@ impl CenterIndex {
         self.nearest2(v, hint).owner
     }
 
+    /// Number of centers.
     pub fn len(&self) -> usize {
         self.points.len()
     }
 
+    /// Whether there is no center.
     pub fn is_empty(&self) -> bool {
         self.points.is_empty()
     }
@@ -631,7 +635,9 @@ struct Found {
 /// they are exact and independent of summation order.
 #[derive(Clone, Debug, Default)]
 pub struct CellStats {
+    /// Per cell, the number of its voxels.
     pub count: Vec<u32>,
+    /// Per cell, the sum of its voxels' grid coordinates (i, j, k).
     pub sum: Vec<[i64; 3]>,
     /// Σ v vᵀ as (xx, yy, zz, xy, xz, yz), when requested.
     pub second: Option<Vec<[i64; 6]>>,
@@ -640,8 +646,11 @@ pub struct CellStats {
 /// Mean and covariance of a cell's voxel centers, in world units.
 #[derive(Clone, Copy, Debug)]
 pub struct CellMoments {
+    /// Voxels in the cell.
     pub count: u32,
+    /// Centroid of the voxel centers.
     pub mean: Point3,
+    /// Covariance of the voxel centers, in squared world units.
     pub covariance: nalgebra::Matrix3<Real>,
 }
 
@@ -741,6 +750,8 @@ pub struct Assignment {
     coords: Vec<[u16; 3]>,
     /// Elements that each stand for a block of voxels, when assigned as such.
     blocks: Option<Blocks>,
+    /// Per element (voxel, or block when assigned as blocks), the index of
+    /// its center as last assigned, or the hint given ([`NO_OWNER`] for none).
     pub owners: Vec<u32>,
     upper: Vec<f32>,
     lower: Vec<f32>,

@@ -16,6 +16,7 @@ use rayon::prelude::*;
 /// One directed neighbour entry.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Neighbor {
+    /// The neighbour's center index.
     pub j: u32,
     /// Current weight w(i, j).
     pub w: Real,
@@ -51,6 +52,7 @@ pub struct CellMotion {
 }
 
 impl CellMotion {
+    /// The cell `cell` under its own motion `own`.
     pub fn new(cell: &CellMoments, own: &Rigid) -> Self {
         CellMotion {
             trace: cell.covariance.trace(),

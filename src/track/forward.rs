@@ -45,6 +45,7 @@ struct FrameResult {
 /// The tracker's result.
 #[derive(Clone, Debug)]
 pub struct TrackResult {
+    /// Every center's position in every frame.
     pub trajectories: Trajectories,
     /// Occupied voxels per Voronoi cell at the final positions, per frame (for DFU).
     pub cell_counts: Vec<Vec<u32>>,

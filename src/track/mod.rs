@@ -54,9 +54,13 @@ impl Guess {
 /// parts add up all runs, which run side by side: they can exceed `total`.
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct FrameTiming {
+    /// The whole frame.
     pub total: f64,
+    /// Assigning voxels to their nearest centers (the Voronoi cells).
     pub assign: f64,
+    /// Fitting the centers' rigid motions.
     pub fit: f64,
+    /// Updating the affinity at the frame's final positions.
     pub affinity: f64,
     /// Iterations of the run that was kept.
     pub iterations: usize,

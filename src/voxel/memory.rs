@@ -40,6 +40,7 @@ const WORKING_BYTES: f64 = 48.0 * (1u64 << 20) as f64;
 /// What the memory estimate needs of a frame's mesh.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FrameExtent {
+    /// The mesh's bounding box.
     pub bounds: Aabb,
     /// The enclosed volume (absolute signed volume).
     pub volume: f64,

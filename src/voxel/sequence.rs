@@ -55,6 +55,7 @@ impl Default for VoxelParams {
 /// Every frame's occupancy on the sequence's grid.
 #[derive(Clone, Debug)]
 pub struct VoxelSequence {
+    /// The grid every frame is on.
     pub grid: GridSpec,
     /// Every frame's occupied voxels, compact (expand one with
     /// [`OccupancyRuns::indices`]).
@@ -65,8 +66,11 @@ pub struct VoxelSequence {
     pub bounds: Aabb,
     /// The first frame's mesh, kept for the deformation stage (None for voxel input).
     pub first_mesh: Option<TriangleMesh>,
-    /// Wall-clock seconds spent reading and voxelising.
+    /// Wall-clock seconds spent reading the frames (the first pass, for
+    /// their bounding boxes).
     pub read_seconds: f64,
+    /// Wall-clock seconds spent voxelising the frames, reading them again
+    /// included (0 for voxel input).
     pub voxelize_seconds: f64,
 }
 
