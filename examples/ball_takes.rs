@@ -12,7 +12,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let arg = |k: usize| args.get(k).map(|s| s.parse::<u64>()).transpose();
     let mut options = ConvertOptions {
-        measure_tracked: true,
         ..Default::default()
     };
     options.voxel = VoxelParams {

@@ -10,7 +10,7 @@ use voltrack::fixtures::{
 };
 use voltrack::math::Real;
 use voltrack::params::{DeformParams, Reference, TrackParams};
-use voltrack::pipeline::{convert, Conversion, ConvertOptions, Measurements};
+use voltrack::pipeline::{convert, Conversion, ConvertOptions};
 use voltrack::voxel::{voxelize_sequence, VoxelParams};
 use voltrack::{Error, Progress, TriangleMesh};
 
@@ -37,7 +37,6 @@ fn with_segments(reference: Reference, segments: bool) -> ConvertOptions {
             reference,
             ..Default::default()
         },
-        measure_tracked: true,
         ..Default::default()
     }
 }
@@ -72,13 +71,7 @@ fn pieces(mesh: &TriangleMesh) -> usize {
 /// The largest distance from the result to the input in each frame, % of
 /// the diagonal.
 fn worst_fit(conv: &Conversion) -> Vec<Real> {
-    let measured = Measurements::of(conv).unwrap();
-    measured
-        .fit
-        .frames
-        .iter()
-        .map(|f| f.two_sided.max)
-        .collect()
+    conv.fit.frames.iter().map(|f| f.two_sided.max).collect()
 }
 
 #[test]

@@ -12,7 +12,6 @@ use voltrack::math::Real;
 use voltrack::model::Trajectories;
 use voltrack::params::{CoverageParams, DeformParams, RefineParams, TrackParams};
 use voltrack::pipeline::Conversion;
-use voltrack::pipeline::Measurements;
 use voltrack::voxel::{VoxelParams, VoxelSequence};
 use voltrack::Progress;
 
@@ -25,7 +24,7 @@ fn fixture(name: &str) -> PathBuf {
 }
 
 /// The README's kind of run at low resolution, everything else at defaults.
-fn convert(name: &str, resolution: usize, centers: usize) -> (Conversion, Measurements) {
+fn convert(name: &str, resolution: usize, centers: usize) -> Conversion {
     convert_with(
         name,
         resolution,
@@ -51,7 +50,7 @@ fn single_guess(centers: usize) -> TrackParams {
 
 /// One conversion (`attempts: 1`): the tests of the detector need the
 /// placement that loses the leg, not the attempt that keeps it.
-fn convert_with(name: &str, resolution: usize, track: TrackParams) -> (Conversion, Measurements) {
+fn convert_with(name: &str, resolution: usize, track: TrackParams) -> Conversion {
     convert_attempts(name, resolution, track, 1)
 }
 
@@ -60,13 +59,13 @@ fn convert_attempts(
     resolution: usize,
     track: TrackParams,
     attempts: usize,
-) -> (Conversion, Measurements) {
+) -> Conversion {
     let files = voltrack::io::FrameFiles::discover(&[fixture(name)]).unwrap();
     let voxel = VoxelParams {
         resolution,
         ..Default::default()
     };
-    let conv = voltrack::pipeline::convert(
+    voltrack::pipeline::convert(
         &files,
         &voltrack::pipeline::ConvertOptions {
             voxel: voxel.clone(),
@@ -75,15 +74,12 @@ fn convert_attempts(
             deform: DeformParams::default(),
             conform: Default::default(),
             checkpoint: None,
-            measure_tracked: true,
             attempts,
             ..Default::default()
         },
         Progress::none(),
     )
-    .unwrap();
-    let measured = Measurements::of(&conv).unwrap();
-    (conv, measured)
+    .unwrap()
 }
 
 /// Per frame, the mean and largest distance (in voxels) of the centers that
@@ -202,19 +198,19 @@ fn coverage_flags_a_leg_whose_centers_stayed_behind() {
 /// detector must flag every frame where it does.
 #[test]
 fn the_detector_flags_the_frames_where_the_tracker_loses_the_leg() {
-    let (conv, measured) = convert_with("swinging_leg", 48, single_guess(150));
+    let conv = convert_with("swinging_leg", 48, single_guess(150));
     let errors = leg_errors(&conv.trajectories, conv.sequence.grid.voxel_size);
     let flagged = conv.lost_parts().flagged;
     for (f, (mean, max)) in errors.iter().enumerate() {
         eprintln!(
             "frame {f}: leg centers off by {mean:.1} (max {max:.1}) voxels; lost volume {:.2} %, fit p95 {:.2} %",
             100.0 * conv.coverage.frames[f].lost_share,
-            measured.fit_outliers.p95[f]
+            conv.fit_outliers.p95[f]
         );
     }
     eprintln!(
         "flagged: {flagged:?} (volume {:?}, fit {:?}, fit limit {:.2} %)",
-        conv.coverage.flagged, measured.fit_outliers.flagged, measured.fit_outliers.limit
+        conv.coverage.flagged, conv.fit_outliers.flagged, conv.fit_outliers.limit
     );
     // Lost: the leg's centers are on average more than a third of its length
     // (23 voxels here) from where the leg is.
@@ -250,7 +246,7 @@ fn the_detector_flags_the_frames_where_the_tracker_loses_the_leg() {
 /// still leg and the body from frame 6 on; now at most about 6.
 #[test]
 fn the_tracker_no_longer_loses_the_swinging_leg() {
-    let (conv, _) = convert("swinging_leg", 48, 150);
+    let conv = convert("swinging_leg", 48, 150);
     let errors = leg_errors(&conv.trajectories, conv.sequence.grid.voxel_size);
     for (f, (mean, max)) in errors.iter().enumerate() {
         eprintln!("frame {f}: leg centers off by {mean:.1} (max {max:.1}) voxels");
@@ -274,7 +270,7 @@ fn the_tracker_no_longer_loses_the_swinging_leg() {
 #[test]
 #[ignore = "issue 21: the tracker lags a fast thin part where it turns back"]
 fn the_tracker_keeps_the_swinging_leg() {
-    let (conv, _) = convert("swinging_leg", 48, 150);
+    let conv = convert("swinging_leg", 48, 150);
     let errors = leg_errors(&conv.trajectories, conv.sequence.grid.voxel_size);
     for (f, (mean, max)) in errors.iter().enumerate() {
         eprintln!("frame {f}: leg centers off by {mean:.1} (max {max:.1}) voxels");
@@ -296,7 +292,7 @@ fn the_attempt_warned_of_the_fewest_frames_is_kept() {
         seed,
         ..single_guess(150)
     };
-    let (conv, _) = convert_attempts("swinging_leg", 48, track(0), 3);
+    let conv = convert_attempts("swinging_leg", 48, track(0), 3);
     let seeds: Vec<u64> = conv.attempts.iter().map(|a| a.seed).collect();
     eprintln!("attempts {:?}, kept {}", conv.attempts, conv.kept);
     assert_eq!(seeds, (0..seeds.len() as u64).collect::<Vec<_>>());
@@ -305,7 +301,7 @@ fn the_attempt_warned_of_the_fewest_frames_is_kept() {
         "the paper's single guess kept the leg at seed 0: give this test a placement that loses it"
     );
     for (k, attempt) in conv.attempts.iter().enumerate() {
-        let (alone, _) = convert_with("swinging_leg", 48, track(attempt.seed));
+        let alone = convert_with("swinging_leg", 48, track(attempt.seed));
         assert_eq!(attempt.warned, alone.lost_parts().flagged, "attempt {k}");
         let last = k + 1 == conv.attempts.len();
         assert!(
@@ -328,10 +324,10 @@ fn the_attempt_warned_of_the_fewest_frames_is_kept() {
 /// The bending bar tracks well: no frame is flagged.
 #[test]
 fn the_detector_is_quiet_on_the_bending_bar() {
-    let (conv, measured) = convert("bending_bar", 64, 200);
+    let conv = convert("bending_bar", 64, 200);
     eprintln!(
         "coverage {:?}\nfit p95 {:?}, limit {:.2}",
-        conv.coverage.frames, measured.fit_outliers.p95, measured.fit_outliers.limit
+        conv.coverage.frames, conv.fit_outliers.p95, conv.fit_outliers.limit
     );
     assert!(
         conv.coverage.flagged.is_empty(),
@@ -347,9 +343,9 @@ fn the_detector_is_quiet_on_the_bending_bar() {
         conv.coverage.frames
     );
     assert!(
-        measured.fit_outliers.flagged.is_empty(),
+        conv.fit_outliers.flagged.is_empty(),
         "{:?}",
-        measured.fit_outliers
+        conv.fit_outliers
     );
 }
 

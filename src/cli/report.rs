@@ -158,7 +158,6 @@ pub fn write_report(path: &Path, input: &ReportInput) -> Result<()> {
 /// The report as one self-contained HTML document.
 pub fn report_html(input: &ReportInput) -> String {
     let conv = input.conversion;
-    let m = input.measurements;
     let seq = &conv.sequence;
     let title = sequence_name(input);
     let mut h = String::new();
@@ -194,7 +193,7 @@ pub fn report_html(input: &ReportInput) -> String {
         "<footer>Written by voltrack {}. Sizes (bounding box, voxels) are in the input's units; \
          distances between surfaces in % of the input's bounding-box diagonal ({}).</footer>\n</main>\n</body>\n</html>\n",
         env!("CARGO_PKG_VERSION"),
-        significant(m.fit.diagonal, 4)
+        significant(conv.fit.diagonal, 4)
     );
     h
 }
@@ -240,8 +239,8 @@ fn card(label: &str, value: &str, note: &str) -> String {
 fn glance_html(input: &ReportInput) -> String {
     let conv = input.conversion;
     let m = input.measurements;
-    let fit = m.fit.summary();
-    let worst = m.fit.worst_frame();
+    let fit = conv.fit.summary();
+    let worst = conv.fit.worst_frame();
     let tracked_n = conv.tracked.centers;
     let total: f64 = input.seconds.iter().map(|s| s.1).sum();
     let arrow = |a: Real, b: Option<Real>| match b {
@@ -469,7 +468,7 @@ fn params_table(caption: &str, params: &impl serde::Serialize) -> String {
 
 /// The dynamic mesh against the input, per frame: plot and table.
 fn fit_html(input: &ReportInput) -> String {
-    let fit = &input.measurements.fit;
+    let fit = &input.conversion.fit;
     let frames = &fit.frames;
     type Pick = fn(&FrameFit) -> Real;
     let stats: [(&str, usize, Pick, Pick); 3] = [
@@ -611,7 +610,7 @@ fn capitalised(s: &str) -> String {
 /// Per frame: input volume no cell reaches, and the fit against its limit.
 fn coverage_html(input: &ReportInput) -> String {
     let coverage = &input.conversion.coverage;
-    let fit = &input.measurements.fit_outliers;
+    let fit = &input.conversion.fit_outliers;
     let lost: Vec<(Real, Real)> = coverage
         .frames
         .iter()
@@ -904,7 +903,7 @@ fn time_html(input: &ReportInput) -> String {
         &format!(
             "Wall-clock time of each stage, {} in all; measuring the fit for this report took {} more. Lower is faster.",
             seconds(total),
-            seconds(input.measurements.fit.seconds)
+            seconds(input.conversion.fit.seconds)
         ),
     ));
     let timings = &conv.tracked.timings;

@@ -69,7 +69,7 @@ fn report_of_a_conversion() {
 
     // The fit: frame 0 is the input mesh itself; later frames are close (the
     // bar bends by up to 0.84 rad) but not exact.
-    let fit = &measured.fit;
+    let fit = &conv.fit;
     assert_eq!(fit.frames.len(), BENDING_BAR_FRAMES);
     assert!((fit.diagonal - conv.sequence.bounds.diagonal()).abs() == 0.0);
     assert_eq!(fit.frames[0].result_to_input, DistanceSummary::default());

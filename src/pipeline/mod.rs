@@ -98,8 +98,9 @@ pub fn check_grid(
     Ok(())
 }
 
-/// What a [`Conversion`] does not hold yet: the quality of its refined
-/// trajectories and the fit of its mesh to the input (what `--report` shows).
+/// What a [`Conversion`] does not hold yet: the quality of its forward-tracked
+/// and refined trajectories (what `--report` shows beside the conversion's
+/// own fit to the input).
 #[derive(Clone, Debug)]
 pub struct Measurements {
     /// PCAC, DFU and irregularity of the forward-tracked trajectories
@@ -107,18 +108,12 @@ pub struct Measurements {
     pub tracked: Quality,
     /// The same after refinement (None when refinement was skipped).
     pub refined: Option<Quality>,
-    /// The dynamic mesh against every input frame.
-    pub fit: SequenceFit,
-    /// Frames whose fit is far worse than the sequence's usual, at the
-    /// default [`CoverageParams`].
-    pub fit_outliers: FitOutliers,
 }
 
 impl Measurements {
     /// Measures `conv`, made with [`ConvertOptions::measure_tracked`] (the
     /// forward-tracked trajectories were measured when tracked): the refined
-    /// trajectories by assigning cells in every frame again; the fit is
-    /// the one `convert` measured.
+    /// trajectories by assigning cells in every frame again.
     pub fn of(conv: &Conversion) -> Result<Self> {
         let tracked = conv.tracked.quality.clone().ok_or_else(|| {
             Error::InvalidParameter("the conversion did not measure its forward-tracked trajectories: set ConvertOptions::measure_tracked".into())
@@ -127,13 +122,7 @@ impl Measurements {
             .refined
             .as_ref()
             .map(|_| measure(&conv.trajectories, &conv.sequence));
-        let (fit, fit_outliers) = (conv.fit.clone(), conv.fit_outliers.clone());
-        Ok(Measurements {
-            tracked,
-            refined,
-            fit,
-            fit_outliers,
-        })
+        Ok(Measurements { tracked, refined })
     }
 }
 
