@@ -4,7 +4,7 @@
 //! what it says.
 
 use voltrack::fixtures::family::{build, family, score, Body, TakeSpec};
-use voltrack::math::Real;
+use voltrack::math::{Point3, Real};
 use voltrack::spatial::surface::SurfaceIndex;
 
 /// `spec` cut to its first `frames` frames.
@@ -162,34 +162,36 @@ fn a_hand_absorbed_into_the_body_counts_as_lost_once_the_contact_parts() {
         })
         .expect("a frame where the hand touches");
     // What it touches: the part nearest its vertices then.
-    let at = |f: usize, v: usize| t.motions[f][t.labels[v] as usize] * first[v];
+    let truth: Vec<Vec<Point3>> = (0..frames).map(|f| t.frame(f, first)).collect();
+    let at_contact = &truth[contact];
     let toucher = (0..t.parts.len())
         .filter(|&k| k != hand)
-        .min_by(|&a, &b| {
-            let d = |k: usize| {
-                members(hand)
-                    .map(|v| {
-                        members(k)
-                            .map(|w| (at(contact, v) - at(contact, w)).norm())
-                            .fold(Real::INFINITY, Real::min)
-                    })
-                    .sum::<Real>()
-            };
-            d(a).total_cmp(&d(b))
-        })
-        .unwrap();
-    let absorbed: Vec<Vec<_>> = (0..frames)
-        .map(|f| {
-            (0..first.len())
+        .map(|k| {
+            let gap: Real = members(hand)
                 .map(|v| {
-                    if t.labels[v] as usize == hand && f > contact {
-                        t.motions[f][toucher]
-                            * (t.motions[contact][toucher].inverse() * at(contact, v))
-                    } else {
-                        at(f, v)
-                    }
+                    members(k)
+                        .map(|w| (at_contact[v] - at_contact[w]).norm())
+                        .fold(Real::INFINITY, Real::min)
                 })
-                .collect()
+                .sum();
+            (gap, k)
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .unwrap()
+        .1;
+    // From the contact on, the hand moves with what it touches.
+    let stuck = t.motions[contact][toucher].inverse();
+    let absorbed: Vec<Vec<Point3>> = truth
+        .iter()
+        .enumerate()
+        .map(|(f, positions)| {
+            let mut positions = positions.clone();
+            if f > contact {
+                for v in members(hand) {
+                    positions[v] = t.motions[f][toucher] * (stuck * at_contact[v]);
+                }
+            }
+            positions
         })
         .collect();
     let s = score(&take, 0, &absorbed);
