@@ -292,7 +292,7 @@ fn convert_to_a_compressed_glb() {
     assert_eq!(plain["basis"]["compressed"], false);
     let per_frame = ["--compress", "--basis", "per-frame", "--no-refine"];
     let stdout = ok(&dir, &convert_args("c.glb", &per_frame));
-    assert!(stdout.contains("compressed (KHR_mesh_quantization + EXT_meshopt_compression): reconstruction error max"), "{stdout}");
+    assert!(stdout.contains("compressed (KHR_mesh_quantization + EXT_meshopt_compression, 7 morph targets as steps from frame to frame): reconstruction error max"), "{stdout}");
     // By default the fewest components within the result's own fit.
     let summary = json(&ok(
         &dir,
@@ -343,6 +343,8 @@ fn convert_to_a_compressed_glb() {
     let summary = json(&ok(&dir, &convert_args("c.glb", &args)));
     let basis = &summary["basis"];
     assert_eq!(basis["compressed"], true, "{basis}");
+    assert_eq!(basis["steps"], true, "{basis}");
+    assert_eq!(basis["normals"], true, "{basis}");
     let error = basis["reconstruction_error_percent"]["max"]
         .as_f64()
         .unwrap();
@@ -358,9 +360,37 @@ fn convert_to_a_compressed_glb() {
         doc["extensionsRequired"],
         serde_json::json!(["EXT_meshopt_compression", "KHR_mesh_quantization"])
     );
+    // Without normals: no NORMAL attribute or deltas, the same positions
+    // in fewer bytes.
+    args.extend(["--normals", "off"]);
+    let flat = json(&ok(&dir, &convert_args("f.glb", &args)));
+    assert_eq!(flat["basis"]["normals"], false, "{flat}");
+    assert_eq!(
+        flat["basis"]["reconstruction_error_percent"], basis["reconstruction_error_percent"],
+        "{flat}"
+    );
+    assert!(
+        flat["bytes"].as_u64().unwrap() < summary["bytes"].as_u64().unwrap(),
+        "{flat}\n{summary}"
+    );
+    let glb = std::fs::read(dir.join("f.glb")).unwrap();
+    let doc: serde_json::Value =
+        serde_json::from_slice(&gltf::binary::Glb::from_slice(&glb).unwrap().json).unwrap();
+    let primitive = &doc["meshes"][0]["primitives"][0];
+    assert!(
+        primitive["attributes"].get("NORMAL").is_none(),
+        "{primitive}"
+    );
+    let targets = primitive["targets"].as_array().unwrap();
+    assert!(
+        targets.iter().all(|t| t.get("NORMAL").is_none()),
+        "{primitive}"
+    );
     let stderr = fails(&dir, &convert_args("c.pc2", &["--compress"]), 2);
     assert!(stderr.contains("--compress"), "{stderr}");
-    assert_eq!(dir.files(), ["c.glb", "p.glb"]);
+    let stderr = fails(&dir, &convert_args("n.pc2", &["--normals", "off"]), 2);
+    assert!(stderr.contains("--normals"), "{stderr}");
+    assert_eq!(dir.files(), ["c.glb", "f.glb", "p.glb"]);
 }
 
 /// Names of the node, the mesh and the animation of a GLB.

@@ -1853,6 +1853,52 @@ fn compressed_glb_decodes_to_every_frame_within_the_reported_error() {
             report.reconstruction_error_max
         );
         assert!((sum / n as f64 - report.reconstruction_error_mean as f64).abs() < 1e-6);
+        // One target per frame: steps from frame to frame, frame f keying
+        // the first f at weight 1 (the closing key as the last frame).
+        let per_frame = matches!(basis, BasisChoice::PerFrame);
+        assert_eq!(report.steps, per_frame, "{basis:?}");
+        if per_frame {
+            for (f, w) in read.iter().enumerate() {
+                let f = f.min(frames.len() - 1);
+                for (t, &x) in w.iter().enumerate() {
+                    assert_eq!(x, if t < f { 1.0 } else { 0.0 }, "key {f}, target {t}");
+                }
+            }
+        }
+        // The normals every frame decodes to: within a few degrees of the
+        // uncompressed file's (bytes hold 1/127; steps do not add up their
+        // rounding).
+        let plain = Glb::read(&dir.join("plain.glb"));
+        let normal_targets: Vec<Vec<[f64; 3]>> = prim["targets"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|t| decode_quantised(&json, &bin, at(&t["NORMAL"])))
+            .collect();
+        let mut worst = 0.0f64;
+        for (f, w) in read.iter().enumerate().take(frames.len()) {
+            for (i, &v) in original.iter().enumerate() {
+                let add = |n: &mut [f64; 3], w: f32, d: [f64; 3]| {
+                    n.iter_mut().zip(d).for_each(|(c, d)| *c += w as f64 * d);
+                };
+                let mut ours = normals[i];
+                for (&w, t) in w.iter().zip(&normal_targets) {
+                    add(&mut ours, w, t[i]);
+                }
+                let mut theirs = plain.normals.as_ref().unwrap()[v].map(f64::from);
+                for (&w, t) in plain.weights[f].iter().zip(&plain.normal_targets) {
+                    add(&mut theirs, w, t.as_ref().unwrap()[v].map(f64::from));
+                }
+                let unit = |n: [f64; 3]| {
+                    let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                    n.map(|c| c / l)
+                };
+                let (a, b) = (unit(ours), unit(theirs));
+                let cos = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).clamp(-1.0, 1.0);
+                worst = worst.max(cos.acos().to_degrees());
+            }
+        }
+        assert!(worst < 3.0, "{basis:?}: a normal {worst:.2}° off");
     }
     // A single frame: no animation, the base mesh quantised alone.
     let still = DynamicMesh {

@@ -232,6 +232,13 @@ fn check_ignored(cli: &Cli, matches: &clap::ArgMatches) -> Result<()> {
                 return refuse(format!("--interpolation chooses the glTF animation's samplers, but the output is {}, which has none: drop it", format.name()));
             }
         }
+        if given("normals") {
+            if let Ok(format) = args.format() {
+                if !format.is_gltf() {
+                    return refuse(format!("--normals chooses whether a glTF carries normals, but the output is {}: drop it", format.name()));
+                }
+            }
+        }
         let conform = [
             "conform_stiffness",
             "conform_bend_strain",
@@ -888,12 +895,17 @@ fn write_gltf(
                 ));
     }
     if report.compressed {
-        let basis = report.basis.map_or(String::new(), |k| {
-            format!(
+        let basis = match report.basis {
+            Some(k) => format!(
                 ", compact basis of {k} components ({} morph targets)",
                 report.targets
-            )
-        });
+            ),
+            None if report.steps => format!(
+                ", {} morph targets as steps from frame to frame",
+                report.targets
+            ),
+            None => String::new(),
+        };
         notes.push(format!(
                     "compressed (KHR_mesh_quantization + EXT_meshopt_compression{basis}): reconstruction error max {:.4} %, mean {:.4} % of the diagonal",
                     100.0 * report.reconstruction_error_max,
@@ -979,6 +991,10 @@ fn print_conversion(
                 "targets": r.targets,
                 "components": r.basis,
                 "compressed": r.compressed,
+                // Frame-to-frame steps, each frame keying every step up to
+                // its own (a compressed file with one target per frame).
+                "steps": r.steps,
+                "normals": args.normals == options::Switch::On,
                 "chosen_by": match args.basis {
                     Some(BasisArg::Components(_)) => "components",
                     Some(BasisArg::PerFrame) => "per-frame",

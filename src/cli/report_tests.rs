@@ -108,6 +108,7 @@ fn report_of_a_conversion() {
         reconstruction_error_mean: 0.000123,
         bytes: 1_234_567,
         compressed: true,
+        steps: false,
         rate_distortion: vec![
             voltrack::export::gltf::RateRow {
                 components: Some(4),

@@ -144,6 +144,13 @@ pub struct GltfExportReport {
     pub bytes: u64,
     /// Whether the file is compressed ([`GltfExportOptions::compress`]).
     pub compressed: bool,
+    /// Whether the targets are steps from frame to frame (a compressed file
+    /// with one target per frame): target k holds the change from the frame
+    /// of target k − 1 (frame 0 for the first) to its own, and each frame
+    /// keys every step up to its own at weight 1, so a shape key alone shows
+    /// a step, not a pose. Otherwise each frame keys its own target (or its
+    /// basis weights).
+    pub steps: bool,
     /// With [`GltfExportOptions::rate_distortion`], the compact bases the
     /// choice tried, by increasing size, each as this file would be with it.
     pub rate_distortion: Vec<RateRow>,
@@ -378,15 +385,25 @@ fn dynamic_glb(
         }),
         compress: options.compress,
     };
+    let (animation, quantizer) = packed(
+        animation,
+        &base,
+        options.compress,
+        basis.components.is_none(),
+    )?;
+    let steps = quantizer.is_some();
     let glb = glb_with(
         &base,
         animation.as_ref(),
         &scene,
-        GlbExtras::default(),
+        GlbExtras {
+            quantizer,
+            ..Default::default()
+        },
         progress,
     )?;
     let (error_max, error_mean) = if options.compress {
-        quantised_error(frames, &base, animation.as_ref())?
+        quantised_error(frames, &base, animation.as_ref(), quantizer)?
     } else {
         (error.max, error.mean)
     };
@@ -443,6 +460,7 @@ fn dynamic_glb(
         reconstruction_error_mean: relative(error_mean),
         bytes: bytes as u64,
         compressed: options.compress,
+        steps,
         rate_distortion,
     })
 }
@@ -491,15 +509,24 @@ fn tried_sizes(
                 options.fps,
                 options.interpolation,
             );
+            let (animation, quantizer) = packed(
+                Some(animation),
+                base,
+                options.compress,
+                trial.basis.components.is_none(),
+            )?;
             let glb = glb_with(
                 base,
-                Some(&animation),
+                animation.as_ref(),
                 scene,
-                GlbExtras::default(),
+                GlbExtras {
+                    quantizer,
+                    ..Default::default()
+                },
                 Progress::none(),
             )?;
             let (max, mean) = if options.compress {
-                quantised_error(frames, base, Some(&animation))?
+                quantised_error(frames, base, animation.as_ref(), quantizer)?
             } else {
                 (trial.error.max, trial.error.mean)
             };
@@ -518,8 +545,12 @@ fn quantised_error(
     frames: &PositionFrames,
     base: &TriangleMesh,
     animation: Option<&MorphAnimation>,
+    quantizer: Option<Quantizer>,
 ) -> Result<(Real, Real)> {
-    let q = Quantizer::new(&base.positions, animation)?;
+    let q = match quantizer {
+        Some(q) => q,
+        None => Quantizer::new(&base.positions, animation)?,
+    };
     let qbase: Vec<[i16; 3]> = base.positions.iter().map(|p| q.position(p)).collect();
     let qdeltas: Vec<Vec<[i16; 3]>> = match animation {
         Some(a) => (0..a.targets())
@@ -554,6 +585,101 @@ fn quantised_error(
         }
     }
     Ok((max, if n > 0 { sum / n as Real } else { 0.0 }))
+}
+
+/// The animation as a file with `compress` holds it, and the quantisation
+/// that file needs when its targets' extent does not give it: a compressed
+/// file's targets become steps when they are one `per_frame` ([`as_steps`]); anything else is
+/// written as it is.
+fn packed<'a>(
+    animation: Option<MorphAnimation<'a>>,
+    base: &TriangleMesh,
+    compress: bool,
+    per_frame: bool,
+) -> Result<(Option<MorphAnimation<'a>>, Option<Quantizer>)> {
+    match animation {
+        Some(a) if compress && per_frame && a.targets() > 1 => {
+            let q = Quantizer::new(&base.positions, Some(&a))?;
+            Ok((Some(as_steps(&a, &q)?), Some(q)))
+        }
+        other => Ok((other, None)),
+    }
+}
+
+/// Per-frame targets as steps from frame to frame: target k holds the change
+/// from target k − 1's frame to its own, quantised as the difference of the
+/// two frames' quantised displacements (`q`'s, the quantisation of the
+/// displacements themselves), and every keyframe keys the suffix sums of
+/// its weights (a frame: its own step and every one before at weight 1).
+/// The sums of the steps are the frames' quantised displacements exactly, so
+/// the file decodes to the same positions, while a body moves little from
+/// one frame to the next: the steps are small numbers, which
+/// meshoptimizer's codec packs into fewer bytes than displacements from
+/// frame 0. The normals' steps are bytes, each the difference from the sum
+/// of the steps before it (so rounding does not build up; a normal that
+/// turns further in one frame than a byte holds catches up in the next).
+fn as_steps(anim: &MorphAnimation, q: &Quantizer) -> Result<MorphAnimation<'static>> {
+    let targets = anim.targets();
+    let mut positions = Vec::with_capacity(targets);
+    let mut before: Option<Vec<[i32; 3]>> = None;
+    for k in 0..targets {
+        let now: Vec<[i32; 3]> = anim
+            .positions(k)?
+            .iter()
+            .map(|d| q.delta(d).map(i32::from))
+            .collect();
+        positions.push(match &before {
+            None => now.iter().map(|&s| q.delta_of(s)).collect(),
+            Some(b) => now
+                .iter()
+                .zip(b)
+                .map(|(n, b)| q.delta_of([0, 1, 2].map(|c| n[c] - b[c])))
+                .collect(),
+        });
+        before = Some(now);
+    }
+    let normals = if anim.has_normals() {
+        let mut sum: Option<Vec<[i32; 3]>> = None;
+        let mut steps = Vec::with_capacity(targets);
+        for k in 0..targets {
+            let now = anim.normals(k)?;
+            let sum = sum.get_or_insert_with(|| vec![[0; 3]; now.len()]);
+            steps.push(
+                now.iter()
+                    .zip(sum.iter_mut())
+                    .map(|(n, s)| {
+                        let b = byte4(n);
+                        [0, 1, 2].map(|c| {
+                            let step = (b[c] as i32 - s[c]).clamp(-127, 127);
+                            s[c] += step;
+                            step as f32 / 127.0
+                        })
+                    })
+                    .collect(),
+            );
+        }
+        Some(steps)
+    } else {
+        None
+    };
+    let weights = anim
+        .weights
+        .iter()
+        .map(|w| {
+            let mut suffix: Vec<f32> = w.clone();
+            for t in (0..suffix.len().saturating_sub(1)).rev() {
+                suffix[t] += suffix[t + 1];
+            }
+            suffix
+        })
+        .collect();
+    Ok(MorphAnimation {
+        deltas: MorphDeltas::Stored { positions, normals },
+        weights,
+        times: anim.times.clone(),
+        interpolation: anim.interpolation,
+        target_names: anim.target_names.clone(),
+    })
 }
 
 /// The order a compressed file holds its vertices and triangles in, as
@@ -626,7 +752,7 @@ fn far_origin(positions: &[Point3]) -> Option<[f32; 3]> {
 /// from the centre and every delta, so nothing is clamped, in
 /// [`POSITION_BITS`] of precision.
 #[derive(Clone, Copy, Debug)]
-struct Quantizer {
+pub(crate) struct Quantizer {
     center: [f32; 3],
     scale: f32,
 }
@@ -684,6 +810,12 @@ impl Quantizer {
 
     fn delta(&self, d: &[f32; 3]) -> [i16; 3] {
         d.map(|c| self.short(c as f64))
+    }
+
+    /// The delta whose quantised value is `s` (exactly: [`Quantizer::delta`]
+    /// gives `s` back).
+    fn delta_of(&self, s: [i32; 3]) -> [f32; 3] {
+        s.map(|c| (c as f64 / SHORT * self.scale as f64) as f32)
     }
 
     /// Dequantised point from (possibly weighted sums of) SHORT values.
@@ -1298,6 +1430,9 @@ pub(crate) struct GlbExtras<'a> {
     pub uv1: Option<&'a [[f32; 2]]>,
     /// The asset's `extras`.
     pub asset: Option<Box<serde_json::value::RawValue>>,
+    /// A compressed file's quantisation, when the targets' own extent does
+    /// not give it (targets that are steps, [`packed`]).
+    pub quantizer: Option<Quantizer>,
 }
 
 /// [`glb_bytes`] with `extras` added.
@@ -1539,7 +1674,10 @@ fn glb_with(
         .compress
         .then(|| {
             Ok((
-                Quantizer::new(&mesh.positions, animation)?,
+                match extras.quantizer {
+                    Some(q) => q,
+                    None => Quantizer::new(&mesh.positions, animation)?,
+                },
                 CodecOrder::new(mesh),
             ))
         })

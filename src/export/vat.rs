@@ -449,6 +449,7 @@ fn mesh_bytes(
         GlbExtras {
             uv1: Some(&uv1),
             asset: Some(asset),
+            ..Default::default()
         },
     )
 }
