@@ -589,8 +589,8 @@ fn quantised_error(
 
 /// The animation as a file with `compress` holds it, and the quantisation
 /// that file needs when its targets' extent does not give it: a compressed
-/// file's targets become steps when they are one `per_frame` ([`as_steps`]); anything else is
-/// written as it is.
+/// file's targets, computed beforehand, become steps when there is one
+/// `per_frame` ([`into_steps`]); anything else is written as it is.
 fn packed<'a>(
     animation: Option<MorphAnimation<'a>>,
     base: &TriangleMesh,
@@ -598,88 +598,65 @@ fn packed<'a>(
     per_frame: bool,
 ) -> Result<(Option<MorphAnimation<'a>>, Option<Quantizer>)> {
     match animation {
-        Some(a) if compress && per_frame && a.targets() > 1 => {
+        Some(mut a) if compress && per_frame && a.targets() > 1 => {
             let q = Quantizer::new(&base.positions, Some(&a))?;
-            Ok((Some(as_steps(&a, &q)?), Some(q)))
+            let MorphDeltas::Stored { positions, normals } = &mut a.deltas else {
+                return Ok((Some(a), None));
+            };
+            into_steps(positions, normals.as_deref_mut(), &q);
+            for w in &mut a.weights {
+                for t in (0..w.len().saturating_sub(1)).rev() {
+                    w[t] += w[t + 1];
+                }
+            }
+            Ok((Some(a), Some(q)))
         }
         other => Ok((other, None)),
     }
 }
 
-/// Per-frame targets as steps from frame to frame: target k holds the change
-/// from target k − 1's frame to its own, quantised as the difference of the
-/// two frames' quantised displacements (`q`'s, the quantisation of the
-/// displacements themselves), and every keyframe keys the suffix sums of
-/// its weights (a frame: its own step and every one before at weight 1).
-/// The sums of the steps are the frames' quantised displacements exactly, so
-/// the file decodes to the same positions, while a body moves little from
-/// one frame to the next: the steps are small numbers, which
-/// meshoptimizer's codec packs into fewer bytes than displacements from
-/// frame 0. The normals' steps are bytes, each the difference from the sum
-/// of the steps before it (so rounding does not build up; a normal that
-/// turns further in one frame than a byte holds catches up in the next).
-fn as_steps(anim: &MorphAnimation, q: &Quantizer) -> Result<MorphAnimation<'static>> {
-    let targets = anim.targets();
-    let mut positions = Vec::with_capacity(targets);
-    let mut before: Option<Vec<[i32; 3]>> = None;
-    for k in 0..targets {
-        let now: Vec<[i32; 3]> = anim
-            .positions(k)?
-            .iter()
-            .map(|d| q.delta(d).map(i32::from))
-            .collect();
-        positions.push(match &before {
-            None => now.iter().map(|&s| q.delta_of(s)).collect(),
-            Some(b) => now
-                .iter()
-                .zip(b)
-                .map(|(n, b)| q.delta_of([0, 1, 2].map(|c| n[c] - b[c])))
-                .collect(),
-        });
-        before = Some(now);
-    }
-    let normals = if anim.has_normals() {
-        let mut sum: Option<Vec<[i32; 3]>> = None;
-        let mut steps = Vec::with_capacity(targets);
-        for k in 0..targets {
-            let now = anim.normals(k)?;
-            let sum = sum.get_or_insert_with(|| vec![[0; 3]; now.len()]);
-            steps.push(
-                now.iter()
-                    .zip(sum.iter_mut())
-                    .map(|(n, s)| {
-                        let b = byte4(n);
-                        [0, 1, 2].map(|c| {
-                            let step = (b[c] as i32 - s[c]).clamp(-127, 127);
-                            s[c] += step;
-                            step as f32 / 127.0
-                        })
-                    })
-                    .collect(),
-            );
+/// Per-frame targets made steps from frame to frame, in place: target k
+/// then holds the change from target k − 1's frame to its own, quantised as
+/// the difference of the two frames' quantised displacements (`q`'s, the
+/// quantisation of the displacements themselves); the caller keys the
+/// suffix sums of every keyframe's weights (a frame: its own step and every
+/// one before at weight 1). The sums of the steps are the frames' quantised
+/// displacements exactly, so the file decodes to the same positions, while a
+/// body moves little from one frame to the next: the steps are small
+/// numbers, which meshoptimizer's codec packs into fewer bytes than
+/// displacements from frame 0. The normals' steps are bytes, each the
+/// difference from the sum of the steps before it (so rounding does not
+/// build up; a normal that turns further in one frame than a byte holds
+/// catches up in the next).
+fn into_steps(
+    positions: &mut [Vec<[f32; 3]>],
+    normals: Option<&mut [Vec<[f32; 3]>]>,
+    q: &Quantizer,
+) {
+    // Last to first, so that each step is taken from its predecessor's
+    // displacement before that one becomes a step too.
+    for k in (0..positions.len()).rev() {
+        let (before, from_k) = positions.split_at_mut(k);
+        for (v, d) in from_k[0].iter_mut().enumerate() {
+            let now = q.delta(d).map(i32::from);
+            let was = before
+                .last()
+                .map_or([0; 3], |b| q.delta(&b[v]).map(i32::from));
+            *d = q.delta_of([0, 1, 2].map(|c| now[c] - was[c]));
         }
-        Some(steps)
-    } else {
-        None
-    };
-    let weights = anim
-        .weights
-        .iter()
-        .map(|w| {
-            let mut suffix: Vec<f32> = w.clone();
-            for t in (0..suffix.len().saturating_sub(1)).rev() {
-                suffix[t] += suffix[t + 1];
-            }
-            suffix
-        })
-        .collect();
-    Ok(MorphAnimation {
-        deltas: MorphDeltas::Stored { positions, normals },
-        weights,
-        times: anim.times.clone(),
-        interpolation: anim.interpolation,
-        target_names: anim.target_names.clone(),
-    })
+    }
+    let Some(normals) = normals else { return };
+    let mut sum = vec![[0i32; 3]; normals.first().map_or(0, Vec::len)];
+    for target in normals {
+        for (n, s) in target.iter_mut().zip(&mut sum) {
+            let b = byte4(n);
+            *n = [0, 1, 2].map(|c| {
+                let step = (b[c] as i32 - s[c]).clamp(-127, 127);
+                s[c] += step;
+                step as f32 / 127.0
+            });
+        }
+    }
 }
 
 /// The order a compressed file holds its vertices and triangles in, as
