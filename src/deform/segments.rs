@@ -8,7 +8,9 @@
 //! is their union: in every frame the other segments' vertices all sit on
 //! one vertex of the shown segment, their triangles without area, drawn as
 //! nothing by any player. One connectivity for the whole take, as
-//! compression and every output format need.
+//! compression and every output format need. Frames next to a change that
+//! their stretch's mesh does not serve (the fit finds a far region) are cut
+//! off into segments of their own ([`split_where_far`]).
 
 use crate::error::Result;
 use crate::model::{DynamicMesh, Frame, FrameSource, PositionFrames, TriangleMesh};
@@ -99,6 +101,41 @@ pub fn plan_segments(topology: &[FrameTopology], reference: usize) -> Vec<Segmen
             }
         })
         .collect()
+}
+
+/// `segments` cut again where their meshes cannot serve some frames:
+/// `far` (sorted), the frames where a region of either surface lies far from
+/// the other (`metrics::LostParts::far`), as it does where the parts merge
+/// or part and the stretch's mesh, from its middle, shows them whole or
+/// apart. Each run of such frames becomes a segment deforming its own
+/// middle frame; what is left of a stretch on either side keeps the
+/// stretch's reference where it holds it, else deforms its own middle.
+/// The segments unchanged when no frame is far.
+pub fn split_where_far(segments: &[Segment], far: &[usize]) -> Vec<Segment> {
+    let mut out = Vec::with_capacity(segments.len());
+    for s in segments {
+        let is_far = |f: usize| far.binary_search(&f).is_ok();
+        let mut start = s.frames.start;
+        while start < s.frames.end {
+            let kind = is_far(start);
+            let end = (start..s.frames.end)
+                .find(|&f| is_far(f) != kind)
+                .unwrap_or(s.frames.end);
+            let frames = start..end;
+            let reference = if !kind && frames.contains(&s.reference) {
+                s.reference
+            } else {
+                start + (end - start - 1) / 2
+            };
+            out.push(Segment {
+                frames,
+                reference,
+                parts: s.parts,
+            });
+            start = end;
+        }
+    }
+    out
 }
 
 /// Of the frames `frames` (non-empty, indices into `topology`), the one
@@ -205,6 +242,41 @@ mod tests {
                 ..Default::default()
             })
             .collect()
+    }
+
+    #[test]
+    fn far_frames_get_segments_of_their_own() {
+        let two = [
+            Segment {
+                frames: 0..10,
+                reference: 5,
+                parts: 1,
+            },
+            Segment {
+                frames: 10..16,
+                reference: 13,
+                parts: 2,
+            },
+        ];
+        assert_eq!(split_where_far(&two, &[]), two.to_vec());
+        let split = split_where_far(&two, &[8, 9, 10, 15]);
+        let seg = |frames: Range<usize>, reference, parts| Segment {
+            frames,
+            reference,
+            parts,
+        };
+        assert_eq!(
+            split,
+            [
+                seg(0..8, 5, 1),
+                seg(8..10, 8, 1),
+                seg(10..11, 10, 2),
+                seg(11..15, 13, 2),
+                seg(15..16, 15, 2),
+            ]
+        );
+        // A stretch left without its reference deforms its own middle.
+        assert_eq!(split_where_far(&two[..1], &[4, 5])[2], seg(6..10, 7, 1));
     }
 
     #[test]

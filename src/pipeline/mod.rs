@@ -1,7 +1,9 @@
 //! The stages strung together, as the commands use them: each function takes
 //! its inputs and options and returns a result the CLI prints or writes.
 
-use crate::deform::segments::{plan_segments, union_of_segments, FrameRange, Segment};
+use crate::deform::segments::{
+    plan_segments, split_where_far, union_of_segments, FrameRange, Segment,
+};
 use crate::deform::{conform, deform_with};
 use crate::error::{Error, Result, Saved};
 use crate::metrics::{fit_outliers, fit_to_input, Coverage, FitOutliers, Quality, SequenceFit};
@@ -392,89 +394,23 @@ fn convert_voxelized(
     };
     let coverage = check_coverage(&trajectories, &sequence, &options.coverage)?;
     let segments = plan_segments_of(&trajectories, &sequence, &tracked, options);
-    // The meshes the result deforms: each segment's reference frame's, read
-    // again unless it is the first, which voxelising kept.
-    let mesh_of = |r: usize| match r {
-        0 => Ok(sequence.first_mesh.clone().expect("checked above")),
-        r => source.mesh(r),
-    };
-    let mut references = segments
-        .iter()
-        .map(|s| mesh_of(s.reference))
-        .collect::<Result<Vec<_>>>()?;
-    let (segments, references) = if segments.len() > 1
-        && references
-            .iter()
-            .any(|m| m.uvs.is_some() || m.texture.is_some())
-    {
-        log::warn!(
-            "the input's parts merge or part ({} stretches), but its meshes carry texture coordinates, which one mesh for all stretches cannot: one mesh deforms the whole take",
-            segments.len()
-        );
-        let whole = Segment {
-            frames: 0..sequence.frames.len(),
-            reference: trajectories.reference,
-            parts: segments[0].parts,
-        };
-        let reference = mesh_of(whole.reference)?;
-        (vec![whole], vec![reference])
-    } else {
-        let one = std::mem::take(&mut references);
-        (segments, one)
-    };
+    let saved = |e| finished_saved(e, checkpoint, &sequence, options.refine.as_ref());
     let clock = Instant::now();
     progress.report(Stage::Deform, 0, 1);
-    let saved = |e| finished_saved(e, checkpoint, &sequence, options.refine.as_ref());
     let omega = sequence_affinity(&trajectories, &sequence, options.refine.as_ref(), progress)
         .map_err(saved)?;
-    let whole = segments.len() == 1;
-    let meshes = segments
-        .iter()
-        .zip(&references)
-        .map(|(segment, mesh)| {
-            if whole {
-                return deform_with(mesh, &trajectories, &omega, &options.deform, progress);
-            }
-            let window = trajectories.window(
-                segment.frames.clone(),
-                segment.reference - segment.frames.start,
-            );
-            deform_with(mesh, &window, &omega, &options.deform, progress)
-        })
-        .collect::<Result<Vec<_>>>()
-        .map_err(saved)?;
-    progress.report(Stage::Deform, 1, 1);
     seconds.push((Stage::Deform, clock.elapsed().as_secs_f64()));
-    let clock = Instant::now();
-    let mut meshes = segments
-        .iter()
-        .zip(meshes)
-        .map(|(segment, mesh)| {
-            if whole {
-                return conform(mesh, source, &sequence.bounds, &options.conform, progress);
-            }
-            let frames = FrameRange {
-                source,
-                range: segment.frames.clone(),
-            };
-            conform(mesh, &frames, &sequence.bounds, &options.conform, progress)
-        })
-        .collect::<Result<Vec<_>>>()
-        .map_err(saved)?;
-    let mesh = if whole {
-        meshes.pop().expect("one segment")
-    } else {
-        union_of_segments(
-            &segments,
-            meshes,
-            trajectories.reference,
-            options.deform.memory,
-        )?
+    let stages = MeshStages {
+        source,
+        sequence: &sequence,
+        trajectories: &trajectories,
+        omega: &omega,
+        options,
+        progress,
+        saved: &saved,
     };
-    if options.conform.iterations > 0 {
-        seconds.push((Stage::Conform, clock.elapsed().as_secs_f64()));
-    }
-    let (fit, fit_outliers) = fit_with_outliers(
+    let (mut segments, mut mesh) = stages.run(segments, &mut seconds)?;
+    let (mut fit, mut fit_outliers) = fit_with_outliers(
         &mesh,
         &segments,
         &sequence,
@@ -482,6 +418,38 @@ fn convert_voxelized(
         source,
         progress,
     )?;
+    // Where the parts merge or part, a stretch's mesh may not serve the
+    // frames nearest the change (a ball half sunk into a slab that the
+    // stretch's mesh shows whole): those frames get meshes of their own,
+    // and again, at most SPLIT_ROUNDS times, where theirs do not serve
+    // all of them either.
+    for _ in 0..SPLIT_ROUNDS {
+        if segments.len() < 2 {
+            break;
+        }
+        let far = crate::metrics::lost_parts(&coverage, Some((&fit, &fit_outliers))).far;
+        let split = split_where_far(&segments, &far);
+        if split.len() == segments.len() {
+            break;
+        }
+        log::info!(
+            "frames {} lie far from their stretch's mesh: {} segments instead of {}",
+            crate::metrics::frame_runs(&far),
+            split.len(),
+            segments.len()
+        );
+        let fitted = fit.seconds;
+        (segments, mesh) = stages.run(split, &mut seconds)?;
+        (fit, fit_outliers) = fit_with_outliers(
+            &mesh,
+            &segments,
+            &sequence,
+            &coverage.params,
+            source,
+            progress,
+        )?;
+        fit.seconds += fitted;
+    }
     seconds.push((Stage::Fit, fit.seconds));
     let warned = crate::metrics::lost_parts(&coverage, Some((&fit, &fit_outliers))).flagged;
     Ok(Conversion {
@@ -501,6 +469,131 @@ fn convert_voxelized(
         kept: 0,
         seconds,
     })
+}
+
+/// Most rounds of cutting a take's segments again where their meshes do not
+/// serve some frames ([`split_where_far`]); each round runs the mesh stages
+/// and the fit again.
+const SPLIT_ROUNDS: usize = 2;
+
+/// The mesh stages of a conversion, run on a plan of segments: each
+/// segment's reference mesh deformed by the trajectories over its frames and
+/// conformed to the input, the segments' meshes joined into one.
+struct MeshStages<'a> {
+    source: &'a dyn FrameSource,
+    sequence: &'a VoxelSequence,
+    trajectories: &'a Trajectories,
+    /// The binding affinity of the trajectories ([`sequence_affinity`]).
+    omega: &'a crate::refine::SparseAffinity,
+    options: &'a ConvertOptions,
+    progress: Progress<'a>,
+    /// What an error becomes (an interruption names the checkpoint).
+    saved: &'a dyn Fn(Error) -> Error,
+}
+
+impl MeshStages<'_> {
+    /// The segments deformed and the dynamic mesh; the seconds of the
+    /// deform and conform stages added to `seconds`. One segment (the whole
+    /// take) when the reference meshes carry texture coordinates, which
+    /// one mesh for several stretches cannot.
+    fn run(
+        &self,
+        segments: Vec<Segment>,
+        seconds: &mut Vec<(Stage, f64)>,
+    ) -> Result<(Vec<Segment>, DynamicMesh)> {
+        let (sequence, trajectories, options, progress) = (
+            self.sequence,
+            self.trajectories,
+            self.options,
+            self.progress,
+        );
+        // The meshes the result deforms: each segment's reference frame's,
+        // read again unless it is the first, which voxelising kept.
+        let mesh_of = |r: usize| match r {
+            0 => Ok(sequence.first_mesh.clone().expect("checked above")),
+            r => self.source.mesh(r),
+        };
+        let mut references = segments
+            .iter()
+            .map(|s| mesh_of(s.reference))
+            .collect::<Result<Vec<_>>>()?;
+        let (segments, references) = if segments.len() > 1
+            && references
+                .iter()
+                .any(|m| m.uvs.is_some() || m.texture.is_some())
+        {
+            log::warn!(
+                "the input's parts merge or part ({} stretches), but its meshes carry texture coordinates, which one mesh for all stretches cannot: one mesh deforms the whole take",
+                segments.len()
+            );
+            let whole = Segment {
+                frames: 0..sequence.frames.len(),
+                reference: trajectories.reference,
+                parts: segments[0].parts,
+            };
+            let reference = mesh_of(whole.reference)?;
+            (vec![whole], vec![reference])
+        } else {
+            let one = std::mem::take(&mut references);
+            (segments, one)
+        };
+        let clock = Instant::now();
+        progress.report(Stage::Deform, 0, 1);
+        let whole = segments.len() == 1;
+        let meshes = segments
+            .iter()
+            .zip(&references)
+            .map(|(segment, mesh)| {
+                if whole {
+                    return deform_with(mesh, trajectories, self.omega, &options.deform, progress);
+                }
+                let window = trajectories.window(
+                    segment.frames.clone(),
+                    segment.reference - segment.frames.start,
+                );
+                deform_with(mesh, &window, self.omega, &options.deform, progress)
+            })
+            .collect::<Result<Vec<_>>>()
+            .map_err(self.saved)?;
+        progress.report(Stage::Deform, 1, 1);
+        add_seconds(seconds, &[(Stage::Deform, clock.elapsed().as_secs_f64())]);
+        let clock = Instant::now();
+        let mut meshes = segments
+            .iter()
+            .zip(meshes)
+            .map(|(segment, mesh)| {
+                if whole {
+                    return conform(
+                        mesh,
+                        self.source,
+                        &sequence.bounds,
+                        &options.conform,
+                        progress,
+                    );
+                }
+                let frames = FrameRange {
+                    source: self.source,
+                    range: segment.frames.clone(),
+                };
+                conform(mesh, &frames, &sequence.bounds, &options.conform, progress)
+            })
+            .collect::<Result<Vec<_>>>()
+            .map_err(self.saved)?;
+        let mesh = if whole {
+            meshes.pop().expect("one segment")
+        } else {
+            union_of_segments(
+                &segments,
+                meshes,
+                trajectories.reference,
+                options.deform.memory,
+            )?
+        };
+        if options.conform.iterations > 0 {
+            add_seconds(seconds, &[(Stage::Conform, clock.elapsed().as_secs_f64())]);
+        }
+        Ok((segments, mesh))
+    }
 }
 
 /// The fit of `mesh` to every frame of `source` and the frames fitted far
