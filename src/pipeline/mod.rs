@@ -409,15 +409,18 @@ fn convert_voxelized(
         progress,
         saved: &saved,
     };
+    let fit_of = |mesh: &DynamicMesh, segments: &[Segment]| {
+        fit_with_outliers(
+            mesh,
+            segments,
+            &sequence,
+            &coverage.params,
+            source,
+            progress,
+        )
+    };
     let (mut segments, mut mesh) = stages.run(segments, &mut seconds)?;
-    let (mut fit, mut fit_outliers) = fit_with_outliers(
-        &mesh,
-        &segments,
-        &sequence,
-        &coverage.params,
-        source,
-        progress,
-    )?;
+    let (mut fit, mut fit_outliers) = fit_of(&mesh, &segments)?;
     // Where the parts merge or part, a stretch's mesh may not serve the
     // frames nearest the change (a ball half sunk into a slab that the
     // stretch's mesh shows whole): those frames get meshes of their own,
@@ -440,14 +443,7 @@ fn convert_voxelized(
         );
         let fitted = fit.seconds;
         (segments, mesh) = stages.run(split, &mut seconds)?;
-        (fit, fit_outliers) = fit_with_outliers(
-            &mesh,
-            &segments,
-            &sequence,
-            &coverage.params,
-            source,
-            progress,
-        )?;
+        (fit, fit_outliers) = fit_of(&mesh, &segments)?;
         fit.seconds += fitted;
     }
     seconds.push((Stage::Fit, fit.seconds));
