@@ -141,7 +141,8 @@ fn segments_give_the_merged_frames_a_mesh_of_their_own() {
         ]
     );
     // One mesh: frame a's and frame b's side by side; in each frame the other
-    // shrunk onto one point, its triangles without area.
+    // shrunk onto one point, its triangles without area, the same point in
+    // every frame it is hidden.
     let (na, nb) = (input[a].positions.len(), input[b].positions.len());
     assert_eq!(conv.mesh.base.positions.len(), na + nb);
     assert_eq!(
@@ -157,6 +158,12 @@ fn segments_give_the_merged_frames_a_mesh_of_their_own() {
         };
         assert!(
             p[hidden.clone()].iter().all(|q| *q == p[hidden.start]),
+            "frame {f}"
+        );
+        let first_hidden = if f < PARTING_APART { 0 } else { PARTING_APART };
+        assert_eq!(
+            p[hidden.start],
+            conv.mesh.frames.get(first_hidden).unwrap()[hidden.start],
             "frame {f}"
         );
     }

@@ -178,7 +178,10 @@ impl FrameSource for FrameRange<'_> {
 /// The union of the segments' dynamic meshes (each over its own frames, in
 /// the order of `segments`), over the whole take, tracked from `reference`:
 /// in each frame the shown segment's vertices where its mesh has them, every
-/// other segment's on the shown segment's first vertex. `memory` as
+/// other segment's on a point of its own that does not move while it is
+/// hidden (its first vertex in its first frame): its triangles have no area,
+/// and a file that stores each frame's change from the one before (a
+/// compressed GLB's steps) stores nothing for it. `memory` as
 /// [`crate::params::DeformParams::memory`].
 pub fn union_of_segments(
     segments: &[Segment],
@@ -213,13 +216,22 @@ pub fn union_of_segments(
         }
     }
     base.normals = all_normals.then_some(normals);
+    let rest = meshes
+        .iter()
+        .map(|m| Ok(m.frames.get(0)?.first().copied().unwrap_or_default()))
+        .collect::<Result<Vec<_>>>()?;
     let mut out = PositionFrames::new(total, frames, memory)?;
     for (s, (segment, mesh)) in segments.iter().zip(&meshes).enumerate() {
         for f in segment.frames.clone() {
             let shown = mesh.frames.get(f - segment.frames.start)?;
-            let anchor = shown.first().copied().unwrap_or_default();
-            let mut positions = vec![anchor; total];
-            positions[offsets[s]..offsets[s] + sizes[s]].copy_from_slice(&shown);
+            let mut positions = Vec::with_capacity(total);
+            for (t, &size) in sizes.iter().enumerate() {
+                if t == s {
+                    positions.extend_from_slice(&shown);
+                } else {
+                    positions.extend(std::iter::repeat_n(rest[t], size));
+                }
+            }
             out.push(positions)?;
         }
     }
