@@ -42,7 +42,9 @@ pub enum BasisChoice {
     /// At any length, the fewest principal components (at most
     /// `AUTO_MAX_COMPONENTS`) whose reconstruction error, over every vertex
     /// of every frame, is at most `mean` on average and `max` at most (scene
-    /// units); per-frame targets when no such basis needs fewer targets.
+    /// units); per-frame targets when no such basis needs fewer targets (and,
+    /// in a compressed file of up to [`AUTO_PER_FRAME_LIMIT`] frames, when
+    /// one target per frame, as steps, takes fewer bytes).
     /// What `--basis auto` and `--compress` use, with the result's own fit to
     /// the input as the bounds: the basis adds no more error than the result
     /// already has.

@@ -354,6 +354,9 @@ fn dynamic_glb(
             .map(|n| n.base.iter().map(to_f32).collect()),
         texture: mesh.base.texture.clone(),
     };
+    // One target per frame, when a compressed file of them is smaller than
+    // the basis chosen (below); declared here to outlive the animations.
+    let per_frame_basis;
     // Per-frame targets are read from the frames as the file is written, so
     // a long sequence's are never all in memory; a compact basis's few
     // targets and a compressed file's quantised ones are computed first.
@@ -391,7 +394,6 @@ fn dynamic_glb(
         options.compress,
         basis.components.is_none(),
     )?;
-    let steps = quantizer.is_some();
     let glb = glb_with(
         &base,
         animation.as_ref(),
@@ -402,6 +404,56 @@ fn dynamic_glb(
         },
         progress,
     )?;
+    // Compressed, one target per frame as steps is exact and may take fewer
+    // bytes than the basis the error bound chose (a take whose parts move
+    // one after another): then it is the smaller file within the bound.
+    // Tried up to AUTO_PER_FRAME_LIMIT frames, whose targets it holds.
+    let automatic = matches!(
+        options.basis,
+        BasisChoice::Auto | BasisChoice::Bounded { .. }
+    );
+    let (basis, animation, quantizer, glb) = if options.compress
+        && automatic
+        && basis.components.is_some()
+        && frames.len() <= basis::AUTO_PER_FRAME_LIMIT
+    {
+        let mut one_each = MorphBasis::per_frame(frames.len());
+        name_targets_after_frames(&mut one_each, &options.frame_names);
+        per_frame_basis = one_each;
+        let deltas = stored_deltas(frames, &per_frame_basis, normals.as_ref(), progress)?;
+        let steps = morph_animation(
+            deltas,
+            frames.len(),
+            &per_frame_basis,
+            options.fps,
+            options.interpolation,
+        );
+        let (steps, q) = packed(Some(steps), &base, true, true)?;
+        let steps_glb = glb_with(
+            &base,
+            steps.as_ref(),
+            &scene,
+            GlbExtras {
+                quantizer: q,
+                ..Default::default()
+            },
+            progress,
+        )?;
+        if steps_glb.length()? < glb.length()? {
+            log::info!(
+                "one target per frame as steps takes {} bytes, the basis of {:?} components {}: writing the steps",
+                steps_glb.length()?,
+                basis.components,
+                glb.length()?
+            );
+            (&per_frame_basis, steps, q, steps_glb)
+        } else {
+            (&basis, animation, quantizer, glb)
+        }
+    } else {
+        (&basis, animation, quantizer, glb)
+    };
+    let steps = quantizer.is_some();
     let (error_max, error_mean) = if options.compress {
         quantised_error(frames, &base, animation.as_ref(), quantizer)?
     } else {
@@ -445,7 +497,7 @@ fn dynamic_glb(
         rate_distortion.push(RateRow {
             components: basis.components,
             targets: basis.targets(),
-            bytes: bytes as u64,
+            bytes,
             error_max: relative(error_max),
             error_mean: relative(error_mean),
             chosen: true,
@@ -458,7 +510,7 @@ fn dynamic_glb(
         basis: basis.components,
         reconstruction_error_max: relative(error_max),
         reconstruction_error_mean: relative(error_mean),
-        bytes: bytes as u64,
+        bytes,
         compressed: options.compress,
         steps,
         rate_distortion,
