@@ -439,12 +439,11 @@ fn dynamic_glb(
             },
             progress,
         )?;
-        if steps_glb.length()? < glb.length()? {
+        let (steps_bytes, basis_bytes) = (steps_glb.length()?, glb.length()?);
+        if steps_bytes < basis_bytes {
             log::info!(
-                "one target per frame as steps takes {} bytes, the basis of {:?} components {}: writing the steps",
-                steps_glb.length()?,
+                "one target per frame as steps takes {steps_bytes} bytes, the basis of {:?} components {basis_bytes}: writing the steps",
                 basis.components,
-                glb.length()?
             );
             (&per_frame_basis, steps, q, steps_glb)
         } else {
