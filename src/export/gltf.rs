@@ -388,20 +388,11 @@ fn dynamic_glb(
         }),
         compress: options.compress,
     };
-    let (animation, quantizer) = packed(
+    let (animation, quantizer, glb) = encoded(
         animation,
         &base,
-        options.compress,
-        basis.components.is_none(),
-    )?;
-    let glb = glb_with(
-        &base,
-        animation.as_ref(),
         &scene,
-        GlbExtras {
-            quantizer,
-            ..Default::default()
-        },
+        basis.components.is_none(),
         progress,
     )?;
     // Compressed, one target per frame as steps is exact and may take fewer
@@ -428,17 +419,7 @@ fn dynamic_glb(
             options.fps,
             options.interpolation,
         );
-        let (steps, q) = packed(Some(steps), &base, true, true)?;
-        let steps_glb = glb_with(
-            &base,
-            steps.as_ref(),
-            &scene,
-            GlbExtras {
-                quantizer: q,
-                ..Default::default()
-            },
-            progress,
-        )?;
+        let (steps, q, steps_glb) = encoded(Some(steps), &base, &scene, true, progress)?;
         let (steps_bytes, basis_bytes) = (steps_glb.length()?, glb.length()?);
         if steps_bytes < basis_bytes {
             log::info!(
@@ -560,20 +541,11 @@ fn tried_sizes(
                 options.fps,
                 options.interpolation,
             );
-            let (animation, quantizer) = packed(
+            let (animation, quantizer, glb) = encoded(
                 Some(animation),
                 base,
-                options.compress,
-                trial.basis.components.is_none(),
-            )?;
-            let glb = glb_with(
-                base,
-                animation.as_ref(),
                 scene,
-                GlbExtras {
-                    quantizer,
-                    ..Default::default()
-                },
+                trial.basis.components.is_none(),
                 Progress::none(),
             )?;
             let (max, mean) = if options.compress {
@@ -636,6 +608,29 @@ fn quantised_error(
         }
     }
     Ok((max, if n > 0 { sum / n as Real } else { 0.0 }))
+}
+
+/// `animation` packed as `scene` compresses it ([`packed`]; `per_frame`:
+/// one target per frame), its quantisation, and the file it makes.
+fn encoded<'a>(
+    animation: Option<MorphAnimation<'a>>,
+    base: &TriangleMesh,
+    scene: &SceneInfo,
+    per_frame: bool,
+    progress: Progress,
+) -> Result<(Option<MorphAnimation<'a>>, Option<Quantizer>, GlbParts)> {
+    let (animation, quantizer) = packed(animation, base, scene.compress, per_frame)?;
+    let glb = glb_with(
+        base,
+        animation.as_ref(),
+        scene,
+        GlbExtras {
+            quantizer,
+            ..Default::default()
+        },
+        progress,
+    )?;
+    Ok((animation, quantizer, glb))
 }
 
 /// The animation as a file with `compress` holds it, and the quantisation
