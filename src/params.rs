@@ -754,6 +754,15 @@ pub struct CoverageParams {
     /// share of its surface, in percent. Default 0.1; in [0, 100].
     #[serde(default = "default_far_share")]
     pub far_share: Real,
+    /// A frame next to a warned one is warned too where a region as large
+    /// lies past this share of `far` and `far_result` (the voxel floor
+    /// unchanged), and so on along the take: a lost part stays lost for
+    /// frames, and in those where it goes and comes back it is less far,
+    /// so weaker evidence carries a warning on but never starts one (the
+    /// hysteresis of an edge detector; `metrics::LostParts::continued`).
+    /// Default 0.5; in (0, 1], where 1 carries nothing on.
+    #[serde(default = "default_weak")]
+    pub weak: Real,
 }
 
 fn default_far() -> Real {
@@ -772,6 +781,10 @@ fn default_far_share() -> Real {
     CoverageParams::default().far_share
 }
 
+fn default_weak() -> Real {
+    CoverageParams::default().weak
+}
+
 impl Default for CoverageParams {
     fn default() -> Self {
         CoverageParams {
@@ -784,6 +797,7 @@ impl Default for CoverageParams {
             far_result: 5.0,
             far_voxels: 3.0,
             far_share: 0.1,
+            weak: 0.5,
         }
     }
 }
@@ -796,14 +810,26 @@ pub struct FarDistances {
     pub input: Real,
     /// For the result's surface: a part carried or torn where the input has none.
     pub result: Real,
+    /// The weaker distances that carry a warning on to the next frame
+    /// ([`CoverageParams::weak`]): for the input's surface...
+    pub weak_input: Real,
+    /// ... and for the result's.
+    pub weak_result: Real,
 }
 
 impl FarDistances {
-    /// The same distance both ways.
+    /// The same distance both ways, and no weaker one.
     pub fn both(far: Real) -> Self {
+        FarDistances::of(far, far)
+    }
+
+    /// `input` and `result`, and no weaker ones.
+    pub fn of(input: Real, result: Real) -> Self {
         FarDistances {
-            input: far,
-            result: far,
+            input,
+            result,
+            weak_input: input,
+            weak_result: result,
         }
     }
 }
@@ -811,12 +837,15 @@ impl FarDistances {
 impl CoverageParams {
     /// The distances past which a region is far, in percent of `diagonal`:
     /// `far` and `far_result`, or `far_voxels` voxels of `voxel_size` where
-    /// that is more.
+    /// that is more; and the weaker ones, `weak` times those or the same
+    /// floor.
     pub fn far_distances(&self, diagonal: Real, voxel_size: Real) -> FarDistances {
         let floor = 100.0 * self.far_voxels * voxel_size / diagonal;
         FarDistances {
             input: self.far.max(floor),
             result: self.far_result.max(floor),
+            weak_input: (self.weak * self.far).max(floor),
+            weak_result: (self.weak * self.far_result).max(floor),
         }
     }
 
@@ -850,6 +879,11 @@ impl CoverageParams {
             "the far region share",
             self.far_share,
             Span::closed(0.0, 100.0),
+        )?;
+        check(
+            "the weak share of the far distances",
+            self.weak,
+            Span::open_closed(0.0, 1.0),
         )?;
         Ok(())
     }

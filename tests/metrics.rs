@@ -854,44 +854,32 @@ fn far_regions_find_a_missing_part_and_skip_hidden_surfaces() {
     assert_eq!(lost.far_result.vertices, 0);
     // Past the farthest distance, nothing is far.
     assert_eq!(
-        fit(
-            &body,
-            &whole,
-            FarDistances {
-                input: 50.0,
-                result: 2.0
-            },
-            None
-        )
-        .far_input
-        .vertices,
+        fit(&body, &whole, FarDistances::of(50.0, 2.0), None)
+            .far_input
+            .vertices,
         0
     );
-    // The result carries the limb where the input has none: far one way
-    // only, at the result's own distance...
-    let carried = fit(
-        &whole,
+    // ... but past a weaker distance below it, the region is weakly far.
+    let weakly = fit(
         &body,
+        &whole,
         FarDistances {
-            input: 2.0,
-            result: 20.0,
+            weak_input: 2.0,
+            ..FarDistances::of(50.0, 2.0)
         },
         None,
     );
+    assert_eq!(weakly.far_input.vertices, 0);
+    assert_eq!(weakly.weak_input, lost.far_input, "{weakly:?}");
+    // The result carries the limb where the input has none: far one way
+    // only, at the result's own distance...
+    let carried = fit(&whole, &body, FarDistances::of(2.0, 20.0), None);
     assert_eq!(carried.far_input.vertices, 0);
     assert_eq!(carried.far_result.vertices, 8, "{carried:?}");
     assert_eq!(
-        fit(
-            &whole,
-            &body,
-            FarDistances {
-                input: 2.0,
-                result: 50.0
-            },
-            None
-        )
-        .far_result
-        .vertices,
+        fit(&whole, &body, FarDistances::of(2.0, 50.0), None)
+            .far_result
+            .vertices,
         0
     );
     // ... and not at all when the input's volume holds it.

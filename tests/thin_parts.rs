@@ -284,7 +284,8 @@ fn the_tracker_keeps_the_swinging_leg() {
 }
 
 /// Each attempt is the conversion its seed gives alone; the result kept is
-/// the one warned of the fewest frames (the first on a tie), and the
+/// the one warned of the fewest frames (those warned of on evidence of their
+/// own first; the first on a tie), and the
 /// attempts stop at the first that warns of none.
 #[test]
 fn the_attempt_warned_of_the_fewest_frames_is_kept() {
@@ -303,6 +304,11 @@ fn the_attempt_warned_of_the_fewest_frames_is_kept() {
     for (k, attempt) in conv.attempts.iter().enumerate() {
         let alone = convert_with("swinging_leg", 48, track(attempt.seed));
         assert_eq!(attempt.warned, alone.lost_parts().flagged, "attempt {k}");
+        assert_eq!(
+            attempt.continued,
+            alone.lost_parts().continued,
+            "attempt {k}"
+        );
         let last = k + 1 == conv.attempts.len();
         assert!(
             last || !attempt.warned.is_empty(),
@@ -310,12 +316,11 @@ fn the_attempt_warned_of_the_fewest_frames_is_kept() {
         );
     }
     assert!(conv.attempts.len() == 3 || conv.attempts.last().unwrap().warned.is_empty());
-    let fewest = conv.attempts.iter().map(|a| a.warned.len()).min().unwrap();
-    let first_fewest = conv
-        .attempts
-        .iter()
-        .position(|a| a.warned.len() == fewest)
-        .unwrap();
+    // Frames warned of on evidence of their own first, then all.
+    let key =
+        |a: &voltrack::pipeline::Attempt| (a.warned.len() - a.continued.len(), a.warned.len());
+    let fewest = conv.attempts.iter().map(key).min().unwrap();
+    let first_fewest = conv.attempts.iter().position(|a| key(a) == fewest).unwrap();
     assert_eq!(conv.kept, first_fewest);
     assert_eq!(conv.lost_parts().flagged, conv.attempts[conv.kept].warned);
     assert_eq!(conv.seed(), conv.attempts[conv.kept].seed);

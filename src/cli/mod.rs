@@ -1084,7 +1084,7 @@ pub(crate) fn attempts_text(conv: &pipeline::Conversion) -> String {
         .collect::<Vec<_>>()
         .join(", ");
     format!(
-        "seeds tried: {each}; kept seed {}, warned of the fewest (the first on a tie)",
+        "seeds tried: {each}; kept seed {}, warned of the fewest (on evidence of their own first; the first on a tie)",
         conv.seed()
     )
 }

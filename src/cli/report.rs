@@ -706,6 +706,7 @@ fn coverage_html(input: &ReportInput) -> String {
             (&lost.unreached, "volume"),
             (&lost.far, "far"),
             (&lost.fit_outliers, "fit"),
+            (&lost.continued, "next to one"),
         ]
         .iter()
         .filter(|(frames, _)| frames.contains(&f))

@@ -100,6 +100,12 @@ pub struct FrameFit {
     /// such surface is where two parts touch in the input, whose surfaces
     /// merge there while the result keeps both, hidden inside.
     pub far_result: FarRegion,
+    /// The same as `far_input` past the weaker distance
+    /// ([`FarDistances::weak_input`]): evidence that carries a warning on
+    /// from the frame next to this one, but starts none.
+    pub weak_input: FarRegion,
+    /// The same as `far_result` past [`FarDistances::weak_result`].
+    pub weak_result: FarRegion,
 }
 
 /// A connected region of one surface (vertices joined by its triangles'
@@ -251,16 +257,15 @@ pub fn surface_fit(
     let (forward_all, backward_all) = distances_both_ways(result, input, diagonal);
     let forward: Vec<(Real, Real)> = forward_all.iter().flatten().copied().collect();
     let backward: Vec<(Real, Real)> = backward_all.iter().flatten().copied().collect();
+    let hidden = inside.unwrap_or(&|_| false);
     FrameFit {
         result_to_input: DistanceSummary::of_weighted(&forward),
         input_to_result: DistanceSummary::of_weighted(&backward),
         two_sided: DistanceSummary::of_weighted(&pool_halves(&forward, &backward)),
         far_input: input.largest_far_region(&backward_all, far.input, &|_| false),
-        far_result: result.largest_far_region(
-            &forward_all,
-            far.result,
-            inside.unwrap_or(&|_| false),
-        ),
+        far_result: result.largest_far_region(&forward_all, far.result, hidden),
+        weak_input: input.largest_far_region(&backward_all, far.weak_input, &|_| false),
+        weak_result: result.largest_far_region(&forward_all, far.weak_result, hidden),
     }
 }
 

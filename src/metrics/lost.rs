@@ -13,7 +13,9 @@
 //!   membrane torn between two, where the input has none.
 //!
 //! Frames whose fit is far worse than the sequence's usual
-//! ([`super::fit_outliers`]) are warned of too.
+//! ([`super::fit_outliers`]) are warned of too, and so are the frames next
+//! to a warned one where a far region passes a weaker distance
+//! ([`LostParts::continued`]).
 
 use super::coverage::{runs, Coverage, FitOutliers};
 use super::fit::{FarDistances, FarRegion, SequenceFit};
@@ -34,6 +36,12 @@ pub struct FrameLoss {
     /// The largest region of the result's surface far from the input (None
     /// without a mesh).
     pub far_result: Option<FarRegion>,
+    /// The largest regions past the weaker distances
+    /// ([`super::FrameFit::weak_input`], `weak_result`; None without a
+    /// mesh).
+    pub weak_input: Option<FarRegion>,
+    /// See `weak_input`.
+    pub weak_result: Option<FarRegion>,
     /// The frame's fit is far worse than the sequence's usual.
     pub fit_outlier: bool,
 }
@@ -50,6 +58,11 @@ pub struct LostParts {
     pub far: Vec<usize>,
     /// Frames whose fit is far worse than the usual.
     pub fit_outliers: Vec<usize>,
+    /// Frames warned of for none of those, but next to one that is (or to
+    /// another of these), with a region of either surface as large past
+    /// the weaker distances ([`CoverageParams::weak`]): where a lost part
+    /// is on its way out or back.
+    pub continued: Vec<usize>,
     /// All of those, in order.
     pub flagged: Vec<usize>,
     /// The distances past which a region counted as far
@@ -70,6 +83,10 @@ pub fn lost_parts(coverage: &Coverage, fit: Option<(&SequenceFit, &FitOutliers)>
             unreached: coverage.frames[f].lost_share,
             far_input: fit.and_then(|(s, _)| s.frames.get(f)).map(|x| x.far_input),
             far_result: fit.and_then(|(s, _)| s.frames.get(f)).map(|x| x.far_result),
+            weak_input: fit.and_then(|(s, _)| s.frames.get(f)).map(|x| x.weak_input),
+            weak_result: fit
+                .and_then(|(s, _)| s.frames.get(f))
+                .map(|x| x.weak_result),
             fit_outlier: fit.is_some_and(|(_, o)| o.flagged.contains(&f)),
         })
         .collect();
@@ -93,15 +110,48 @@ pub fn lost_parts(coverage: &Coverage, fit: Option<(&SequenceFit, &FitOutliers)>
         .collect();
     flagged.sort_unstable();
     flagged.dedup();
+    let weak: Vec<bool> = frames
+        .iter()
+        .map(|x| {
+            [x.weak_input, x.weak_result]
+                .iter()
+                .any(|r| counts(*r, params))
+        })
+        .collect();
+    let continued = carried_on(&flagged, &weak);
+    flagged.extend(&continued);
+    flagged.sort_unstable();
     LostParts {
         frames,
         unreached: coverage.flagged.clone(),
         far,
         fit_outliers,
+        continued,
         flagged,
         far_distances: fit.map(|(s, _)| s.far),
         params: params.clone(),
     }
+}
+
+/// The frames not in `flagged` (sorted) that `weak` marks and that join
+/// a flagged frame through a run of marked frames, in order.
+fn carried_on(flagged: &[usize], weak: &[bool]) -> Vec<usize> {
+    let mut on = vec![false; weak.len()];
+    for &f in flagged {
+        on[f] = true;
+    }
+    let mut continued = Vec::new();
+    // Forward then backward: each pass carries a warning along a run.
+    let order: Vec<usize> = (0..weak.len()).chain((0..weak.len()).rev()).collect();
+    for pair in order.windows(2) {
+        let (from, to) = (pair[0], pair[1]);
+        if on[from] && !on[to] && weak[to] && from.abs_diff(to) == 1 {
+            on[to] = true;
+            continued.push(to);
+        }
+    }
+    continued.sort_unstable();
+    continued
 }
 
 /// Whether `region` is large enough to warn of (`params.far_share`).
@@ -200,6 +250,25 @@ impl LostParts {
                 frames: self.unreached.clone(),
             });
         }
+        if !self.continued.is_empty() {
+            let r = largest(&self.continued, &|x| {
+                let (i, r) = (
+                    x.weak_input.unwrap_or_default(),
+                    x.weak_result.unwrap_or_default(),
+                );
+                Some(if i.share >= r.share { i } else { r })
+            });
+            out.push(LostPartWarning {
+                message: format!(
+                    "warning: frames {}: next to frames warned of, a part of either surface lies nearly as far from the other \
+                     (a connected region of up to {:.2} % of it, up to {:.1} % of the diagonal away): the part is likely lost there too",
+                    frame_runs(&self.continued),
+                    r.share,
+                    r.farthest
+                ),
+                frames: self.continued.clone(),
+            });
+        }
         if !self.fit_outliers.is_empty() {
             out.push(LostPartWarning {
                 message: format!(
@@ -211,5 +280,102 @@ impl LostParts {
             });
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::metrics::coverage::FrameCoverage;
+    use crate::metrics::fit::{DistanceSummary, FrameFit};
+
+    fn region(share: Real, farthest: Real) -> FarRegion {
+        FarRegion {
+            share,
+            vertices: 10,
+            farthest,
+        }
+    }
+
+    /// Frame 3 has a far region of the input; frames 1-2 and 4-5 one past
+    /// the weaker distance only, as has frame 8 on its own; frame 6 has a
+    /// weak region too small to count. The warning is carried from 3 to
+    /// 1-5, not to 6 and not to 8, which joins no warned frame.
+    #[test]
+    fn weaker_evidence_carries_a_warning_on_but_starts_none() {
+        let params = CoverageParams::default();
+        let (strong, weak, tiny) = (region(0.5, 4.0), region(0.5, 1.5), region(0.01, 1.5));
+        let none = FarRegion::default();
+        let per_frame = [
+            (none, none),
+            (none, weak),
+            (none, weak),
+            (strong, weak),
+            (none, weak),
+            (none, weak),
+            (none, tiny),
+            (none, none),
+            (none, weak),
+            (none, none),
+        ];
+        let frames: Vec<FrameFit> = per_frame
+            .iter()
+            .enumerate()
+            .map(|(f, &(far, weak))| FrameFit {
+                result_to_input: DistanceSummary::default(),
+                input_to_result: DistanceSummary::default(),
+                two_sided: DistanceSummary::default(),
+                far_input: far,
+                far_result: none,
+                // The weak regions alternate between the surfaces.
+                weak_input: if f % 2 == 0 { weak } else { none },
+                weak_result: if f % 2 == 1 { weak } else { none },
+            })
+            .collect();
+        let n = frames.len();
+        let fit = SequenceFit {
+            frames,
+            diagonal: 1.0,
+            far: params.far_distances(1.0, 0.001),
+            seconds: 0.0,
+        };
+        let outliers = FitOutliers {
+            p95: vec![0.0; n],
+            usual: 0.0,
+            limit: 1.0,
+            flagged: Vec::new(),
+        };
+        let coverage = Coverage {
+            frames: vec![FrameCoverage::default(); n],
+            flagged: Vec::new(),
+            cell_voxels: 1.0,
+            params: params.clone(),
+        };
+        let lost = lost_parts(&coverage, Some((&fit, &outliers)));
+        assert_eq!(lost.far, [3]);
+        assert_eq!(lost.continued, [1, 2, 4, 5]);
+        assert_eq!(lost.flagged, [1, 2, 3, 4, 5]);
+        let warnings = lost.warnings();
+        let carried = warnings
+            .iter()
+            .find(|w| w.frames == lost.continued)
+            .expect("a warning of the frames carried on");
+        assert!(
+            carried.message.contains("frames 1-2, 4-5"),
+            "{}",
+            carried.message
+        );
+
+        // Runs on either side, to the ends of the take.
+        assert_eq!(
+            carried_on(
+                &[8],
+                &[false, true, false, false, false, false, false, true, true, true]
+            ),
+            [7, 9]
+        );
+        assert_eq!(carried_on(&[0], &[true, true, true]), [1, 2]);
+        assert_eq!(carried_on(&[2], &[true, true, false]), [0, 1]);
+        assert!(carried_on(&[], &[true, true]).is_empty());
     }
 }

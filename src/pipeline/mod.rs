@@ -203,6 +203,19 @@ pub struct Attempt {
     pub seed: u64,
     /// The frames where it may have lost a part ([`Conversion::lost_parts`]).
     pub warned: Vec<usize>,
+    /// Those of `warned` carried on from a neighbour by weaker evidence
+    /// ([`crate::metrics::LostParts::continued`]).
+    pub continued: Vec<usize>,
+}
+
+impl Attempt {
+    /// What [`convert`] keeps the least of: the frames warned of on
+    /// evidence of their own first, since the frames carried on by weaker
+    /// evidence are there to report a lost part, not to judge between
+    /// attempts; then all of them.
+    fn warnings(&self) -> (usize, usize) {
+        (self.warned.len() - self.continued.len(), self.warned.len())
+    }
 }
 
 impl Conversion {
@@ -244,8 +257,10 @@ pub struct ConvertOptions {
     pub measure_tracked: bool,
     /// How many conversions to make at most, each with the next seed
     /// ([`TrackParams::seed`] + 0, 1, ...), while every one so far warns of a
-    /// lost part; the one that warns of the fewest frames is kept (the
-    /// first on a tie). Where a thin part is lost, whether it is turns on
+    /// lost part; the one that warns of the fewest frames is kept (counting
+    /// first those warned of on evidence of their own, not carried on from a
+    /// neighbour: [`Attempt::continued`]; the first on a tie). Where a thin
+    /// part is lost, whether it is turns on
     /// where the centers were placed, and the warnings, which need no
     /// ground truth, tell the draws apart. A take that warns of nothing is
     /// converted once. Default 2; at least 1. Only the first attempt saves
@@ -323,9 +338,9 @@ pub fn convert(
         attempts.push(conv.attempts[0].clone());
         let fewest = kept
             .as_ref()
-            .map_or(usize::MAX, |c| attempts[c.kept].warned.len());
+            .map_or((usize::MAX, usize::MAX), |c| attempts[c.kept].warnings());
         let warned = attempts[k].warned.len();
-        if warned < fewest {
+        if attempts[k].warnings() < fewest {
             kept = Some(Conversion { kept: k, ..conv });
         }
         if warned == 0 {
@@ -447,7 +462,7 @@ fn convert_voxelized(
         fit.seconds += fitted;
     }
     seconds.push((Stage::Fit, fit.seconds));
-    let warned = crate::metrics::lost_parts(&coverage, Some((&fit, &fit_outliers))).flagged;
+    let lost = crate::metrics::lost_parts(&coverage, Some((&fit, &fit_outliers)));
     Ok(Conversion {
         sequence,
         trajectories,
@@ -460,7 +475,8 @@ fn convert_voxelized(
         fit_outliers,
         attempts: vec![Attempt {
             seed: track.seed,
-            warned,
+            warned: lost.flagged,
+            continued: lost.continued,
         }],
         kept: 0,
         seconds,
