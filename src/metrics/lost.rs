@@ -79,15 +79,16 @@ pub struct LostParts {
 pub fn lost_parts(coverage: &Coverage, fit: Option<(&SequenceFit, &FitOutliers)>) -> LostParts {
     let params = &coverage.params;
     let frames: Vec<FrameLoss> = (0..coverage.frames.len())
-        .map(|f| FrameLoss {
-            unreached: coverage.frames[f].lost_share,
-            far_input: fit.and_then(|(s, _)| s.frames.get(f)).map(|x| x.far_input),
-            far_result: fit.and_then(|(s, _)| s.frames.get(f)).map(|x| x.far_result),
-            weak_input: fit.and_then(|(s, _)| s.frames.get(f)).map(|x| x.weak_input),
-            weak_result: fit
-                .and_then(|(s, _)| s.frames.get(f))
-                .map(|x| x.weak_result),
-            fit_outlier: fit.is_some_and(|(_, o)| o.flagged.contains(&f)),
+        .map(|f| {
+            let frame_fit = fit.and_then(|(s, _)| s.frames.get(f));
+            FrameLoss {
+                unreached: coverage.frames[f].lost_share,
+                far_input: frame_fit.map(|x| x.far_input),
+                far_result: frame_fit.map(|x| x.far_result),
+                weak_input: frame_fit.map(|x| x.weak_input),
+                weak_result: frame_fit.map(|x| x.weak_result),
+                fit_outlier: fit.is_some_and(|(_, o)| o.flagged.contains(&f)),
+            }
         })
         .collect();
     let far: Vec<usize> = frames
@@ -141,14 +142,18 @@ fn carried_on(flagged: &[usize], weak: &[bool]) -> Vec<usize> {
         on[f] = true;
     }
     let mut continued = Vec::new();
-    // Forward then backward: each pass carries a warning along a run.
-    let order: Vec<usize> = (0..weak.len()).chain((0..weak.len()).rev()).collect();
-    for pair in order.windows(2) {
-        let (from, to) = (pair[0], pair[1]);
-        if on[from] && !on[to] && weak[to] && from.abs_diff(to) == 1 {
+    let mut carry = |from: usize, to: usize| {
+        if on[from] && !on[to] && weak[to] {
             on[to] = true;
             continued.push(to);
         }
+    };
+    // Forward then backward: each pass carries a warning along a run.
+    for f in 1..weak.len() {
+        carry(f - 1, f);
+    }
+    for f in (1..weak.len()).rev() {
+        carry(f, f - 1);
     }
     continued.sort_unstable();
     continued
