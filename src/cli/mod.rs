@@ -987,40 +987,71 @@ fn print_conversion(
             "coverage": &conv.coverage,
             "lost_parts": &lost,
             "warnings": warnings.iter().map(|w| &w.message).collect::<Vec<_>>(),
-            "basis": glb_report.as_ref().map(|r| serde_json::json!({
-                "targets": r.targets,
-                "components": r.basis,
-                "compressed": r.compressed,
-                // Frame-to-frame steps, each frame keying every step up to
-                // its own (a compressed file with one target per frame).
-                "steps": r.steps,
-                "normals": args.normals == options::Switch::On,
-                "chosen_by": match args.basis {
-                    Some(BasisArg::Components(_)) => "components",
-                    Some(BasisArg::PerFrame) => "per-frame",
-                    _ if args.basis_by_fit() => "fit",
-                    _ => "length",
-                },
-                // Percent of the diagonal, as `fit_percent`.
-                "reconstruction_error_percent": {
-                    "max": 100.0 * r.reconstruction_error_max,
-                    "mean": 100.0 * r.reconstruction_error_mean,
-                },
-                // The bases the choice by error tried, each as this file
-                // would be with it: bytes against error.
-                "rate_distortion": r.rate_distortion.iter().map(|row| serde_json::json!({
-                    "components": row.components,
-                    "targets": row.targets,
-                    "bytes": row.bytes,
-                    "error_percent": {"max": 100.0 * row.error_max, "mean": 100.0 * row.error_mean},
-                    "chosen": row.chosen,
-                })).collect::<Vec<_>>(),
-            })),
+            "basis": glb_report.as_ref().map(|r| basis_json(args, r)),
             "vat": vat_layout.map(|l| serde_json::json!({"width": l.width, "height": l.height, "rows_per_frame": l.rows_per_frame})),
             "report": args.report,
             "bytes": size,
         }));
     }
+    print_summary(conv, seconds, total, &notes);
+    let called = if named {
+        format!(", object \"{name}\"")
+    } else {
+        String::new()
+    };
+    println!("wrote {} ({}{called})", out.display(), human_size(size));
+    for w in warnings {
+        println!("{}", w.message);
+    }
+    Ok(())
+}
+
+/// `--json`'s `basis`: the morph targets written and how they were chosen.
+fn basis_json(
+    args: &ConvertArgs,
+    r: &voltrack::export::gltf::GltfExportReport,
+) -> serde_json::Value {
+    serde_json::json!({
+        "targets": r.targets,
+        "components": r.basis,
+        "compressed": r.compressed,
+        // Frame-to-frame steps, each frame keying every step up to its own
+        // (a compressed file with one target per frame).
+        "steps": r.steps,
+        "normals": args.normals == options::Switch::On,
+        "chosen_by": match args.basis {
+            Some(BasisArg::Components(_)) => "components",
+            Some(BasisArg::PerFrame) => "per-frame",
+            _ if args.basis_by_fit() => "fit",
+            _ => "length",
+        },
+        // Percent of the diagonal, as `fit_percent`.
+        "reconstruction_error_percent": {
+            "max": 100.0 * r.reconstruction_error_max,
+            "mean": 100.0 * r.reconstruction_error_mean,
+        },
+        // The bases the choice by error tried, each as this file would be
+        // with it: bytes against error.
+        "rate_distortion": r.rate_distortion.iter().map(|row| serde_json::json!({
+            "components": row.components,
+            "targets": row.targets,
+            "bytes": row.bytes,
+            "error_percent": {"max": 100.0 * row.error_max, "mean": 100.0 * row.error_mean},
+            "chosen": row.chosen,
+        })).collect::<Vec<_>>(),
+    })
+}
+
+/// The summary `convert` prints before the file it wrote: sizes, the
+/// reference, the segments, each stage's seconds, the attempts, the fit
+/// and the exporter's `notes`.
+fn print_summary(
+    conv: &pipeline::Conversion,
+    seconds: &[(Stage, f64)],
+    total: f64,
+    notes: &[String],
+) {
+    let traj = &conv.trajectories;
     println!(
         "{} frames, {} vertices, {} triangles, {} centers{}",
         conv.mesh.frames.len(),
@@ -1063,16 +1094,6 @@ fn print_conversion(
     for n in notes {
         println!("{n}");
     }
-    let called = if named {
-        format!(", object \"{name}\"")
-    } else {
-        String::new()
-    };
-    println!("wrote {} ({}{called})", out.display(), human_size(size));
-    for w in warnings {
-        println!("{}", w.message);
-    }
-    Ok(())
 }
 
 /// The attempts in a line: `seeds tried: 0 (12 frames warned of), 1 (3); kept seed 1`.

@@ -427,55 +427,20 @@ fn fit_frame(
             return None;
         }
         let points: Vec<Point3> = y.iter().map(|v| Point3::from(*v)).collect();
-        let point_of = |(t, w): (u32, [Real; 3])| -> Point3 {
-            Point3::from(
-                (0..3)
-                    .map(|k| points[triangles[t as usize][k] as usize].coords * w[k])
-                    .sum::<Vector3>(),
-            )
-        };
         if round < FIRST_SEARCHES || round % SEARCH_EVERY == 0 {
-            match &mut index {
-                None => index = Some(SurfaceIndex::new(&points, triangles)),
-                Some(index) => index.refit(&points, triangles),
-            }
-            let index = index.as_ref().expect("built above");
-            for (q, found) in input.positions.iter().zip(matches.iter_mut()) {
-                // Last search's point is still on the mesh: the nearest one
-                // is at most that far, which prunes the search.
-                let bound =
-                    found.map_or(max_distance, |m| (point_of(m) - q).norm().min(max_distance));
-                let nearest = match *found {
-                    Some((t, _)) => index.closest_triangle_near(q, bound, t),
-                    None => index.closest_triangle_within(q, bound),
-                };
-                *found = nearest.map(|(t, p)| {
-                    let [a, b, c] = triangles[t as usize].map(|i| points[i as usize]);
-                    (t, barycentric(&p, &a, &b, &c))
-                });
-            }
+            let index = match &mut index {
+                None => index.insert(SurfaceIndex::new(&points, triangles)),
+                Some(index) => {
+                    index.refit(&points, triangles);
+                    index
+                }
+            };
+            match_input(index, &points, triangles, input, max_distance, &mut matches);
             if round == 0 {
                 flip = faces_away(&matches, &fans, &points, triangles);
             }
         }
-        for (v, q) in rotations.iter_mut().enumerate() {
-            // A = Σ w_uv (y_v − y_u)(X_v − X_u)ᵀ: its rotation carries the frame-0
-            // edges onto the current ones.
-            let a: Matrix3 = edges
-                .of(v)
-                .iter()
-                .zip(weighted.of(v))
-                .map(|(&u, x)| (y[v] - y[u as usize]) * x.transpose())
-                .sum();
-            if round == 0 {
-                // Already a rotation: no polar decomposition needed.
-                *q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(
-                    rotation_from_covariance(&a.transpose()),
-                ));
-            } else {
-                refine_rotation(&a, q);
-            }
-        }
+        fit_rotations(&mut rotations, edges, &weighted, &y, round == 0);
         let matrices: Vec<Matrix3> = rotations
             .iter()
             .map(|q| q.to_rotation_matrix().into_inner())
@@ -512,39 +477,10 @@ fn fit_frame(
                     .sum::<Vector3>();
             rhs[v] = 0.5 * stiffness * b + ANCHOR * blended[v].coords;
         }
-        terms.clear();
-        // Compatible: the mesh's triangle faces within the least cosine's
-        // angle of every input triangle at the vertex. A vertex whose
-        // triangles turn sharply (beside a crease they cut) pulls fewer
-        // parts of the mesh, and one on a sliver pulls none, nor one in no
-        // triangle (a stray point, not surface).
         let facing = if flip { -1.0 } else { 1.0 };
-        for (j, (q, found)) in input.positions.iter().zip(&matches).enumerate() {
-            let Some((t, weights)) = *found else { continue };
-            let corners = triangles[t as usize];
-            let [a, b, c] = corners.map(|i| points[i as usize]);
-            let Some(normal) = (b - a).cross(&(c - a)).try_normalize(0.0) else {
-                continue;
-            };
-            let fan = fans.of(j);
-            if fan.is_empty()
-                || fan
-                    .iter()
-                    .any(|n| facing * n.dot(&normal) < params.min_normal_cosine)
-            {
-                continue;
-            }
-            let m = normal * normal.transpose() + Matrix3::identity() * params.point_weight;
-            let mq = m * q.coords;
-            for k in 0..3 {
-                rhs[corners[k] as usize] += mq * weights[k];
-            }
-            terms.push(Term {
-                corners,
-                weights,
-                m,
-            });
-        }
+        surface_terms(
+            input, &matches, &fans, &points, triangles, facing, params, &mut rhs, &mut terms,
+        );
         solve(
             edges,
             weighed.then_some(&weights),
@@ -575,6 +511,117 @@ fn fit_frame(
             .map(|&w| Point3::from(y[w as usize]))
             .collect(),
     )
+}
+
+/// Matches every input vertex to the point of the mesh (at `points`,
+/// indexed by `index`) nearest to it within `max_distance`: its triangle and
+/// barycentric coordinates there, None where nothing is that near.
+fn match_input(
+    index: &SurfaceIndex,
+    points: &[Point3],
+    triangles: &[[u32; 3]],
+    input: &TriangleMesh,
+    max_distance: Real,
+    matches: &mut [Option<(u32, [Real; 3])>],
+) {
+    let point_of = |(t, w): (u32, [Real; 3])| -> Point3 {
+        Point3::from(
+            (0..3)
+                .map(|k| points[triangles[t as usize][k] as usize].coords * w[k])
+                .sum::<Vector3>(),
+        )
+    };
+    for (q, found) in input.positions.iter().zip(matches.iter_mut()) {
+        // Last search's point is still on the mesh: the nearest one
+        // is at most that far, which prunes the search.
+        let bound = found.map_or(max_distance, |m| (point_of(m) - q).norm().min(max_distance));
+        let nearest = match *found {
+            Some((t, _)) => index.closest_triangle_near(q, bound, t),
+            None => index.closest_triangle_within(q, bound),
+        };
+        *found = nearest.map(|(t, p)| {
+            let [a, b, c] = triangles[t as usize].map(|i| points[i as usize]);
+            (t, barycentric(&p, &a, &b, &c))
+        });
+    }
+}
+
+/// The local step: every vertex's rotation fitted to its one-ring's
+/// current edges `y` against the frame-0 ones (`weighted`: weighted by
+/// edge); the `first` fit from scratch, later ones refined from the last.
+fn fit_rotations(
+    rotations: &mut [UnitQuaternion],
+    edges: &Edges,
+    weighted: &PerVertex<Vector3>,
+    y: &[Vector3],
+    first: bool,
+) {
+    for (v, q) in rotations.iter_mut().enumerate() {
+        // A = Σ w_uv (y_v − y_u)(X_v − X_u)ᵀ: its rotation carries the frame-0
+        // edges onto the current ones.
+        let a: Matrix3 = edges
+            .of(v)
+            .iter()
+            .zip(weighted.of(v))
+            .map(|(&u, x)| (y[v] - y[u as usize]) * x.transpose())
+            .sum();
+        if first {
+            // Already a rotation: no polar decomposition needed.
+            *q = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(
+                rotation_from_covariance(&a.transpose()),
+            ));
+        } else {
+            refine_rotation(&a, q);
+        }
+    }
+}
+
+/// The surface terms of the input vertices whose matches are compatible,
+/// into `terms` (cleared first), and their share of the right-hand side
+/// into `rhs`. Compatible: the mesh's triangle faces (turned by `facing`)
+/// within the least cosine's angle of every input triangle at the vertex.
+/// A vertex whose triangles turn sharply (beside a crease they cut) pulls
+/// fewer parts of the mesh, and one on a sliver pulls none, nor one in no
+/// triangle (a stray point, not surface).
+#[allow(clippy::too_many_arguments)]
+fn surface_terms(
+    input: &TriangleMesh,
+    matches: &[Option<(u32, [Real; 3])>],
+    fans: &Fans,
+    points: &[Point3],
+    triangles: &[[u32; 3]],
+    facing: Real,
+    params: &ConformParams,
+    rhs: &mut [Vector3],
+    terms: &mut Vec<Term>,
+) {
+    terms.clear();
+    for (j, (q, found)) in input.positions.iter().zip(matches).enumerate() {
+        let Some((t, weights)) = *found else { continue };
+        let corners = triangles[t as usize];
+        let [a, b, c] = corners.map(|i| points[i as usize]);
+        let Some(normal) = (b - a).cross(&(c - a)).try_normalize(0.0) else {
+            continue;
+        };
+        let fan = fans.of(j);
+        if fan.is_empty()
+            || fan
+                .iter()
+                .any(|n| facing * n.dot(&normal) < params.min_normal_cosine)
+        {
+            continue;
+        }
+        let m = normal * normal.transpose() + Matrix3::identity() * params.point_weight;
+        let mq = m * q.coords;
+        for k in 0..3 {
+            rhs[corners[k] as usize] += mq * weights[k];
+        }
+        terms.push(Term {
+            corners,
+            weights,
+            m,
+        });
+    }
 }
 
 /// The strain of `edges`' k-th item, from v to u: |(y_v − y_u) − R (X_v − X_u)|

@@ -341,19 +341,7 @@ fn dynamic_glb(
         name_targets_after_frames(&mut basis, &options.frame_names);
     }
     let relative = |e: Real| if diagonal > 0.0 { e / diagonal } else { 0.0 };
-    let first = frames.get(0)?.into_owned();
-    let normals = options
-        .normals
-        .then(|| FrameNormals::new(&mesh.base, &first));
-    let base = TriangleMesh {
-        positions: first,
-        triangles: mesh.base.triangles.clone(),
-        uvs: mesh.base.uvs.clone(),
-        normals: normals
-            .as_ref()
-            .map(|n| n.base.iter().map(to_f32).collect()),
-        texture: mesh.base.texture.clone(),
-    };
+    let (base, normals) = base_mesh(mesh, options.normals)?;
     // One target per frame, when a compressed file of them is smaller than
     // the basis chosen (below); declared here to outlive the animations.
     let per_frame_basis;
@@ -411,21 +399,22 @@ fn dynamic_glb(
         let mut one_each = MorphBasis::per_frame(frames.len());
         name_targets_after_frames(&mut one_each, &options.frame_names);
         per_frame_basis = one_each;
-        let deltas = stored_deltas(frames, &per_frame_basis, normals.as_ref(), progress)?;
-        let steps = morph_animation(
-            deltas,
-            frames.len(),
+        let steps = steps_encoded(
+            frames,
             &per_frame_basis,
-            options.fps,
-            options.interpolation,
-        );
-        let (steps, q, steps_glb) = encoded(Some(steps), &base, &scene, true, progress)?;
-        let (steps_bytes, basis_bytes) = (steps_glb.length()?, glb.length()?);
+            &base,
+            normals.as_ref(),
+            &scene,
+            options,
+            progress,
+        )?;
+        let (steps_bytes, basis_bytes) = (steps.2.length()?, glb.length()?);
         if steps_bytes < basis_bytes {
             log::info!(
                 "one target per frame as steps takes {steps_bytes} bytes, the basis of {:?} components {basis_bytes}: writing the steps",
                 basis.components,
             );
+            let (steps, q, steps_glb) = steps;
             (&per_frame_basis, steps, q, steps_glb)
         } else {
             (&basis, animation, quantizer, glb)
@@ -448,43 +437,28 @@ fn dynamic_glb(
         return Err(e);
     }
     written?;
-    let mut rate_distortion = Vec::new();
-    if options.rate_distortion && !trials.is_empty() {
-        // The basis written is measured already: only the others are encoded.
-        let others: Vec<&basis::BasisTrial> = trials
-            .iter()
-            .filter(|t| t.basis.components != basis.components)
-            .collect();
-        let sizes = tried_sizes(
-            frames,
-            &base,
-            &others,
-            normals.as_ref(),
-            &scene,
-            options,
-            progress,
-        )?;
-        for (trial, Encoded { bytes, max, mean }) in others.into_iter().zip(sizes) {
-            rate_distortion.push(RateRow {
-                components: trial.basis.components,
-                targets: trial.basis.targets(),
-                bytes,
-                error_max: relative(max),
-                error_mean: relative(mean),
-                chosen: false,
-            });
-        }
-        rate_distortion.push(RateRow {
+    let rate_distortion = if options.rate_distortion && !trials.is_empty() {
+        let written = RateRow {
             components: basis.components,
             targets: basis.targets(),
             bytes,
             error_max: relative(error_max),
             error_mean: relative(error_mean),
             chosen: true,
-        });
-        // By size, as the trials: the per-frame basis has the most targets.
-        rate_distortion.sort_by_key(|r| r.targets);
-    }
+        };
+        rate_distortion(
+            frames,
+            &base,
+            &trials,
+            written,
+            normals.as_ref(),
+            &scene,
+            options,
+            progress,
+        )?
+    } else {
+        Vec::new()
+    };
     Ok(GltfExportReport {
         targets: basis.targets(),
         basis: basis.components,
@@ -495,6 +469,89 @@ fn dynamic_glb(
         steps,
         rate_distortion,
     })
+}
+
+/// The file's base mesh: the first frame of `mesh` with its triangles, UVs
+/// and texture, and the frames' normals when `with_normals` (the base's
+/// stored in the mesh).
+fn base_mesh(
+    mesh: &DynamicMesh,
+    with_normals: bool,
+) -> Result<(TriangleMesh, Option<FrameNormals<'_>>)> {
+    let first = mesh.frames.get(0)?.into_owned();
+    let normals = with_normals.then(|| FrameNormals::new(&mesh.base, &first));
+    let base = TriangleMesh {
+        positions: first,
+        triangles: mesh.base.triangles.clone(),
+        uvs: mesh.base.uvs.clone(),
+        normals: normals
+            .as_ref()
+            .map(|n| n.base.iter().map(to_f32).collect()),
+        texture: mesh.base.texture.clone(),
+    };
+    Ok((base, normals))
+}
+
+/// The frames as one target per frame (`per_frame_basis`), compressed as
+/// steps from frame to frame: the animation, its quantiser and the parts.
+fn steps_encoded<'a>(
+    frames: &PositionFrames,
+    per_frame_basis: &'a MorphBasis,
+    base: &TriangleMesh,
+    normals: Option<&FrameNormals>,
+    scene: &SceneInfo,
+    options: &GltfExportOptions,
+    progress: Progress,
+) -> Result<(Option<MorphAnimation<'a>>, Option<Quantizer>, GlbParts)> {
+    let deltas = stored_deltas(frames, per_frame_basis, normals, progress)?;
+    let steps = morph_animation(
+        deltas,
+        frames.len(),
+        per_frame_basis,
+        options.fps,
+        options.interpolation,
+    );
+    encoded(Some(steps), base, scene, true, progress)
+}
+
+/// The rate-distortion table: every basis of `trials` but the one `written`
+/// encoded as the file would be (never written), and the `written` one's
+/// own row; by number of targets.
+#[allow(clippy::too_many_arguments)]
+fn rate_distortion(
+    frames: &PositionFrames,
+    base: &TriangleMesh,
+    trials: &[basis::BasisTrial],
+    written: RateRow,
+    normals: Option<&FrameNormals>,
+    scene: &SceneInfo,
+    options: &GltfExportOptions,
+    progress: Progress,
+) -> Result<Vec<RateRow>> {
+    let diagonal = frames.bounds()?.diagonal();
+    let relative = |e: Real| if diagonal > 0.0 { e / diagonal } else { 0.0 };
+    // The basis written is measured already: only the others are encoded.
+    let others: Vec<&basis::BasisTrial> = trials
+        .iter()
+        .filter(|t| t.basis.components != written.components)
+        .collect();
+    let sizes = tried_sizes(frames, base, &others, normals, scene, options, progress)?;
+    let mut rows: Vec<RateRow> = others
+        .into_iter()
+        .zip(sizes)
+        .map(|(trial, Encoded { bytes, max, mean })| RateRow {
+            components: trial.basis.components,
+            targets: trial.basis.targets(),
+            bytes,
+            error_max: relative(max),
+            error_mean: relative(mean),
+            chosen: false,
+        })
+        .collect();
+    rows.push(written);
+    // By size, as the trials: the per-frame basis has the most targets.
+    rows.sort_by_key(|r| r.targets);
+    Ok(rows)
 }
 
 /// A basis encoded: the file's size, the largest and mean error (scene units).

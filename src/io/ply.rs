@@ -69,6 +69,28 @@ struct Element {
 }
 
 impl Element {
+    /// Fails where the rest of the file (`left` bytes) cannot hold the
+    /// count declared: before a loop of billions.
+    fn check_fits(&self, path: &Path, left: usize, encoding: Encoding) -> Result<()> {
+        let fits = self
+            .count
+            .checked_mul(self.min_bytes(encoding))
+            .is_some_and(|need| need <= left + 1);
+        if fits {
+            return Ok(());
+        }
+        Err(Error::parse(
+            path,
+            Some(self.line),
+            format!(
+                "the header declares {} {} elements of at least {} bytes each, more than the {left} bytes left in the file",
+                self.count,
+                self.name,
+                self.min_bytes(encoding)
+            ),
+        ))
+    }
+
     /// Fewest bytes one element takes in the body: its scalars and list
     /// counts in binary, a value and a line break in ASCII.
     fn min_bytes(&self, encoding: Encoding) -> usize {
@@ -80,6 +102,61 @@ impl Element {
                 .map(|p| p.list.unwrap_or(p.scalar).size())
                 .sum(),
         }
+    }
+}
+
+/// Where an element's properties of interest are (indices into its
+/// properties).
+struct Layout {
+    is_vertex: bool,
+    is_face: bool,
+    xyz: [Option<usize>; 3],
+    nxyz: [Option<usize>; 3],
+    uv: [Option<usize>; 2],
+    /// The face's list of vertex indices.
+    face_list: Option<usize>,
+}
+
+impl Layout {
+    /// Of `el`, failing where a vertex element lacks a coordinate or a face
+    /// element its index list.
+    fn of(el: &Element, path: &Path) -> Result<Self> {
+        let is_vertex = el.name == "vertex";
+        let is_face = el.name == "face";
+        let find = |names: &[&str]| {
+            el.properties
+                .iter()
+                .position(|p| names.contains(&p.name.as_str()) && p.list.is_none())
+        };
+        let xyz = [find(&["x"]), find(&["y"]), find(&["z"])];
+        if is_vertex && xyz.iter().any(Option::is_none) {
+            return Err(Error::parse(
+                path,
+                Some(el.line),
+                "the vertex element lacks one of the properties x, y, z",
+            ));
+        }
+        let face_list = el.properties.iter().position(|p| {
+            p.list.is_some() && (p.name == "vertex_indices" || p.name == "vertex_index")
+        });
+        if is_face && face_list.is_none() {
+            return Err(Error::parse(
+                path,
+                Some(el.line),
+                "the face element has no vertex_indices list",
+            ));
+        }
+        Ok(Layout {
+            is_vertex,
+            is_face,
+            xyz,
+            nxyz: [find(&["nx"]), find(&["ny"]), find(&["nz"])],
+            uv: [
+                find(&["u", "s", "texture_u", "texture_s"]),
+                find(&["v", "t", "texture_v", "texture_t"]),
+            ],
+            face_list,
+        })
     }
 }
 
@@ -97,6 +174,39 @@ struct Body<'a> {
 }
 
 impl<'a> Body<'a> {
+    /// Reads a list of `n` values of type `scalar`; where `keep` (a face's
+    /// vertex indices), checks them as indices (against the `vertices` read
+    /// where the vertex element came first) into `corners`, at least three.
+    fn corners(
+        &mut self,
+        n: usize,
+        scalar: Scalar,
+        keep: bool,
+        vertices: Option<usize>,
+        corners: &mut Vec<u32>,
+    ) -> Result<()> {
+        corners.clear();
+        for _ in 0..n {
+            let v = self.value(scalar)?;
+            if keep {
+                if v < 0.0 || v.fract() != 0.0 || v >= u32::MAX as f64 {
+                    return Err(self.err(format!("vertex index {v} is not valid")));
+                }
+                if let Some(n) = vertices.filter(|&n| v >= n as f64) {
+                    return Err(self.err(format!("vertex index {v} is beyond the {n} vertices")));
+                }
+                corners.push(v as u32);
+            }
+        }
+        if keep && corners.len() < 3 {
+            return Err(self.err(format!(
+                "a face needs at least 3 corners, this one has {}",
+                corners.len()
+            )));
+        }
+        Ok(())
+    }
+
     /// An error at the current position, saying which element it is in (a
     /// count in the header that disagrees with the body shows up as an
     /// element that does not fit).
@@ -239,60 +349,18 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         if el.properties.is_empty() {
             continue; // holds nothing, however many there are
         }
-        // A count the rest of the file cannot hold fails here, before a
-        // loop of billions.
-        let left = bytes.len().saturating_sub(body.pos);
-        let fits = el
-            .count
-            .checked_mul(el.min_bytes(encoding))
-            .is_some_and(|need| need <= left + 1);
-        if !fits {
-            return Err(Error::parse(
-                path,
-                Some(el.line),
-                format!(
-                    "the header declares {} {} elements of at least {} bytes each, more than the {left} bytes left in the file",
-                    el.count,
-                    el.name,
-                    el.min_bytes(encoding)
-                ),
-            ));
-        }
-        let is_vertex = el.name == "vertex";
-        let is_face = el.name == "face";
-        let find = |names: &[&str]| {
-            el.properties
-                .iter()
-                .position(|p| names.contains(&p.name.as_str()) && p.list.is_none())
-        };
-        let xyz = [find(&["x"]), find(&["y"]), find(&["z"])];
-        let nxyz = [find(&["nx"]), find(&["ny"]), find(&["nz"])];
-        let uv = [
-            find(&["u", "s", "texture_u", "texture_s"]),
-            find(&["v", "t", "texture_v", "texture_t"]),
-        ];
-        if is_vertex {
-            if xyz.iter().any(Option::is_none) {
-                return Err(Error::parse(
-                    path,
-                    Some(el.line),
-                    "the vertex element lacks one of the properties x, y, z",
-                ));
-            }
-            saw_vertices = true;
-        }
+        el.check_fits(path, bytes.len().saturating_sub(body.pos), encoding)?;
+        let Layout {
+            is_vertex,
+            is_face,
+            xyz,
+            nxyz,
+            uv,
+            face_list,
+        } = Layout::of(el, path)?;
+        saw_vertices |= is_vertex;
         let has_normals = nxyz.iter().all(Option::is_some);
         let has_uvs = uv.iter().all(Option::is_some);
-        let face_list = el.properties.iter().position(|p| {
-            p.list.is_some() && (p.name == "vertex_indices" || p.name == "vertex_index")
-        });
-        if is_face && face_list.is_none() {
-            return Err(Error::parse(
-                path,
-                Some(el.line),
-                "the face element has no vertex_indices list",
-            ));
-        }
         let mut values = vec![0.0f64; el.properties.len()];
         let mut corners: Vec<u32> = Vec::new();
         for number in 1..=el.count {
@@ -308,26 +376,7 @@ pub fn read_ply(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
                         )));
                     }
                     let keep = is_face && Some(k) == face_list;
-                    corners.clear();
-                    for _ in 0..n as usize {
-                        let v = body.value(p.scalar)?;
-                        if keep {
-                            if v < 0.0 || v.fract() != 0.0 || v >= u32::MAX as f64 {
-                                return Err(body.err(format!("vertex index {v} is not valid")));
-                            }
-                            if let Some(n) = vertices.filter(|&n| v >= n as f64) {
-                                return Err(body
-                                    .err(format!("vertex index {v} is beyond the {n} vertices")));
-                            }
-                            corners.push(v as u32);
-                        }
-                    }
-                    if keep && corners.len() < 3 {
-                        return Err(body.err(format!(
-                            "a face needs at least 3 corners, this one has {}",
-                            corners.len()
-                        )));
-                    }
+                    body.corners(n as usize, p.scalar, keep, vertices, &mut corners)?;
                     if keep && vertices.is_some() {
                         triangulate_polygon(&mesh.positions, &corners, &mut mesh.triangles);
                     } else if keep {

@@ -95,29 +95,22 @@ pub fn refine_with_checkpoints(
     let (frames, total) = (traj.frames, params.total_removed(traj.centers));
     // Where to save, and the fingerprint the file carries.
     let saving = checkpoint.map(|c| (c, checkpoint::fingerprint(&traj, seq, params)));
-    let restored = match saving {
-        Some((c, fp)) if c.resume && c.refine_path().exists() => {
-            let r = checkpoint::load(c, fp, &traj, params.batches)?;
-            log::info!(
-                "resuming refinement from {} after {} of {} batches",
-                c.refine_path().display(),
-                r.batches_done,
-                params.batches
-            );
-            r
-        }
-        _ => Restored::fresh(traj),
-    };
     let Restored {
         batches_done: first,
-        mut kept,
+        kept,
         trajectories: mut current,
-        mut removed,
-        finished: mut batches,
+        removed,
+        finished,
         current: mut in_progress,
         seconds: earlier,
-    } = restored;
-    let seconds = |start: &Instant| earlier + start.elapsed().as_secs_f64();
+    } = restore(traj, params, saving)?;
+    let mut record = Record {
+        kept,
+        removed,
+        finished,
+        earlier,
+        start,
+    };
     let interrupted = |batches_done: usize| Error::Interrupted {
         saved: checkpoint.map(|c| Saved {
             path: c.path(),
@@ -147,24 +140,13 @@ pub fn refine_with_checkpoints(
                 remove_irregular(
                     &mut current,
                     &mut cells,
-                    &mut kept,
-                    &mut removed,
+                    &mut record.kept,
+                    &mut record.removed,
                     n_rem,
                     params,
                 );
                 if !params.optimise {
-                    save(
-                        saving,
-                        Snapshot {
-                            batches_done: b + 1,
-                            trajectories: &current,
-                            kept: &kept,
-                            removed: &removed,
-                            finished: &batches,
-                            current: None,
-                            seconds: seconds(&start),
-                        },
-                    )?;
+                    save(saving, record.snapshot(b + 1, &current, None))?;
                     continue;
                 }
                 let omega = global_affinity(
@@ -189,104 +171,184 @@ pub fn refine_with_checkpoints(
                 (omega, Vec::new())
             }
         };
-        // A resumed batch goes on with the iterations it had left; its start
-        // is the saved history's last entry.
-        let done_before = before.len().saturating_sub(1);
-        let joined = |history: &[Iteration]| -> Vec<Iteration> {
-            if before.is_empty() {
-                history.to_vec()
-            } else {
-                before
-                    .iter()
-                    .chain(history.iter().skip(1))
-                    .copied()
-                    .collect()
-            }
+        let batch = Batch {
+            index: b,
+            omega: &omega,
+            before: &before,
+            done: b * per_batch,
+            steps,
         };
-        let mut last_save = Instant::now();
-        let mut save_error = None;
-        let done = b * per_batch + done_before;
-        let history = optimise(
+        let history = optimise_batch(
             &mut current,
-            &seq.grid,
+            seq,
             &mut cells,
-            &omega,
-            &RefineParams {
-                max_iterations: params.max_iterations.saturating_sub(done_before),
-                ..params.clone()
-            },
-            |it, now, history| {
-                progress.report(Stage::Refine, done + it, steps);
-                if progress.cancelled() {
-                    return false;
-                }
-                if saving.is_some_and(|(c, _)| {
-                    last_save.elapsed().as_secs_f64() >= c.refine_save_seconds
-                }) {
-                    let history = joined(history);
-                    let snapshot = Snapshot {
-                        batches_done: b,
-                        trajectories: now,
-                        kept: &kept,
-                        removed: &removed,
-                        finished: &batches,
-                        current: Some((&omega, &history)),
-                        seconds: seconds(&start),
-                    };
-                    if let Err(e) = save(saving, snapshot) {
-                        save_error = Some(e);
-                        return false;
-                    }
-                    last_save = Instant::now();
-                }
-                true
-            },
+            &record,
+            &batch,
+            params,
+            saving,
+            progress,
         )?;
-        if let Some(e) = save_error {
-            return Err(e);
-        }
-        let history = joined(&history);
         if progress.cancelled() {
             // The batch may have ended too; resumed, it finds no iteration
             // left or no step that lowers the energy, as it would have.
             save(
                 saving,
-                Snapshot {
-                    batches_done: b,
-                    trajectories: &current,
-                    kept: &kept,
-                    removed: &removed,
-                    finished: &batches,
-                    current: Some((&omega, &history)),
-                    seconds: seconds(&start),
-                },
+                record.snapshot(b, &current, Some((&omega, &history))),
             )?;
             return Err(interrupted(b));
         }
-        batches.push(history);
-        save(
-            saving,
-            Snapshot {
-                batches_done: b + 1,
-                trajectories: &current,
-                kept: &kept,
-                removed: &removed,
-                finished: &batches,
-                current: None,
-                seconds: seconds(&start),
-            },
-        )?;
+        record.finished.push(history);
+        save(saving, record.snapshot(b + 1, &current, None))?;
     }
     progress.report(Stage::Refine, steps, steps);
     Ok(RefineResult {
         trajectories: current,
         refinement: Refinement {
-            removed,
-            kept,
-            batches,
-            seconds: seconds(&start),
+            seconds: record.seconds(),
+            removed: record.removed,
+            kept: record.kept,
+            batches: record.finished,
         },
     })
+}
+
+/// The saved state to resume from where `saving` says to resume and a file
+/// is there, else the start of a refinement of `traj`.
+fn restore(
+    traj: Trajectories,
+    params: &RefineParams,
+    saving: Option<(&Checkpointing, u64)>,
+) -> Result<Restored> {
+    Ok(match saving {
+        Some((c, fp)) if c.resume && c.refine_path().exists() => {
+            let r = checkpoint::load(c, fp, &traj, params.batches)?;
+            log::info!(
+                "resuming refinement from {} after {} of {} batches",
+                c.refine_path().display(),
+                r.batches_done,
+                params.batches
+            );
+            r
+        }
+        _ => Restored::fresh(traj),
+    })
+}
+
+/// What the refinement has done so far besides the trajectories: what a
+/// checkpoint saves with them.
+struct Record {
+    kept: Vec<usize>,
+    removed: Vec<usize>,
+    /// The finished batches' energy histories.
+    finished: Vec<Vec<Iteration>>,
+    /// Seconds of a resumed run's earlier sessions.
+    earlier: f64,
+    start: Instant,
+}
+
+impl Record {
+    /// Seconds spent refining so far, earlier sessions included.
+    fn seconds(&self) -> f64 {
+        self.earlier + self.start.elapsed().as_secs_f64()
+    }
+
+    /// The state to save after `batches_done` batches, with `trajectories`
+    /// and the batch in progress, if any.
+    fn snapshot<'a>(
+        &'a self,
+        batches_done: usize,
+        trajectories: &'a Trajectories,
+        current: Option<(&'a SparseAffinity, &'a [Iteration])>,
+    ) -> Snapshot<'a> {
+        Snapshot {
+            batches_done,
+            trajectories,
+            kept: &self.kept,
+            removed: &self.removed,
+            finished: &self.finished,
+            current,
+            seconds: self.seconds(),
+        }
+    }
+}
+
+/// A batch's global optimisation, as far as the progress bar and a resumed
+/// run see it.
+struct Batch<'a> {
+    /// Which batch (from 0).
+    index: usize,
+    omega: &'a SparseAffinity,
+    /// A resumed batch's history so far (empty when the batch starts now);
+    /// its last entry is where the iterations go on from.
+    before: &'a [Iteration],
+    /// The progress steps of the batches before.
+    done: usize,
+    steps: usize,
+}
+
+/// Optimises `current` over the batch's iterations left, saving the state
+/// every `refine_save_seconds`; returns the batch's whole energy history
+/// (a resumed batch's earlier part included). Stops early when `progress`
+/// asks to or a save fails (that error returned).
+#[allow(clippy::too_many_arguments)]
+fn optimise_batch(
+    current: &mut Trajectories,
+    seq: &VoxelSequence,
+    cells: &mut SequenceCells,
+    record: &Record,
+    batch: &Batch,
+    params: &RefineParams,
+    saving: Option<(&Checkpointing, u64)>,
+    progress: Progress,
+) -> Result<Vec<Iteration>> {
+    let before = batch.before;
+    let done_before = before.len().saturating_sub(1);
+    let joined = |history: &[Iteration]| -> Vec<Iteration> {
+        if before.is_empty() {
+            history.to_vec()
+        } else {
+            before
+                .iter()
+                .chain(history.iter().skip(1))
+                .copied()
+                .collect()
+        }
+    };
+    let mut last_save = Instant::now();
+    let mut save_error = None;
+    let done = batch.done + done_before;
+    let history = optimise(
+        current,
+        &seq.grid,
+        cells,
+        batch.omega,
+        &RefineParams {
+            max_iterations: params.max_iterations.saturating_sub(done_before),
+            ..params.clone()
+        },
+        |it, now, history| {
+            progress.report(Stage::Refine, done + it, batch.steps);
+            if progress.cancelled() {
+                return false;
+            }
+            if saving
+                .is_some_and(|(c, _)| last_save.elapsed().as_secs_f64() >= c.refine_save_seconds)
+            {
+                let history = joined(history);
+                let snapshot = record.snapshot(batch.index, now, Some((batch.omega, &history)));
+                if let Err(e) = save(saving, snapshot) {
+                    save_error = Some(e);
+                    return false;
+                }
+                last_save = Instant::now();
+            }
+            true
+        },
+    )?;
+    match save_error {
+        Some(e) => Err(e),
+        None => Ok(joined(&history)),
+    }
 }
 
 /// Saves `snapshot` where `saving` says, if anywhere.

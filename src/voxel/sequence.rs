@@ -130,22 +130,7 @@ pub fn voxelize_sequence(
         .collect::<Result<_>>()?;
     let read_seconds = start.elapsed().as_secs_f64();
 
-    let is_mesh = |d: &Summary| matches!(d, Summary::Mesh { .. });
-    let meshes = summaries.iter().filter(|d| is_mesh(d)).count();
-    if meshes != 0 && meshes != summaries.len() {
-        let first = |mesh: bool| {
-            paths[summaries
-                .iter()
-                .position(|d| is_mesh(d) == mesh)
-                .expect("both kinds")]
-            .display()
-        };
-        return Err(Error::InvalidInput(format!(
-            "the sequence mixes meshes ({} …) and voxel grids ({} …): give one kind",
-            first(true),
-            first(false)
-        )));
-    }
+    let meshes = one_kind(&paths, &summaries)?;
     if meshes == 0 {
         let data = summaries.into_iter().map(|d| match d {
             Summary::Voxels(g, o) => (g, o),
@@ -165,30 +150,7 @@ pub fn voxelize_sequence(
     check_placement(&paths, &boxes)?;
     let bounds = boxes.iter().fold(Aabb::empty(), |a, b| a.union(b));
     let grid = GridSpec::for_bounds(&bounds, params.resolution)?;
-    if let Some(limit) = params.max_memory.or_else(super::available_memory) {
-        let estimate =
-            super::MemoryEstimate::of_frames(&extents, &grid, rayon::current_num_threads());
-        let held = super::memory::resident_memory().unwrap_or(0.0);
-        let mib = |b: f64| b / (1u64 << 20) as f64;
-        log::debug!(
-            "memory estimate in MiB: voxels {:.1}, tracking {:.1}, kept cells {:.1} (at most {:.1} under this limit), mesh stages {:.1}, held now {:.1}",
-            mib(estimate.bytes),
-            mib(estimate.tracking),
-            mib(estimate.kept_cells),
-            mib(crate::params::kept_cell_share(limit)),
-            mib(estimate.mesh_stages),
-            mib(held),
-        );
-        let size = super::memory::size;
-        log::info!(
-            "estimated memory: {} of {} allowed, on top of {} held now: a peak of at most {}",
-            size(estimate.total(limit)),
-            size(limit),
-            size(held),
-            size(held + estimate.total(limit))
-        );
-        estimate.check(limit, params.resolution, paths.len())?;
-    }
+    check_memory(&extents, &grid, params, paths.len())?;
     let Summary::Mesh {
         mesh: Some(first_mesh),
         ..
@@ -213,30 +175,18 @@ pub fn voxelize_sequence(
             } else {
                 read = match source.frame(f)? {
                     Frame::Mesh(m) => m,
-                    Frame::Voxels(..) => return Err(Error::mesh(path, "was a mesh when first read, a voxel grid now")),
+                    Frame::Voxels(..) => {
+                        return Err(Error::mesh(
+                            path,
+                            "was a mesh when first read, a voxel grid now",
+                        ))
+                    }
                 };
                 &read
             };
-            let v = voxelize_detailed(mesh, &grid, &|| progress.cancelled()).ok_or(Error::Interrupted { saved: None })?;
+            let runs = voxelize_frame(mesh, &grid, path, progress)?;
             counter.tick();
-            if v.occupancy.is_empty() {
-                return Err(Error::mesh(
-                    path,
-                    "encloses no voxel at this resolution (an open sheet, or too thin); raise the resolution or close the surface",
-                ));
-            }
-            if v.unvouched as f64 > MAX_UNVOUCHED * v.occupancy.len() as f64 {
-                return Err(Error::mesh(
-                    path,
-                    format!(
-                        "encloses no volume: {} of its {} voxels are inside only by a guess, every axis's ray through them passing through a hole \
-                         (an open sheet?); close the surface",
-                        v.unvouched,
-                        v.occupancy.len()
-                    ),
-                ));
-            }
-            Ok(OccupancyRuns::from(v.occupancy))
+            Ok(runs)
         })
         .collect::<Result<_>>()?;
     let voxelize_seconds = start.elapsed().as_secs_f64();
@@ -256,6 +206,94 @@ pub fn voxelize_sequence(
         read_seconds,
         voxelize_seconds,
     })
+}
+
+/// How many of the frames read (`summaries`, of `paths`) are meshes:
+/// all or none, a sequence mixing meshes and voxel grids fails.
+fn one_kind(paths: &[&Path], summaries: &[Summary]) -> Result<usize> {
+    let is_mesh = |d: &Summary| matches!(d, Summary::Mesh { .. });
+    let meshes = summaries.iter().filter(|d| is_mesh(d)).count();
+    if meshes != 0 && meshes != summaries.len() {
+        let first = |mesh: bool| {
+            paths[summaries
+                .iter()
+                .position(|d| is_mesh(d) == mesh)
+                .expect("both kinds")]
+            .display()
+        };
+        return Err(Error::InvalidInput(format!(
+            "the sequence mixes meshes ({} …) and voxel grids ({} …): give one kind",
+            first(true),
+            first(false)
+        )));
+    }
+    Ok(meshes)
+}
+
+/// Fails where the conversion of `frames` frames of these `extents` on
+/// `grid` is estimated to need more memory than `params.max_memory` (or
+/// than is available), before any frame is voxelised.
+fn check_memory(
+    extents: &[FrameExtent],
+    grid: &GridSpec,
+    params: &VoxelParams,
+    frames: usize,
+) -> Result<()> {
+    let Some(limit) = params.max_memory.or_else(super::available_memory) else {
+        return Ok(());
+    };
+    let estimate = super::MemoryEstimate::of_frames(extents, grid, rayon::current_num_threads());
+    let held = super::memory::resident_memory().unwrap_or(0.0);
+    let mib = |b: f64| b / (1u64 << 20) as f64;
+    log::debug!(
+        "memory estimate in MiB: voxels {:.1}, tracking {:.1}, kept cells {:.1} (at most {:.1} under this limit), mesh stages {:.1}, held now {:.1}",
+        mib(estimate.bytes),
+        mib(estimate.tracking),
+        mib(estimate.kept_cells),
+        mib(crate::params::kept_cell_share(limit)),
+        mib(estimate.mesh_stages),
+        mib(held),
+    );
+    let size = super::memory::size;
+    log::info!(
+        "estimated memory: {} of {} allowed, on top of {} held now: a peak of at most {}",
+        size(estimate.total(limit)),
+        size(limit),
+        size(held),
+        size(held + estimate.total(limit))
+    );
+    estimate.check(limit, params.resolution, frames)
+}
+
+/// One frame's `mesh` (read from `path`) voxelised on `grid`, failing
+/// where it encloses no volume; [`Error::Interrupted`] when
+/// `progress` asks to stop.
+fn voxelize_frame(
+    mesh: &TriangleMesh,
+    grid: &GridSpec,
+    path: &Path,
+    progress: Progress,
+) -> Result<OccupancyRuns> {
+    let v = voxelize_detailed(mesh, grid, &|| progress.cancelled())
+        .ok_or(Error::Interrupted { saved: None })?;
+    if v.occupancy.is_empty() {
+        return Err(Error::mesh(
+            path,
+            "encloses no voxel at this resolution (an open sheet, or too thin); raise the resolution or close the surface",
+        ));
+    }
+    if v.unvouched as f64 > MAX_UNVOUCHED * v.occupancy.len() as f64 {
+        return Err(Error::mesh(
+            path,
+            format!(
+                "encloses no volume: {} of its {} voxels are inside only by a guess, every axis's ray through them passing through a hole \
+                 (an open sheet?); close the surface",
+                v.unvouched,
+                v.occupancy.len()
+            ),
+        ));
+    }
+    Ok(OccupancyRuns::from(v.occupancy))
 }
 
 /// What the first pass keeps of a frame.
