@@ -669,6 +669,77 @@ fn auto_picks_a_compact_basis_for_long_low_rank_motion() {
     assert_eq!((report.basis, report.targets), (None, 255));
 }
 
+/// Every row of the rate table is the file its basis makes: also where the
+/// steps from frame to frame win over the basis the error bound chose, whose
+/// row is then measured as it was encoded for that comparison (not encoded
+/// again).
+#[test]
+fn the_rate_table_rows_are_the_files_each_basis_makes() {
+    // Parts moving one after another: frame f has the first f of 24
+    // sectors of the ring lifted, so each step from frame to frame moves one
+    // sector only, while a basis needs a component for each.
+    let sectors = 24;
+    let mesh = torus(sectors, |f, p| {
+        let turn = p.y.atan2(p.x).rem_euclid(std::f64::consts::TAU as Real);
+        let sector = (turn / std::f64::consts::TAU as Real * sectors as Real) as usize;
+        if sector < f {
+            p + Vector3::new(0.0, 0.0, 0.2)
+        } else {
+            *p
+        }
+    });
+    let dir = Scratch::new("export", "rate-table");
+    let compressed = |basis| GltfExportOptions {
+        compress: true,
+        ..options(basis)
+    };
+    let report = write_dynamic_glb(
+        &dir.join("auto.glb"),
+        &mesh,
+        &GltfExportOptions {
+            rate_distortion: true,
+            ..compressed(BasisChoice::Bounded {
+                mean: 0.004,
+                max: 0.04,
+            })
+        },
+        Progress::none(),
+    )
+    .unwrap();
+    assert!(report.steps, "{report:?}");
+    let rows = &report.rate_distortion;
+    let chosen: Vec<_> = rows.iter().filter(|r| r.chosen).collect();
+    assert_eq!(chosen.len(), 1, "{rows:?}");
+    assert_eq!(chosen[0].components, None, "{rows:?}");
+    assert_eq!(chosen[0].bytes, report.bytes, "{rows:?}");
+    let tried: Vec<usize> = rows.iter().filter_map(|r| r.components).collect();
+    assert!(tried.len() >= 2, "{rows:?}");
+    assert!(tried.windows(2).all(|k| k[0] < k[1]), "{rows:?}");
+    // The bound's basis, the largest tried, is the file exactly; the smaller
+    // ones are encoded from the largest's first targets, whose sums round a
+    // little differently (and the quantisation a few steps differently).
+    let bound = *tried.last().unwrap();
+    for row in rows.iter().filter(|r| !r.chosen) {
+        let k = row.components.expect("a compact basis");
+        let alone = write_dynamic_glb(
+            &dir.join(&format!("k{k}.glb")),
+            &mesh,
+            &compressed(BasisChoice::Components(k)),
+            Progress::none(),
+        )
+        .unwrap();
+        assert_eq!(alone.basis, Some(k));
+        let (bytes, share) = if k == bound { (0, 0.0) } else { (64, 0.01) };
+        let near = |a: Real, b: Real| (a - b).abs() <= share * b;
+        assert!(
+            row.bytes.abs_diff(alone.bytes) <= bytes
+                && near(row.error_max, alone.reconstruction_error_max)
+                && near(row.error_mean, alone.reconstruction_error_mean),
+            "{k} components: {row:?} against {alone:?}"
+        );
+    }
+}
+
 #[test]
 fn auto_keeps_per_frame_targets_when_a_basis_would_not_be_smaller() {
     let dir = Scratch::new("export", "auto-full");

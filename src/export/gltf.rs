@@ -391,6 +391,9 @@ fn dynamic_glb(
         options.basis,
         BasisChoice::Auto | BasisChoice::Bounded { .. }
     );
+    // The bases measured as encoded here and not written: the rate table
+    // takes their rows instead of encoding them again.
+    let mut measured = Vec::new();
     let (basis, animation, quantizer, glb) = if options.compress
         && automatic
         && basis.components.is_some()
@@ -414,6 +417,17 @@ fn dynamic_glb(
                 "one target per frame as steps takes {steps_bytes} bytes, the basis of {:?} components {basis_bytes}: writing the steps",
                 basis.components,
             );
+            if options.rate_distortion {
+                let (max, mean) = quantised_error(frames, &base, animation.as_ref(), quantizer)?;
+                measured.push(RateRow {
+                    components: basis.components,
+                    targets: basis.targets(),
+                    bytes: basis_bytes,
+                    error_max: relative(max),
+                    error_mean: relative(mean),
+                    chosen: false,
+                });
+            }
             let (steps, q, steps_glb) = steps;
             (&per_frame_basis, steps, q, steps_glb)
         } else {
@@ -446,11 +460,12 @@ fn dynamic_glb(
             error_mean: relative(error_mean),
             chosen: true,
         };
+        measured.push(written);
         rate_distortion(
             frames,
             &base,
             &trials,
-            written,
+            measured,
             normals.as_ref(),
             &scene,
             options,
@@ -514,15 +529,15 @@ fn steps_encoded<'a>(
     encoded(Some(steps), base, scene, true, progress)
 }
 
-/// The rate-distortion table: every basis of `trials` but the one `written`
-/// encoded as the file would be (never written), and the `written` one's
-/// own row; by number of targets.
+/// The rate-distortion table: the rows of the bases `measured` already (the
+/// one written among them), and every other basis of `trials` encoded as
+/// the file would be with it (never written); by number of targets.
 #[allow(clippy::too_many_arguments)]
 fn rate_distortion(
     frames: &PositionFrames,
     base: &TriangleMesh,
     trials: &[basis::BasisTrial],
-    written: RateRow,
+    mut measured: Vec<RateRow>,
     normals: Option<&FrameNormals>,
     scene: &SceneInfo,
     options: &GltfExportOptions,
@@ -530,10 +545,9 @@ fn rate_distortion(
 ) -> Result<Vec<RateRow>> {
     let diagonal = frames.bounds()?.diagonal();
     let relative = |e: Real| if diagonal > 0.0 { e / diagonal } else { 0.0 };
-    // The basis written is measured already: only the others are encoded.
     let others: Vec<&basis::BasisTrial> = trials
         .iter()
-        .filter(|t| t.basis.components != written.components)
+        .filter(|t| measured.iter().all(|m| m.components != t.basis.components))
         .collect();
     let sizes = tried_sizes(frames, base, &others, normals, scene, options, progress)?;
     let mut rows: Vec<RateRow> = others
@@ -548,7 +562,7 @@ fn rate_distortion(
             chosen: false,
         })
         .collect();
-    rows.push(written);
+    rows.append(&mut measured);
     // By size, as the trials: the per-frame basis has the most targets.
     rows.sort_by_key(|r| r.targets);
     Ok(rows)
