@@ -3,7 +3,7 @@
 
 evaluate.py measures a result against the ground truth over all vertices; a
 lost limb is a few percent of them, so its figures hide which part went and
-when. The family's takes (`cargo run --release --example family -- DIR`)
+when. The family's takes (`cargo run --release -p voltrack-tools --bin family -- DIR`)
 carry each vertex's part in `gt.npz` (`label`); this maps the result's base
 vertices onto the truth's frame-0 vertices as evaluate.py does, leaves out
 the ambiguous ones, and prints the correspondence mean / p95 / max (% of the

@@ -410,7 +410,7 @@ fn convert_and_measure(data: &Path, name: &str, frames: usize, r: usize, n: usiz
 /// vertices, fixed connectivity), and the distance of every vertex of
 /// `pent_tvm` converted (first `frames` frames, resolution `r`, `n`
 /// centers) from where that motion carries its frame-0 position, in voxels
-/// of the grid used, as `examples/rigid_check.rs vertices` measures it:
+/// of the grid used, as `tools/src/bin/rigid_check.rs vertices` measures it:
 /// (mean, max).
 fn pent_tvm_distance_from_rigid(data: &Path, frames: usize, r: usize, n: usize) -> (Real, Real) {
     let prism = voltrack::io::discover_frames(&[data.join("pentagonal_prism")]).unwrap();

@@ -1,6 +1,6 @@
 //! The coverage check ([`voltrack::metrics::coverage`]) of trajectories
 //! written by `voltrack track`, per frame, at one or more reach factors:
-//! `cargo run --release --example coverage -- centers.exr INPUT [REACH...]`.
+//! `cargo run --release -p voltrack-tools --bin coverage -- centers.exr INPUT [REACH...]`.
 
 use voltrack::params::CoverageParams;
 

@@ -1,7 +1,7 @@
 //! Issue 47's generated takes of a ball and a slab whose surfaces merge and
 //! part, converted (segments on, the reference chosen) and measured against
 //! their truth, in % of the diagonal:
-//! `cargo run --release --example ball_takes -- [RESOLUTION [CENTERS [SEED]]]`
+//! `cargo run --release -p voltrack-tools --bin ball_takes -- [RESOLUTION [CENTERS [SEED]]]`
 //! (the defaults of `voltrack convert` without arguments).
 
 use voltrack::params::TrackParams;

@@ -1,7 +1,7 @@
 //! Writes a vertex-animation texture of a long synthetic sequence (a
 //! 6,200-vertex torus under a travelling wave, the frames kept in a
 //! temporary file as a long conversion's are), to measure what exporting
-//! it costs: `/usr/bin/time -v cargo run --release --example vat_memory --
+//! it costs: `/usr/bin/time -v cargo run --release -p voltrack-tools --bin vat_memory --
 //! 1044 /tmp/vat/anim.exr` (frames, output; the .glb and .json go beside it).
 
 use voltrack::export::vat::{write_vat, VatOptions};

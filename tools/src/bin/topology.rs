@@ -1,6 +1,6 @@
 //! Each frame's parts and tunnels, and the reference frame
 //! `--reference auto` chooses by them:
-//! `cargo run --release --example topology -- INPUT [RESOLUTION [CENTERS]]`.
+//! `cargo run --release -p voltrack-tools --bin topology -- INPUT [RESOLUTION [CENTERS]]`.
 
 use voltrack::params::TrackParams;
 

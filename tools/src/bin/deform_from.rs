@@ -1,7 +1,7 @@
 //! Deforms the reference frame of a sequence (the first unless the
 //! trajectories record another) by trajectories already tracked
 //! (`voltrack track -o centers.exr`), to try deformation settings without
-//! tracking again: `cargo run --release --example deform_from -- centers.exr
+//! tracking again: `cargo run --release -p voltrack-tools --bin deform_from -- centers.exr
 //! INPUT_DIR out.glb [neighbors]` (an output not ending in .glb is a
 //! directory of OBJ files). `VOLTRACK_RHO_GP`, `VOLTRACK_RHO_GM`,
 //! `VOLTRACK_MIN_AFFINITY` and `VOLTRACK_BLEND=linear` override the affinity

@@ -1,7 +1,7 @@
 //! How far the voxeliser's ray vote is from the generalised winding number
 //! (GWN, threshold 0.5, brute force over every triangle) on a real capture.
 //!
-//! `cargo run --release --example gwn_agreement -- [DIR] [FRAME]` voxelises
+//! `cargo run --release -p voltrack-tools --bin gwn_agreement -- [DIR] [FRAME]` voxelises
 //! the sequence in DIR (default `../shared/data/dancer`) on its common grid at
 //! R = 256 (`VOLTRACK_R` to change), then evaluates the GWN at the center of
 //! every voxel of frame FRAME's bounding box (plus one voxel around it) and

@@ -5,7 +5,7 @@
 //! distances. For checking the warnings' thresholds on sequences whose
 //! parts are all kept (no frame may be warned of).
 //!
-//! `cargo run --release --example lost_profile -- DIR...`: one JSON line
+//! `cargo run --release -p voltrack-tools --bin lost_profile -- DIR...`: one JSON line
 //! per sequence on stdout. With `VOLTRACK_GLB_DIR=OUT`, each result is also
 //! written as `OUT/NAME.glb` (NAME: the input folder's name) for
 //! evaluate.py.

@@ -2,7 +2,7 @@
 //! OBJ sequences, each with a `gt.npz` that `../shared/tools/evaluate.py`
 //! reads (`traj`, `ambiguous`, `label`), and prints what each take is.
 //!
-//! `cargo run --release --example family -- DIR [NAME...]` (every take when
+//! `cargo run --release -p voltrack-tools --bin family -- DIR [NAME...]` (every take when
 //! no name is given; a name may be a prefix).
 
 use std::io::Write;

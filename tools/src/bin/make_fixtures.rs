@@ -1,5 +1,5 @@
 //! Regenerates the committed `fixtures/` folder.
-//! `cargo run --release --example make_fixtures [DIR]` (default: fixtures).
+//! `cargo run --release -p voltrack-tools --bin make_fixtures [DIR]` (default: fixtures).
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dir = std::env::args().nth(1).unwrap_or_else(|| "fixtures".into());

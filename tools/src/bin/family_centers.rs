@@ -4,7 +4,7 @@
 //! change to the tracker, before the whole pipeline's (`cargo bench --bench
 //! family`).
 //!
-//! `cargo run --release --example family_centers -- NAMES [FRAMES]`: NAMES
+//! `cargo run --release -p voltrack-tools --bin family_centers -- NAMES [FRAMES]`: NAMES
 //! is `dev`, `held-out`, `all` or names, comma-separated; FRAMES cuts each
 //! take short. One line per take: the mean and 95th percentile of the
 //! centers' errors over all frames, the share of (frame, center) pairs off

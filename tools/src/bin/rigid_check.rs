@@ -2,7 +2,7 @@
 //! pentagonal prism of `../shared/data`, whose 10 vertices (fixed
 //! connectivity) give the true motion of every frame.
 //!
-//! `cargo run --release --example rigid_check -- centers` tracks 200 centers
+//! `cargo run --release -p voltrack-tools --bin rigid_check -- centers` tracks 200 centers
 //! on `pentagonal_prism` and measures, per frame, the distance of every center
 //! from where the prism's rigid motion carries its frame-0 position (issue 3).
 //! `... -- vertices` converts `pent_tvm` (the prism re-meshed per frame) at
