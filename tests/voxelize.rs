@@ -21,7 +21,7 @@ fn grid_for(mesh: &voltrack::TriangleMesh, r: usize) -> GridSpec {
 fn committed_fixtures_match_their_generator() {
     for (path, bytes) in fixtures::files().unwrap() {
         let committed = std::fs::read(fixture(&path))
-            .unwrap_or_else(|e| panic!("{path}: {e}; run the make_fixtures example"));
+            .unwrap_or_else(|e| panic!("{path}: {e}; regenerate them: cargo run --release -p voltrack-tools --bin make_fixtures"));
         assert!(
             committed == bytes,
             "{path} differs from what fixtures::files() generates"
