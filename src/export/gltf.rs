@@ -175,6 +175,28 @@ pub struct RateRow {
     pub chosen: bool,
 }
 
+impl RateRow {
+    /// The row of `basis`: a file of `bytes` whose reconstruction error is
+    /// (largest, mean) in scene units, of an animation of this `diagonal`.
+    fn of(
+        basis: &MorphBasis,
+        bytes: u64,
+        (max, mean): (Real, Real),
+        diagonal: Real,
+        chosen: bool,
+    ) -> Self {
+        let relative = |e: Real| if diagonal > 0.0 { e / diagonal } else { 0.0 };
+        RateRow {
+            components: basis.components,
+            targets: basis.targets(),
+            bytes,
+            error_max: relative(max),
+            error_mean: relative(mean),
+            chosen,
+        }
+    }
+}
+
 /// Writes `mesh` as a GLB holding one mesh: frame 0 as the base, morph targets
 /// from the basis `options` selects, and one animation of the node's morph
 /// weights with one keyframe per frame at f / fps and a closing key at
@@ -345,29 +367,6 @@ fn dynamic_glb(
     // One target per frame, when a compressed file of them is smaller than
     // the basis chosen (below); declared here to outlive the animations.
     let per_frame_basis;
-    // Per-frame targets are read from the frames as the file is written, so
-    // a long sequence's are never all in memory; a compact basis's few
-    // targets and a compressed file's quantised ones are computed first.
-    let deltas = if basis.components.is_none() && !options.compress {
-        let first = base.positions.clone();
-        MorphDeltas::Computed(ComputedDeltas {
-            frames,
-            basis: &basis,
-            first,
-            normals: normals.as_ref(),
-        })
-    } else {
-        stored_deltas(frames, &basis, normals.as_ref(), progress)?
-    };
-    let animation = (basis.targets() > 0).then(|| {
-        morph_animation(
-            deltas,
-            frames.len(),
-            &basis,
-            options.fps,
-            options.interpolation,
-        )
-    });
     let scene = SceneInfo {
         name: options.name.clone(),
         timing: Some(Timing {
@@ -376,11 +375,13 @@ fn dynamic_glb(
         }),
         compress: options.compress,
     };
-    let (animation, quantizer, glb) = encoded(
-        animation,
+    let (animation, quantizer, glb) = basis_encoded(
+        frames,
+        &basis,
         &base,
+        normals.as_ref(),
         &scene,
-        basis.components.is_none(),
+        options,
         progress,
     )?;
     // Compressed, one target per frame as steps is exact and may take fewer
@@ -402,7 +403,7 @@ fn dynamic_glb(
         let mut one_each = MorphBasis::per_frame(frames.len());
         name_targets_after_frames(&mut one_each, &options.frame_names);
         per_frame_basis = one_each;
-        let steps = steps_encoded(
+        let steps = basis_encoded(
             frames,
             &per_frame_basis,
             &base,
@@ -418,15 +419,8 @@ fn dynamic_glb(
                 basis.components,
             );
             if options.rate_distortion {
-                let (max, mean) = quantised_error(frames, &base, animation.as_ref(), quantizer)?;
-                measured.push(RateRow {
-                    components: basis.components,
-                    targets: basis.targets(),
-                    bytes: basis_bytes,
-                    error_max: relative(max),
-                    error_mean: relative(mean),
-                    chosen: false,
-                });
+                let error = quantised_error(frames, &base, animation.as_ref(), quantizer)?;
+                measured.push(RateRow::of(&basis, basis_bytes, error, diagonal, false));
             }
             let (steps, q, steps_glb) = steps;
             (&per_frame_basis, steps, q, steps_glb)
@@ -452,14 +446,7 @@ fn dynamic_glb(
     }
     written?;
     let rate_distortion = if options.rate_distortion && !trials.is_empty() {
-        let written = RateRow {
-            components: basis.components,
-            targets: basis.targets(),
-            bytes,
-            error_max: relative(error_max),
-            error_mean: relative(error_mean),
-            chosen: true,
-        };
+        let written = RateRow::of(basis, bytes, (error_max, error_mean), diagonal, true);
         measured.push(written);
         rate_distortion(
             frames,
@@ -507,26 +494,41 @@ fn base_mesh(
     Ok((base, normals))
 }
 
-/// The frames as one target per frame (`per_frame_basis`), compressed as
-/// steps from frame to frame: the animation, its quantiser and the parts.
-fn steps_encoded<'a>(
-    frames: &PositionFrames,
-    per_frame_basis: &'a MorphBasis,
+/// The frames' morph targets in `basis`, and the file they make: the
+/// animation, its quantiser (a compressed file's) and the parts. Per-frame
+/// targets of a plain file are read from the frames as the file is
+/// written, so a long sequence's are never all in memory; a compact basis's
+/// few targets and a compressed file's quantised ones (one target per
+/// frame: steps from frame to frame) are computed first.
+fn basis_encoded<'a>(
+    frames: &'a PositionFrames,
+    basis: &'a MorphBasis,
     base: &TriangleMesh,
-    normals: Option<&FrameNormals>,
+    normals: Option<&'a FrameNormals>,
     scene: &SceneInfo,
     options: &GltfExportOptions,
     progress: Progress,
 ) -> Result<(Option<MorphAnimation<'a>>, Option<Quantizer>, GlbParts)> {
-    let deltas = stored_deltas(frames, per_frame_basis, normals, progress)?;
-    let steps = morph_animation(
-        deltas,
-        frames.len(),
-        per_frame_basis,
-        options.fps,
-        options.interpolation,
-    );
-    encoded(Some(steps), base, scene, true, progress)
+    let deltas = if basis.components.is_none() && !options.compress {
+        MorphDeltas::Computed(ComputedDeltas {
+            frames,
+            basis,
+            first: base.positions.clone(),
+            normals,
+        })
+    } else {
+        stored_deltas(frames, basis, normals, progress)?
+    };
+    let animation = (basis.targets() > 0).then(|| {
+        morph_animation(
+            deltas,
+            frames.len(),
+            basis,
+            options.fps,
+            options.interpolation,
+        )
+    });
+    encoded(animation, base, scene, basis.components.is_none(), progress)
 }
 
 /// The rate-distortion table: the rows of the bases `measured` already (the
@@ -544,7 +546,6 @@ fn rate_distortion(
     progress: Progress,
 ) -> Result<Vec<RateRow>> {
     let diagonal = frames.bounds()?.diagonal();
-    let relative = |e: Real| if diagonal > 0.0 { e / diagonal } else { 0.0 };
     let others: Vec<&basis::BasisTrial> = trials
         .iter()
         .filter(|t| measured.iter().all(|m| m.components != t.basis.components))
@@ -553,13 +554,8 @@ fn rate_distortion(
     let mut rows: Vec<RateRow> = others
         .into_iter()
         .zip(sizes)
-        .map(|(trial, Encoded { bytes, max, mean })| RateRow {
-            components: trial.basis.components,
-            targets: trial.basis.targets(),
-            bytes,
-            error_max: relative(max),
-            error_mean: relative(mean),
-            chosen: false,
+        .map(|(trial, Encoded { bytes, max, mean })| {
+            RateRow::of(&trial.basis, bytes, (max, mean), diagonal, false)
         })
         .collect();
     rows.append(&mut measured);
