@@ -111,23 +111,20 @@ pub fn voxelize_sequence(
     // mesh is kept for the deformation stage; voxel frames are kept as read.
     let start = Instant::now();
     let counter = Counter::new(progress, Stage::Read, paths.len());
-    let mut summaries: Vec<Summary> = (0..source.len())
-        .into_par_iter()
-        .map(|f| {
-            if progress.cancelled() {
-                return Err(Error::Interrupted { saved: None });
-            }
-            let frame = source.frame(f)?;
-            counter.tick();
-            Ok(match frame {
-                Frame::Mesh(m) => Summary::Mesh {
-                    extent: FrameExtent::of(&m),
-                    mesh: (f == 0).then_some(m),
-                },
-                Frame::Voxels(g, o) => Summary::Voxels(g, o),
-            })
+    let mut summaries: Vec<Summary> = per_frame(source.len(), |f| {
+        if progress.cancelled() {
+            return Err(Error::Interrupted { saved: None });
+        }
+        let frame = source.frame(f)?;
+        counter.tick();
+        Ok(match frame {
+            Frame::Mesh(m) => Summary::Mesh {
+                extent: FrameExtent::of(&m),
+                mesh: (f == 0).then_some(m),
+            },
+            Frame::Voxels(g, o) => Summary::Voxels(g, o),
         })
-        .collect::<Result<_>>()?;
+    })?;
     let read_seconds = start.elapsed().as_secs_f64();
 
     let meshes = one_kind(&paths, &summaries)?;
@@ -162,33 +159,30 @@ pub fn voxelize_sequence(
 
     let start = Instant::now();
     let counter = Counter::new(progress, Stage::Voxelize, paths.len());
-    let frames: Vec<OccupancyRuns> = (0..source.len())
-        .into_par_iter()
-        .map(|f| {
-            let path = paths[f];
-            if progress.cancelled() {
-                return Err(Error::Interrupted { saved: None });
-            }
-            let read;
-            let mesh = if f == 0 {
-                &first_mesh
-            } else {
-                read = match source.frame(f)? {
-                    Frame::Mesh(m) => m,
-                    Frame::Voxels(..) => {
-                        return Err(Error::mesh(
-                            path,
-                            "was a mesh when first read, a voxel grid now",
-                        ))
-                    }
-                };
-                &read
+    let frames: Vec<OccupancyRuns> = per_frame(source.len(), |f| {
+        let path = paths[f];
+        if progress.cancelled() {
+            return Err(Error::Interrupted { saved: None });
+        }
+        let read;
+        let mesh = if f == 0 {
+            &first_mesh
+        } else {
+            read = match source.frame(f)? {
+                Frame::Mesh(m) => m,
+                Frame::Voxels(..) => {
+                    return Err(Error::mesh(
+                        path,
+                        "was a mesh when first read, a voxel grid now",
+                    ))
+                }
             };
-            let runs = voxelize_frame(mesh, &grid, path, progress)?;
-            counter.tick();
-            Ok(runs)
-        })
-        .collect::<Result<_>>()?;
+            &read
+        };
+        let runs = voxelize_frame(mesh, &grid, path, progress)?;
+        counter.tick();
+        Ok(runs)
+    })?;
     let voxelize_seconds = start.elapsed().as_secs_f64();
     let (voxels, runs, bytes) = frames.iter().fold((0, 0, 0), |(v, r, b), f| {
         (v + f.len(), r + f.runs(), b + f.bytes())
@@ -206,6 +200,35 @@ pub fn voxelize_sequence(
         read_seconds,
         voxelize_seconds,
     })
+}
+
+/// `work(f)` for every frame f of `frames`, in parallel, the results in
+/// frame order. Where frames fail, the error is the first failing frame's,
+/// whichever thread fails first, so that the same input fails with the same
+/// message every run: once a frame fails, the frames after it are skipped,
+/// and those before it are still read.
+fn per_frame<T: Send>(frames: usize, work: impl Fn(usize) -> Result<T> + Sync) -> Result<Vec<T>> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let first_failed = AtomicUsize::new(usize::MAX);
+    let results: Vec<Option<Result<T>>> = (0..frames)
+        .into_par_iter()
+        .map(|f| {
+            if f > first_failed.load(Ordering::Relaxed) {
+                return None;
+            }
+            let result = work(f);
+            if result.is_err() {
+                first_failed.fetch_min(f, Ordering::Relaxed);
+            }
+            Some(result)
+        })
+        .collect();
+    // A frame is skipped only after an earlier one failed, so the first
+    // failing frame comes before any skipped one.
+    results
+        .into_iter()
+        .map(|r| r.expect("skipped only after an earlier frame failed"))
+        .collect()
 }
 
 /// How many of the frames read (`summaries`, of `paths`) are meshes:
