@@ -362,7 +362,6 @@ fn dynamic_glb(
     if basis.components.is_none() {
         name_targets_after_frames(&mut basis, &options.frame_names);
     }
-    let relative = |e: Real| if diagonal > 0.0 { e / diagonal } else { 0.0 };
     let (base, normals) = base_mesh(mesh, options.normals)?;
     // One target per frame, when a compressed file of them is smaller than
     // the basis chosen (below); declared here to outlive the animations.
@@ -445,11 +444,14 @@ fn dynamic_glb(
         return Err(e);
     }
     written?;
+    let written = RateRow::of(basis, bytes, (error_max, error_mean), diagonal, true);
+    // As fractions of the diagonal, as the report gives them.
+    let (relative_max, relative_mean) = (written.error_max, written.error_mean);
     let rate_distortion = if options.rate_distortion && !trials.is_empty() {
-        let written = RateRow::of(basis, bytes, (error_max, error_mean), diagonal, true);
         measured.push(written);
         rate_distortion(
             frames,
+            diagonal,
             &base,
             &trials,
             measured,
@@ -464,8 +466,8 @@ fn dynamic_glb(
     Ok(GltfExportReport {
         targets: basis.targets(),
         basis: basis.components,
-        reconstruction_error_max: relative(error_max),
-        reconstruction_error_mean: relative(error_mean),
+        reconstruction_error_max: relative_max,
+        reconstruction_error_mean: relative_mean,
         bytes,
         compressed: options.compress,
         steps,
@@ -533,10 +535,12 @@ fn basis_encoded<'a>(
 
 /// The rate-distortion table: the rows of the bases `measured` already (the
 /// one written among them), and every other basis of `trials` encoded as
-/// the file would be with it (never written); by number of targets.
+/// the file would be with it (never written), their errors relative to
+/// the animation's `diagonal`; by number of targets.
 #[allow(clippy::too_many_arguments)]
 fn rate_distortion(
     frames: &PositionFrames,
+    diagonal: Real,
     base: &TriangleMesh,
     trials: &[basis::BasisTrial],
     mut measured: Vec<RateRow>,
@@ -545,7 +549,6 @@ fn rate_distortion(
     options: &GltfExportOptions,
     progress: Progress,
 ) -> Result<Vec<RateRow>> {
-    let diagonal = frames.bounds()?.diagonal();
     let others: Vec<&basis::BasisTrial> = trials
         .iter()
         .filter(|t| measured.iter().all(|m| m.components != t.basis.components))
