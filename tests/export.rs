@@ -1231,6 +1231,12 @@ fn point_cache_header_counts_and_positions() {
         assert_eq!(*a, [p.x as f32, p.y as f32, p.z as f32]);
     }
     assert_eq!(face_indices(&f), mesh.base.triangles);
+    // Into the caller's writers: the same bytes as the files.
+    let (mut cache, mut obj) = (Vec::new(), Vec::new());
+    voltrack::export::pc2::write_pc2_to(&mut cache, &mut obj, "bar.pc2", &mesh, 25.0, "bar")
+        .unwrap();
+    assert_eq!(cache, bytes);
+    assert_eq!(String::from_utf8(obj).unwrap(), text);
     // Bad frame rates and names, and a path that would overwrite the OBJ, are refused.
     for fps in [0.0, -2.0, f32::NAN] {
         assert!(voltrack::export::pc2::write_pc2(&dir.join("x.pc2"), &mesh, fps, "bar").is_err());
@@ -1385,6 +1391,13 @@ fn obj_sequence_shares_one_connectivity() {
                 .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
                 .collect::<Vec<_>>()
         );
+        // Into the caller's writers: the same bytes as the files.
+        let frames = voltrack::export::obj::ObjFrames::new(&mesh, name).unwrap();
+        for (f, path) in paths.iter().enumerate() {
+            let mut bytes = Vec::new();
+            frames.write(&mut bytes, f).unwrap();
+            assert_eq!(bytes, std::fs::read(path).unwrap(), "frame {f}");
+        }
         let first = mesh.frames.get(0).unwrap();
         let (_, vt0, f0) = obj_lines(&std::fs::read_to_string(&paths[0]).unwrap());
         assert_eq!(f0.len(), mesh.base.triangles.len());

@@ -112,153 +112,203 @@ const LEGEND_MARGIN: Real = 6.0;
 /// Draws `series` on shared axes, with ticks, a title and a legend (placed
 /// in the corner the lines cross least).
 pub fn line_plot(title: &str, x: &Axis, y: &Axis, series: &[Series]) -> String {
-    let map = |axis: &Axis, v: Real| if axis.log { v.log10() } else { v };
-    let usable = |&(px, py): &(Real, Real)| {
-        px.is_finite() && py.is_finite() && (!x.log || px > 0.0) && (!y.log || py > 0.0)
-    };
-    let data: Vec<Vec<(Real, Real)>> = series
-        .iter()
-        .map(|s| {
-            s.points
-                .iter()
-                .filter(|p| usable(p))
-                .map(|&(px, py)| (map(x, px), map(y, py)))
-                .collect()
-        })
-        .collect();
-    let range = |axis: &Axis, pick: fn(&(Real, Real)) -> Real| {
-        let (mut lo, mut hi) = data
+    let layout = Layout::of(x, y, series);
+    let mut svg = svg_start(HEIGHT, title);
+    layout.draw_axes(&mut svg, x, y);
+    layout.draw_lines(&mut svg, series);
+    // The legend goes last, on a translucent card, so no line hides it.
+    if !series.is_empty() {
+        layout.draw_legend(&mut svg, series);
+    }
+    svg.push_str("</svg>\n");
+    svg
+}
+
+/// Where a line plot's data land: the ranges its axes show, each series'
+/// points in pixels, and the legend's corner and size.
+struct Layout {
+    x0: Real,
+    x1: Real,
+    y0: Real,
+    y1: Real,
+    /// Each series' usable points in pixels.
+    pixels: Vec<Vec<(Real, Real)>>,
+    /// The legend's top-left corner.
+    legend: (Real, Real),
+    legend_size: (Real, Real),
+}
+
+impl Layout {
+    /// The ranges of `series`' points that `x` and `y` can show (on a log
+    /// axis, the positive ones), with headroom, and the legend in the corner
+    /// the lines cross least; where every corner hides some of a line, the
+    /// top of the range is raised until the legend's band above the data is
+    /// free.
+    fn of(x: &Axis, y: &Axis, series: &[Series]) -> Self {
+        let map = |axis: &Axis, v: Real| if axis.log { v.log10() } else { v };
+        let usable = |&(px, py): &(Real, Real)| {
+            px.is_finite() && py.is_finite() && (!x.log || px > 0.0) && (!y.log || py > 0.0)
+        };
+        let data: Vec<Vec<(Real, Real)>> = series
             .iter()
-            .flatten()
-            .map(pick)
-            .fold((Real::INFINITY, Real::NEG_INFINITY), |(lo, hi), v| {
-                (lo.min(v), hi.max(v))
-            });
-        if !lo.is_finite() {
-            return (0.0, 1.0);
-        }
-        if axis.from_zero && !axis.log {
-            (lo, hi) = (lo.min(0.0), hi.max(0.0));
-        }
-        if hi - lo < 1e-12 * hi.abs().max(1.0) {
-            (lo - 0.5, hi + 0.5)
-        } else {
-            (lo, hi)
-        }
-    };
-    let (x0, x1) = range(x, |p| p.0);
-    let (y0, y1) = range(y, |p| p.1);
-    let y1 = y1 + HEADROOM * (y1 - y0);
-    let y0 = if y.from_zero && y0 == 0.0 {
-        y0
-    } else {
-        y0 - HEADROOM * (y1 - y0)
-    };
-    let (pw, ph) = (WIDTH - LEFT - RIGHT, HEIGHT - TOP - BOTTOM);
-    let sx = |v: Real| LEFT + (v - x0) / (x1 - x0) * pw;
-    let to_pixels = |y0: Real, y1: Real| -> Vec<Vec<(Real, Real)>> {
-        data.iter()
-            .map(|points| {
-                points
+            .map(|s| {
+                s.points
                     .iter()
-                    .map(|&(px, py)| (sx(px), TOP + ph - (py - y0) / (y1 - y0) * ph))
+                    .filter(|p| usable(p))
+                    .map(|&(px, py)| (map(x, px), map(y, py)))
                     .collect()
             })
-            .collect()
-    };
-    let legend_size = (
-        34.0 + 7.0
-            * series
-                .iter()
-                .map(|s| s.label.chars().count())
-                .max()
-                .unwrap_or(0) as Real,
-        8.0 + 16.0 * series.len() as Real,
-    );
-    let mut pixels = to_pixels(y0, y1);
-    let (mut legend, covered) = legend_corner(&pixels, legend_size, (LEFT, TOP, pw, ph));
-    // Every corner hides some of a line: raise the top of the range until
-    // the legend's band above the data is free.
-    let y1 = if covered > 0 && !series.is_empty() {
-        let free = (ph - legend_size.1 - 2.0 * LEGEND_MARGIN).max(ph / 2.0);
-        let top = y0 + (y1 - y0) * ph / free;
-        pixels = to_pixels(y0, top);
-        legend = legend_corner(&pixels, legend_size, (LEFT, TOP, pw, ph)).0;
-        top
-    } else {
-        y1
-    };
-    let sy = |v: Real| TOP + ph - (v - y0) / (y1 - y0) * ph;
-
-    let mut svg = svg_start(HEIGHT, title);
-    let _ = writeln!(
-        svg,
-        r##"<rect x="{LEFT}" y="{TOP}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
-    );
-    for (v, label) in ticks(x0, x1, x) {
-        let px = sx(v);
-        let _ = writeln!(
-            svg,
-            r##"<line x1="{px:.1}" y1="{}" x2="{px:.1}" y2="{}" stroke="#444"/>"##,
-            TOP + ph,
-            TOP + ph + 5.0
-        );
-        let _ = writeln!(
-            svg,
-            r#"<text x="{px:.1}" y="{}" text-anchor="middle">{label}</text>"#,
-            TOP + ph + 18.0
-        );
-    }
-    for (v, label) in ticks(y0, y1, y) {
-        let py = sy(v);
-        let _ = writeln!(
-            svg,
-            r##"<line x1="{LEFT}" y1="{py:.1}" x2="{}" y2="{py:.1}" stroke="#ddd"/>"##,
-            LEFT + pw
-        );
-        let _ = writeln!(
-            svg,
-            r#"<text x="{}" y="{:.1}" text-anchor="end">{label}</text>"#,
-            LEFT - 6.0,
-            py + 4.0
-        );
-    }
-    let _ = writeln!(
-        svg,
-        r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#,
-        LEFT + pw / 2.0,
-        HEIGHT - 12.0,
-        escape(&x.label)
-    );
-    let _ = writeln!(
-        svg,
-        r#"<text transform="translate(16 {}) rotate(-90)" text-anchor="middle">{}</text>"#,
-        TOP + ph / 2.0,
-        escape(&y.label)
-    );
-    for (k, (s, points)) in series.iter().zip(&pixels).enumerate() {
-        let (color, dash) = s.stroke(k);
-        let path: Vec<String> = points
-            .iter()
-            .map(|&(px, py)| format!("{px:.1},{py:.1}"))
             .collect();
+        let range = |axis: &Axis, pick: fn(&(Real, Real)) -> Real| {
+            let (mut lo, mut hi) = data
+                .iter()
+                .flatten()
+                .map(pick)
+                .fold((Real::INFINITY, Real::NEG_INFINITY), |(lo, hi), v| {
+                    (lo.min(v), hi.max(v))
+                });
+            if !lo.is_finite() {
+                return (0.0, 1.0);
+            }
+            if axis.from_zero && !axis.log {
+                (lo, hi) = (lo.min(0.0), hi.max(0.0));
+            }
+            if hi - lo < 1e-12 * hi.abs().max(1.0) {
+                (lo - 0.5, hi + 0.5)
+            } else {
+                (lo, hi)
+            }
+        };
+        let (x0, x1) = range(x, |p| p.0);
+        let (y0, y1) = range(y, |p| p.1);
+        let y1 = y1 + HEADROOM * (y1 - y0);
+        let y0 = if y.from_zero && y0 == 0.0 {
+            y0
+        } else {
+            y0 - HEADROOM * (y1 - y0)
+        };
+        let (pw, ph) = (WIDTH - LEFT - RIGHT, HEIGHT - TOP - BOTTOM);
+        let sx = |v: Real| LEFT + (v - x0) / (x1 - x0) * pw;
+        let to_pixels = |y0: Real, y1: Real| -> Vec<Vec<(Real, Real)>> {
+            data.iter()
+                .map(|points| {
+                    points
+                        .iter()
+                        .map(|&(px, py)| (sx(px), TOP + ph - (py - y0) / (y1 - y0) * ph))
+                        .collect()
+                })
+                .collect()
+        };
+        let legend_size = (
+            34.0 + 7.0
+                * series
+                    .iter()
+                    .map(|s| s.label.chars().count())
+                    .max()
+                    .unwrap_or(0) as Real,
+            8.0 + 16.0 * series.len() as Real,
+        );
+        let mut pixels = to_pixels(y0, y1);
+        let (mut legend, covered) = legend_corner(&pixels, legend_size, (LEFT, TOP, pw, ph));
+        let y1 = if covered > 0 && !series.is_empty() {
+            let free = (ph - legend_size.1 - 2.0 * LEGEND_MARGIN).max(ph / 2.0);
+            let top = y0 + (y1 - y0) * ph / free;
+            pixels = to_pixels(y0, top);
+            legend = legend_corner(&pixels, legend_size, (LEFT, TOP, pw, ph)).0;
+            top
+        } else {
+            y1
+        };
+        Layout {
+            x0,
+            x1,
+            y0,
+            y1,
+            pixels,
+            legend,
+            legend_size,
+        }
+    }
+
+    /// The plot's frame, the ticks and their labels, and the axes' labels.
+    fn draw_axes(&self, svg: &mut String, x: &Axis, y: &Axis) {
+        let (pw, ph) = (WIDTH - LEFT - RIGHT, HEIGHT - TOP - BOTTOM);
+        let sx = |v: Real| LEFT + (v - self.x0) / (self.x1 - self.x0) * pw;
+        let sy = |v: Real| TOP + ph - (v - self.y0) / (self.y1 - self.y0) * ph;
         let _ = writeln!(
             svg,
-            r#"<polyline fill="none" stroke="{color}" stroke-width="1.5"{dash} points="{}"/>"#,
-            path.join(" ")
+            r##"<rect x="{LEFT}" y="{TOP}" width="{pw}" height="{ph}" fill="none" stroke="#444"/>"##
         );
-        if points.len() <= MARKED_POINTS {
-            for &(px, py) in points {
-                let _ = writeln!(
-                    svg,
-                    r#"<circle cx="{px:.1}" cy="{py:.1}" r="2.5" fill="{color}"/>"#
-                );
+        for (v, label) in ticks(self.x0, self.x1, x) {
+            let px = sx(v);
+            let _ = writeln!(
+                svg,
+                r##"<line x1="{px:.1}" y1="{}" x2="{px:.1}" y2="{}" stroke="#444"/>"##,
+                TOP + ph,
+                TOP + ph + 5.0
+            );
+            let _ = writeln!(
+                svg,
+                r#"<text x="{px:.1}" y="{}" text-anchor="middle">{label}</text>"#,
+                TOP + ph + 18.0
+            );
+        }
+        for (v, label) in ticks(self.y0, self.y1, y) {
+            let py = sy(v);
+            let _ = writeln!(
+                svg,
+                r##"<line x1="{LEFT}" y1="{py:.1}" x2="{}" y2="{py:.1}" stroke="#ddd"/>"##,
+                LEFT + pw
+            );
+            let _ = writeln!(
+                svg,
+                r#"<text x="{}" y="{:.1}" text-anchor="end">{label}</text>"#,
+                LEFT - 6.0,
+                py + 4.0
+            );
+        }
+        let _ = writeln!(
+            svg,
+            r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#,
+            LEFT + pw / 2.0,
+            HEIGHT - 12.0,
+            escape(&x.label)
+        );
+        let _ = writeln!(
+            svg,
+            r#"<text transform="translate(16 {}) rotate(-90)" text-anchor="middle">{}</text>"#,
+            TOP + ph / 2.0,
+            escape(&y.label)
+        );
+    }
+
+    /// Each series as a line, with a dot per point when it has few.
+    fn draw_lines(&self, svg: &mut String, series: &[Series]) {
+        for (k, (s, points)) in series.iter().zip(&self.pixels).enumerate() {
+            let (color, dash) = s.stroke(k);
+            let path: Vec<String> = points
+                .iter()
+                .map(|&(px, py)| format!("{px:.1},{py:.1}"))
+                .collect();
+            let _ = writeln!(
+                svg,
+                r#"<polyline fill="none" stroke="{color}" stroke-width="1.5"{dash} points="{}"/>"#,
+                path.join(" ")
+            );
+            if points.len() <= MARKED_POINTS {
+                for &(px, py) in points {
+                    let _ = writeln!(
+                        svg,
+                        r#"<circle cx="{px:.1}" cy="{py:.1}" r="2.5" fill="{color}"/>"#
+                    );
+                }
             }
         }
     }
-    // The legend goes last, on a translucent card, so no line hides it.
-    if !series.is_empty() {
-        let ((lx, top), (width, height)) = (legend, legend_size);
+
+    /// The legend: a card with each series' stroke and label.
+    fn draw_legend(&self, svg: &mut String, series: &[Series]) {
+        let ((lx, top), (width, height)) = (self.legend, self.legend_size);
         let _ = writeln!(
             svg,
             r##"<rect x="{lx:.1}" y="{top:.1}" width="{width:.1}" height="{height}" fill="white" fill-opacity="0.85" stroke="#ccc"/>"##
@@ -281,8 +331,6 @@ pub fn line_plot(title: &str, x: &Axis, y: &Axis, series: &[Series]) -> String {
             );
         }
     }
-    svg.push_str("</svg>\n");
-    svg
 }
 
 /// The top-left corner of a legend of `(width, height)` in whichever corner

@@ -291,29 +291,18 @@ fn glance_html(input: &ReportInput) -> String {
     h
 }
 
+/// `s` escaped, as code.
+fn code(s: &str) -> String {
+    format!("<code>{}</code>", escape(s))
+}
+
 /// What was converted, and with which parameters.
 fn input_html(input: &ReportInput) -> String {
     let conv = input.conversion;
     let seq = &conv.sequence;
     let g = &seq.grid;
-    let code = |s: &str| format!("<code>{}</code>", escape(s));
-    let paths = input.inputs;
-    let (first, last) = (&paths[0], &paths[paths.len() - 1]);
-    let files = match common_folder(paths) {
-        Some(dir) => format!(
-            "{} &#8212; {} &#8230; {}",
-            code(&format!("{}/", dir.display())),
-            code(&file_name(first)),
-            code(&file_name(last))
-        ),
-        None => format!(
-            "{} &#8230; {}",
-            code(&first.display().to_string()),
-            code(&last.display().to_string())
-        ),
-    };
     let mut rows: Vec<(&str, String)> = vec![
-        ("Input", files),
+        ("Input", input_files(input.inputs)),
         ("Frames", seq.frames.len().to_string()),
         (
             "Reference",
@@ -378,33 +367,7 @@ fn input_html(input: &ReportInput) -> String {
             ),
         ),
     ];
-    if let Some(out) = input.output {
-        let mut text = code(&out.display().to_string());
-        if let Some(bytes) = input.output_bytes {
-            let _ = write!(text, ", {} bytes", thousands(bytes));
-        }
-        if let Some(g) = input.gltf {
-            let content = match g.basis {
-                Some(k) => format!(
-                    "a compact basis of {k} component{} ({} morph targets)",
-                    if k == 1 { "" } else { "s" },
-                    g.targets
-                ),
-                None => format!("{} morph targets, one per frame", g.targets),
-            };
-            let _ = write!(text, "; {content}");
-            if g.compressed {
-                text.push_str(", compressed (KHR_mesh_quantization + EXT_meshopt_compression)");
-            }
-            if g.basis.is_some() || g.compressed {
-                let _ = write!(
-                    text,
-                    "; reconstruction error mean {} %, max {} % of the diagonal",
-                    significant(100.0 * g.reconstruction_error_mean, 3),
-                    significant(100.0 * g.reconstruction_error_max, 3)
-                );
-            }
-        }
+    if let Some(text) = output_text(input) {
         rows.push(("Output", text));
     }
     if let Some(cmd) = input.command {
@@ -421,6 +384,65 @@ fn input_html(input: &ReportInput) -> String {
     if let Some(g) = input.gltf.filter(|g| !g.rate_distortion.is_empty()) {
         h.push_str(&rate_distortion_table(g));
     }
+    h.push_str(&parameters_html(input));
+    h.push_str("</section>\n");
+    h
+}
+
+/// The input files: their folder and the first and last names, or the
+/// first and last paths where they share no folder.
+fn input_files(paths: &[PathBuf]) -> String {
+    let (first, last) = (&paths[0], &paths[paths.len() - 1]);
+    match common_folder(paths) {
+        Some(dir) => format!(
+            "{} &#8212; {} &#8230; {}",
+            code(&format!("{}/", dir.display())),
+            code(&file_name(first)),
+            code(&file_name(last))
+        ),
+        None => format!(
+            "{} &#8230; {}",
+            code(&first.display().to_string()),
+            code(&last.display().to_string())
+        ),
+    }
+}
+
+/// The output file, its size and what the GLB holds, if the run wrote one.
+fn output_text(input: &ReportInput) -> Option<String> {
+    let out = input.output?;
+    let mut text = code(&out.display().to_string());
+    if let Some(bytes) = input.output_bytes {
+        let _ = write!(text, ", {} bytes", thousands(bytes));
+    }
+    if let Some(g) = input.gltf {
+        let content = match g.basis {
+            Some(k) => format!(
+                "a compact basis of {k} component{} ({} morph targets)",
+                if k == 1 { "" } else { "s" },
+                g.targets
+            ),
+            None => format!("{} morph targets, one per frame", g.targets),
+        };
+        let _ = write!(text, "; {content}");
+        if g.compressed {
+            text.push_str(", compressed (KHR_mesh_quantization + EXT_meshopt_compression)");
+        }
+        if g.basis.is_some() || g.compressed {
+            let _ = write!(
+                text,
+                "; reconstruction error mean {} %, max {} % of the diagonal",
+                significant(100.0 * g.reconstruction_error_mean, 3),
+                significant(100.0 * g.reconstruction_error_max, 3)
+            );
+        }
+    }
+    Some(text)
+}
+
+/// Every parameter, stage by stage, folded away.
+fn parameters_html(input: &ReportInput) -> String {
+    let mut h = String::new();
     let lengths = if input.track.absolute_units {
         "in the input's units"
     } else {
@@ -440,7 +462,7 @@ fn input_html(input: &ReportInput) -> String {
     }
     h.push_str(&params_table("Deformation", input.deform));
     h.push_str(&params_table("Conforming to the input", input.conform));
-    h.push_str("</div>\n</details>\n</section>\n");
+    h.push_str("</div>\n</details>\n");
     h
 }
 

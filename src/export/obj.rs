@@ -74,33 +74,54 @@ fn write_object(
 /// ([`crate::files::replace_dir`]): on failure the old one stays as it was,
 /// and no frame of an earlier, longer run is left among the new ones.
 pub fn write_obj_sequence(dir: &Path, mesh: &DynamicMesh, name: &str) -> Result<Vec<PathBuf>> {
-    crate::model::check_name(name)?;
-    super::basis::check_frames(mesh)?;
+    let frames = ObjFrames::new(mesh, name)?;
     let width = (mesh.frames.len() - 1).to_string().len().max(4);
-    let names: Vec<String> = (0..mesh.frames.len())
-        .map(|f| format!("frame_{f:0width$}.obj"))
-        .collect();
-    // Each frame's own normals (welded at UV seams, as the GLB's), so every
-    // file is smooth-shaded where it is imported.
-    let normals = super::normals::FrameNormals::new(&mesh.base, &mesh.frames.get(0)?);
-    let normals = &normals;
-    let files = names
-        .into_iter()
-        .enumerate()
-        .map(|(f, file)| {
+    let frames = &frames;
+    let files = (0..mesh.frames.len())
+        .map(|f| {
             // Each frame is read as its file is written: one in memory at a time.
-            let fill = move |w: &mut _| {
-                let positions = mesh.frames.get(f).map_err(std::io::Error::other)?;
-                write_named_obj(
-                    w,
-                    &mesh.base,
-                    &positions,
-                    name,
-                    Some(&normals.of(&positions)),
-                )
-            };
-            (file, Box::new(fill) as crate::files::Fill)
+            let fill = move |w: &mut _| frames.write(w, f);
+            (
+                format!("frame_{f:0width$}.obj"),
+                Box::new(fill) as crate::files::Fill,
+            )
         })
         .collect();
     crate::files::replace_dir(dir, files)
+}
+
+/// The frames of a dynamic mesh as OBJ files, each into a writer of the
+/// caller's: what [`write_obj_sequence`] writes into its folder.
+pub struct ObjFrames<'a> {
+    mesh: &'a DynamicMesh,
+    name: &'a str,
+    normals: super::normals::FrameNormals<'a>,
+}
+
+impl<'a> ObjFrames<'a> {
+    /// Checks the object's `name` and the frames.
+    pub fn new(mesh: &'a DynamicMesh, name: &'a str) -> Result<Self> {
+        crate::model::check_name(name)?;
+        super::basis::check_frames(mesh)?;
+        // Each frame's own normals (welded at UV seams, as the GLB's), so
+        // every file is smooth-shaded where it is imported.
+        let normals = super::normals::FrameNormals::new(&mesh.base, &mesh.frames.get(0)?);
+        Ok(ObjFrames {
+            mesh,
+            name,
+            normals,
+        })
+    }
+
+    /// Frame `f` (reading it from the mesh's frames) as one OBJ into `out`.
+    pub fn write(&self, out: &mut impl Write, f: usize) -> std::io::Result<()> {
+        let positions = self.mesh.frames.get(f).map_err(std::io::Error::other)?;
+        write_named_obj(
+            out,
+            &self.mesh.base,
+            &positions,
+            self.name,
+            Some(&self.normals.of(&positions)),
+        )
+    }
 }

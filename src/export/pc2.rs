@@ -34,13 +34,7 @@ pub const MESH_MARK: &str = "# Mesh Cache";
 /// importer does not create them, and the modifier needs equal counts. All
 /// others keep the mesh's order.
 pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32, name: &str) -> Result<()> {
-    if !(fps.is_finite() && fps > 0.0) {
-        return Err(Error::InvalidParameter(format!(
-            "the frame rate must be positive, not {fps}"
-        )));
-    }
-    crate::model::check_name(name)?;
-    check_frames(mesh)?;
+    let cache = PointCache::new(mesh, fps, name)?;
     let obj_path = path.with_extension("obj");
     if obj_path == path {
         return Err(Error::write(
@@ -48,61 +42,133 @@ pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32, name: &str) -> Resul
             "the point cache would overwrite the OBJ of its mesh; name it .pc2",
         ));
     }
-    let base = &mesh.base;
-    let mut used = vec![false; base.positions.len()];
-    base.triangles
-        .iter()
-        .flatten()
-        .for_each(|&v| used[v as usize] = true);
-    let kept: Vec<usize> = (0..used.len()).filter(|&v| used[v]).collect();
-    let mut index = vec![0u32; used.len()];
-    kept.iter()
-        .enumerate()
-        .for_each(|(new, &old)| index[old] = new as u32);
-    let too_many = |what| Error::InvalidInput(format!("too many {what} for a PC2 file"));
-    let points = i32::try_from(kept.len()).map_err(|_| too_many("vertices"))?;
-    let samples = i32::try_from(mesh.frames.len()).map_err(|_| too_many("frames"))?;
-    let first = mesh.frames.get(0)?;
-    let obj = TriangleMesh {
-        positions: kept.iter().map(|&v| first[v]).collect(),
-        triangles: base
-            .triangles
+    let cache_name = path.file_name().unwrap_or_default().to_string_lossy();
+    // Both or neither: a cache without its mesh is of no use.
+    write_atomic_all(vec![
+        (
+            path,
+            Box::new(|w: &mut BufWriter<File>| cache.write_cache(w)),
+        ),
+        (
+            &obj_path,
+            Box::new(|w: &mut BufWriter<File>| cache.write_mesh(w, &cache_name)),
+        ),
+    ])
+}
+
+/// [`write_pc2`] into two writers of the caller's: the point cache into
+/// `cache`, the OBJ of its mesh into `obj`, whose header names the cache
+/// `cache_name`. What was written before an error stays written.
+pub fn write_pc2_to(
+    cache: &mut impl Write,
+    obj: &mut impl Write,
+    cache_name: &str,
+    mesh: &DynamicMesh,
+    fps: f32,
+    name: &str,
+) -> Result<()> {
+    let pc2 = PointCache::new(mesh, fps, name)?;
+    pc2.write_cache(cache).map_err(Error::WriteStream)?;
+    pc2.write_mesh(obj, cache_name).map_err(Error::WriteStream)
+}
+
+/// A point cache ready to write: the vertices some triangle uses, and frame
+/// 0's mesh of those vertices with its normals.
+struct PointCache<'a> {
+    mesh: &'a DynamicMesh,
+    fps: f32,
+    name: &'a str,
+    /// The vertices written, in the mesh's order.
+    kept: Vec<usize>,
+    points: i32,
+    samples: i32,
+    /// Frame 0 of the kept vertices.
+    obj: TriangleMesh,
+    normals: Vec<crate::math::Vector3>,
+}
+
+impl<'a> PointCache<'a> {
+    /// Checks the frame rate, the name and the frames, and keeps the
+    /// vertices some triangle uses.
+    fn new(mesh: &'a DynamicMesh, fps: f32, name: &'a str) -> Result<Self> {
+        if !(fps.is_finite() && fps > 0.0) {
+            return Err(Error::InvalidParameter(format!(
+                "the frame rate must be positive, not {fps}"
+            )));
+        }
+        crate::model::check_name(name)?;
+        check_frames(mesh)?;
+        let base = &mesh.base;
+        let mut used = vec![false; base.positions.len()];
+        base.triangles
             .iter()
-            .map(|t| t.map(|v| index[v as usize]))
-            .collect(),
-        uvs: base
-            .uvs
-            .as_ref()
-            .map(|uv| kept.iter().map(|&v| uv[v]).collect()),
-        ..Default::default()
-    };
-    let all_normals = FrameNormals::new(base, &first).base;
-    let normals: Vec<_> = kept.iter().map(|&v| all_normals[v]).collect();
-    let cache = path.file_name().unwrap_or_default().to_string_lossy();
-    let write_cache = |w: &mut BufWriter<File>| {
+            .flatten()
+            .for_each(|&v| used[v as usize] = true);
+        let kept: Vec<usize> = (0..used.len()).filter(|&v| used[v]).collect();
+        let mut index = vec![0u32; used.len()];
+        kept.iter()
+            .enumerate()
+            .for_each(|(new, &old)| index[old] = new as u32);
+        let too_many = |what| Error::InvalidInput(format!("too many {what} for a PC2 file"));
+        let points = i32::try_from(kept.len()).map_err(|_| too_many("vertices"))?;
+        let samples = i32::try_from(mesh.frames.len()).map_err(|_| too_many("frames"))?;
+        let first = mesh.frames.get(0)?;
+        let obj = TriangleMesh {
+            positions: kept.iter().map(|&v| first[v]).collect(),
+            triangles: base
+                .triangles
+                .iter()
+                .map(|t| t.map(|v| index[v as usize]))
+                .collect(),
+            uvs: base
+                .uvs
+                .as_ref()
+                .map(|uv| kept.iter().map(|&v| uv[v]).collect()),
+            ..Default::default()
+        };
+        let all_normals = FrameNormals::new(base, &first).base;
+        let normals = kept.iter().map(|&v| all_normals[v]).collect();
+        Ok(PointCache {
+            mesh,
+            fps,
+            name,
+            kept,
+            points,
+            samples,
+            obj,
+            normals,
+        })
+    }
+
+    /// The PC2 file: its header, then every frame's kept vertices.
+    fn write_cache(&self, w: &mut impl Write) -> std::io::Result<()> {
         w.write_all(b"POINTCACHE2\0")?;
         w.write_all(&1i32.to_le_bytes())?;
-        w.write_all(&points.to_le_bytes())?;
+        w.write_all(&self.points.to_le_bytes())?;
         w.write_all(&0f32.to_le_bytes())?;
         w.write_all(&1f32.to_le_bytes())?;
-        w.write_all(&samples.to_le_bytes())?;
-        for frame in mesh.frames.iter() {
+        w.write_all(&self.samples.to_le_bytes())?;
+        for frame in self.mesh.frames.iter() {
             let frame = frame.map_err(std::io::Error::other)?;
-            for &v in &kept {
+            for &v in &self.kept {
                 for c in frame[v].iter() {
                     w.write_all(&(*c as f32).to_le_bytes())?;
                 }
             }
         }
         Ok(())
-    };
-    let write_mesh = |w: &mut BufWriter<File>| {
-        writeln!(w, "{MESH_MARK} {cache}: {samples} frames at {fps} fps, start frame 0, one sample per frame")?;
-        write_named_obj(w, &obj, &obj.positions, name, Some(&normals))
-    };
-    // Both or neither: a cache without its mesh is of no use.
-    write_atomic_all(vec![
-        (path, Box::new(write_cache)),
-        (&obj_path, Box::new(write_mesh)),
-    ])
+    }
+
+    /// The OBJ of frame 0, its header naming the cache `cache_name`.
+    fn write_mesh(&self, w: &mut impl Write, cache_name: &str) -> std::io::Result<()> {
+        let (samples, fps) = (self.samples, self.fps);
+        writeln!(w, "{MESH_MARK} {cache_name}: {samples} frames at {fps} fps, start frame 0, one sample per frame")?;
+        write_named_obj(
+            w,
+            &self.obj,
+            &self.obj.positions,
+            self.name,
+            Some(&self.normals),
+        )
+    }
 }

@@ -20,21 +20,36 @@ const MAX_BUFFER_BYTES: u64 = 1 << 32;
 /// every triangle primitive of the default scene, node transforms applied.
 /// External buffers are read from files named relative to `path`.
 pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
-    let invalid = |e: &dyn std::fmt::Display| {
-        let text = e.to_string();
-        Error::parse(
-            path,
-            None,
-            if text.starts_with("invalid glTF") {
-                text
-            } else {
-                format!("invalid glTF: {text}")
-            },
-        )
-    };
     // serde_json refuses a byte-order mark before the JSON; the crate reads
     // the binary header after one too.
     let bytes = super::strip_bom(bytes);
+    let (doc, blob) = document(path, bytes)?;
+    let buffers = load_buffers(path, &doc, blob)?;
+    // One vertex per byte of input is already far more than any capture
+    // needs: the bound on what instancing one mesh in many nodes may make.
+    let budget = (bytes.len() + buffers.iter().map(Vec::len).sum::<usize>()).max(1 << 20);
+    let mesh = scene_mesh(path, &doc, &buffers, budget)?;
+    mesh.validate(path)?;
+    Ok(mesh)
+}
+
+/// The error for a file the gltf crate or our checks refuse.
+fn invalid(path: &Path, e: &dyn std::fmt::Display) -> Error {
+    let text = e.to_string();
+    Error::parse(
+        path,
+        None,
+        if text.starts_with("invalid glTF") {
+            text
+        } else {
+            format!("invalid glTF: {text}")
+        },
+    )
+}
+
+/// The document of `bytes` and its GLB binary chunk, with what the gltf
+/// crate takes on trust checked first.
+fn document(path: &Path, bytes: &[u8]) -> Result<(gltf::Document, Option<Vec<u8>>)> {
     // A .glb that does not start with the binary header would be taken for
     // JSON and fail as "expected value at line 1 column 1".
     let named_glb = path
@@ -56,12 +71,15 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
     if let Some(declared) = bytes.strip_prefix(b"glTF").and_then(|b| b.get(4..8)) {
         let declared = u32::from_le_bytes(declared.try_into().expect("4 bytes"));
         if declared < 12 {
-            return Err(invalid(&format!(
+            return Err(invalid(
+                path,
+                &format!(
                 "the GLB header declares a length of {declared} bytes, less than the header itself"
-            )));
+            ),
+            ));
         }
     }
-    let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| invalid(&e))?;
+    let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| invalid(path, &e))?;
     let blob = gltf.blob;
     let json = gltf.document.into_json();
     // gltf-json's validation indexes the accessors by POSITION unchecked.
@@ -69,17 +87,26 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         for prim in &mesh.primitives {
             for (semantic, index) in &prim.attributes {
                 if index.value() >= json.accessors.len() {
-                    return Err(invalid(&format!(
-                        "mesh {m}: its {} refers to accessor {}, but there are {}",
-                        semantic.to_string(),
-                        index.value(),
-                        json.accessors.len()
-                    )));
+                    return Err(invalid(
+                        path,
+                        &format!(
+                            "mesh {m}: its {} refers to accessor {}, but there are {}",
+                            semantic.to_string(),
+                            index.value(),
+                            json.accessors.len()
+                        ),
+                    ));
                 }
             }
         }
     }
-    let doc = gltf::Document::from_json(json).map_err(|e| invalid(&e))?;
+    let doc = gltf::Document::from_json(json).map_err(|e| invalid(path, &e))?;
+    Ok((doc, blob))
+}
+
+/// The data of every buffer of `doc`: the GLB's binary chunk `blob`, or
+/// files and data URIs named relative to `path`.
+fn load_buffers(path: &Path, doc: &gltf::Document, blob: Option<Vec<u8>>) -> Result<Vec<Vec<u8>>> {
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for buffer in doc.buffers() {
         let data = match buffer.source() {
@@ -106,13 +133,21 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
         }
         buffers.push(data);
     }
+    Ok(buffers)
+}
+
+/// Every triangle primitive of `doc`'s default scene (else its first) in
+/// world coordinates, as one mesh of at most `budget` vertices.
+fn scene_mesh(
+    path: &Path,
+    doc: &gltf::Document,
+    buffers: &[Vec<u8>],
+    budget: usize,
+) -> Result<TriangleMesh> {
     let scene = doc
         .default_scene()
         .or_else(|| doc.scenes().next())
         .ok_or_else(|| Error::mesh(path, "the file has no scene"))?;
-    // One vertex per byte of input is already far more than any capture
-    // needs: the bound on what instancing one mesh in many nodes may make.
-    let budget = (bytes.len() + buffers.iter().map(Vec::len).sum::<usize>()).max(1 << 20);
     let mut mesh = TriangleMesh::default();
     let mut stack: Vec<(gltf::Node, Matrix4<Real>)> =
         scene.nodes().map(|n| (n, Matrix4::identity())).collect();
@@ -145,7 +180,7 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
                     skipped.push(prim.mode());
                     continue;
                 }
-                append_primitive(path, &prim, &buffers, &world, &mut mesh)?;
+                append_primitive(path, &prim, buffers, &world, &mut mesh)?;
                 if mesh.positions.len() > budget {
                     return Err(Error::parse(
                         path,
@@ -164,7 +199,6 @@ pub fn read_gltf(path: &Path, bytes: &[u8]) -> Result<TriangleMesh> {
             format!("the scene has only points or lines (primitive modes {skipped:?}), no triangles: voltrack reads surfaces"),
         ));
     }
-    mesh.validate(path)?;
     Ok(mesh)
 }
 
