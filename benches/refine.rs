@@ -1,14 +1,16 @@
-//! Speed of the temporally global optimisation on crane_tvm at R = 256,
-//! N = 1000: seconds per energy evaluation (all frames' Voronoi cells, rigid
-//! fits and predictions) and per accepted global iteration (its line search
-//! included), and the peak memory of the whole run.
+//! Speed of the refinement stage on crane_tvm at R = 256, N = 1000, through
+//! the public stage functions: the global affinity ω of the tracked
+//! trajectories (`pipeline::sequence_affinity`), and the temporally global
+//! optimisation as `refine::refine` runs it with no center removed, in one
+//! batch (ω again, then the global iterations at the defaults, each with its
+//! line search): seconds per accepted global iteration; and the peak memory
+//! of the whole run.
 //!
 //! `cargo bench --bench refine`; `VOLTRACK_BENCH_DATA=DIR` for another
 //! sequence, `VOLTRACK_BENCH_FRAMES=K` for its first K frames.
 
 use std::time::Instant;
 use voltrack::params::{RefineParams, TrackParams};
-use voltrack::refine::{evaluate, global_affinity, optimise, SequenceCells};
 use voltrack::voxel::{voxelize_sequence, VoxelParams};
 
 #[path = "common/peak.rs"]
@@ -49,54 +51,34 @@ fn main() {
         Default::default(),
     )
     .expect("tracking");
-    let traj = tracked.trajectories.clone();
+    let traj = tracked.trajectories;
     let params = RefineParams::default();
-    let scale = params.length_scale(&seq.bounds);
-    let mut cells = SequenceCells::new(&seq, usize::MAX);
     let clock = Instant::now();
-    let omega = global_affinity(
-        &traj,
-        &seq,
-        &mut cells,
-        params.rho_gp * scale,
-        params.rho_gm * scale,
-        params.mu,
-    );
+    let omega =
+        voltrack::pipeline::sequence_affinity(&traj, &seq, Some(&params), Default::default())
+            .expect("the global affinity");
     let affinity_seconds = clock.elapsed().as_secs_f64();
+    let centers = traj.centers;
     let clock = Instant::now();
-    let runs = 3;
-    for _ in 0..runs {
-        std::hint::black_box(
-            evaluate(
-                &traj,
-                &seq.grid,
-                &mut cells,
-                &omega,
-                params.beta_hat,
-                params.memory,
-            )
-            .expect("gradient in memory"),
-        );
-    }
-    let evaluation = clock.elapsed().as_secs_f64() / runs as f64;
-    let mut current = traj.clone();
-    let clock = Instant::now();
-    let history = optimise(
-        &mut current,
-        &seq.grid,
-        &mut cells,
-        &omega,
-        &params,
-        |_, _, _| true,
+    let refined = voltrack::refine::refine(
+        traj,
+        &seq,
+        &RefineParams {
+            remove: Some(0),
+            batches: 1,
+            ..params
+        },
+        Default::default(),
     )
-    .expect("gradient in memory");
+    .expect("refining");
     let optimise_seconds = clock.elapsed().as_secs_f64();
+    let history = &refined.refinement.batches[0];
     let accepted = history.len().saturating_sub(1);
     println!(
         "{}: {} frames, {} centers, R = 256, threads {}",
         dir,
         seq.frames.len(),
-        traj.centers,
+        centers,
         rayon::current_num_threads()
     );
     println!(
@@ -104,12 +86,8 @@ fn main() {
         omega.mean_neighbors()
     );
     println!(
-        "energy evaluation: {evaluation:.3} s ({:.1} ms per frame)",
-        1000.0 * evaluation / seq.frames.len() as f64
-    );
-    println!(
-        "optimisation: {accepted} accepted iterations in {optimise_seconds:.2} s = {:.2} s per global iteration (line search included); energy {:.6e} -> {:.6e}",
-        optimise_seconds / accepted.max(1) as f64,
+        "optimisation (refine, no removal, one batch): {optimise_seconds:.2} s, ω included; {accepted} accepted iterations = {:.2} s per global iteration (line search included, ω's {affinity_seconds:.2} s taken out); energy {:.6e} -> {:.6e}",
+        (optimise_seconds - affinity_seconds).max(0.0) / accepted.max(1) as f64,
         history.first().map_or(0.0, |h| h.energy),
         history.last().map_or(0.0, |h| h.energy)
     );

@@ -86,7 +86,7 @@ pub mod params;
 pub mod pipeline;
 pub mod progress;
 pub mod refine;
-pub mod spatial;
+pub(crate) mod spatial;
 pub mod track;
 pub mod voxel;
 

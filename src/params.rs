@@ -174,8 +174,8 @@ pub struct TrackParams {
     pub reclaim: bool,
     /// Most Lloyd iterations placing the centers in frame 0; they stop earlier
     /// once no center moves farther than `threshold`. Default 1000 (the
-    /// reference runs 100, which leaves frame 0 unconverged: see
-    /// `track::lloyd::seed_centers`); 1 ..= [`MAX_ITERATIONS`].
+    /// reference runs 100, which leaves frame 0 unconverged: see the
+    /// seeding in `track::lloyd`); 1 ..= [`MAX_ITERATIONS`].
     pub lloyd_iterations: usize,
     /// Over-relaxation of those Lloyd iterations (c += ω (x̄ - c)).
     /// Default 1.8; in (0, 2).

@@ -1,11 +1,10 @@
 //! The generated family of takes (`voltrack::fixtures::family`): what it
-//! spans, that every frame is a closed surface meshed afresh, that the
-//! ground truth lies on every frame's surface, and that the score measures
-//! what it says.
+//! spans and that the score measures what it says. That every frame is a
+//! closed surface meshed afresh, with the ground truth on it, is a unit test
+//! (`src/fixtures/family/tests.rs`).
 
 use voltrack::fixtures::family::{build, family, score, Body, TakeSpec};
 use voltrack::math::{Point3, Real};
-use voltrack::spatial::surface::SurfaceIndex;
 
 /// `spec` cut to its first `frames` frames.
 fn short(spec: &TakeSpec, frames: usize) -> TakeSpec {
@@ -29,80 +28,6 @@ fn the_family_spans_what_it_is_meant_to() {
     names.sort();
     names.dedup();
     assert_eq!(names.len(), specs.len(), "names are unique");
-}
-
-/// Every frame of every take (its first frames): a closed surface, facing
-/// out, with its own vertices; the truth of frame 0's vertices that are
-/// not ambiguous in that frame lies on each frame's surface.
-#[test]
-fn every_frame_is_a_closed_surface_and_the_truth_lies_on_it() {
-    for spec in family() {
-        let take = build(&short(&spec, 4));
-        assert!(
-            (take.limb_voxels / spec.limb_voxels - 1.0).abs() < 0.05,
-            "{}: limbs {} voxels",
-            spec.name,
-            take.limb_voxels
-        );
-        for (f, m) in take.meshes.iter().enumerate() {
-            // Every directed edge is matched by its reverse: closed and consistently oriented.
-            let mut edges = std::collections::HashMap::new();
-            for t in &m.triangles {
-                for k in 0..3 {
-                    *edges.entry((t[k], t[(k + 1) % 3])).or_insert(0i32) += 1;
-                    *edges.entry((t[(k + 1) % 3], t[k])).or_insert(0i32) -= 1;
-                }
-            }
-            assert!(
-                edges.values().all(|&c| c == 0),
-                "{} frame {f}: not closed",
-                spec.name
-            );
-            let volume: Real = m
-                .triangles
-                .iter()
-                .map(|t| {
-                    m.positions[t[0] as usize].coords.dot(
-                        &m.positions[t[1] as usize]
-                            .coords
-                            .cross(&m.positions[t[2] as usize].coords),
-                    ) / 6.0
-                })
-                .sum();
-            assert!(volume > 0.0, "{} frame {f}: faces inward", spec.name);
-            if f > 0 {
-                assert_ne!(
-                    m.positions, take.meshes[0].positions,
-                    "{} frame {f} is frame 0's mesh",
-                    spec.name
-                );
-            }
-            let index = SurfaceIndex::new(&m.positions, &m.triangles);
-            let truth = take.truth.frame(f, &take.meshes[0].positions);
-            let off = truth
-                .iter()
-                .zip(&take.truth.ambiguous_in[f])
-                .filter(|(_, &a)| !a)
-                .map(|(p, _)| index.distance(p))
-                .fold(0.0, Real::max);
-            // A vertex is within about half a step of the surface it was meshed
-            // from, the frame's mesh within about half a step of its own.
-            assert!(
-                off < 1.5 * take.step,
-                "{} frame {f}: truth {off} from the surface (step {})",
-                spec.name,
-                take.step
-            );
-        }
-        let ambiguous = take.truth.ambiguous.iter().filter(|&&a| a).count() as Real
-            / take.truth.ambiguous.len() as Real;
-        assert!(
-            ambiguous < 0.6,
-            "{}: {:.0} % ambiguous",
-            spec.name,
-            100.0 * ambiguous
-        );
-    }
 }
 
 /// The truth scores 0 and loses nothing; a result that stays where frame 0

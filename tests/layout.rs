@@ -53,7 +53,22 @@ fn rust_files(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
     }
 }
 
-/// module -> modules it names, for the library's top-level modules.
+/// The library's code in `text`, the source of `file`: unit tests are not
+/// part of the layering (a stage's tests may build their input with the
+/// fixtures, which sit above every stage). A test-only file (`tests.rs`,
+/// `*_tests.rs`) holds none; elsewhere a file's `#[cfg(test)] mod tests`,
+/// which comes last, ends it.
+fn library_code<'a>(file: &Path, text: &'a str) -> &'a str {
+    let name = file.file_name().unwrap().to_string_lossy();
+    if name == "tests.rs" || name.ends_with("_tests.rs") {
+        return "";
+    }
+    text.find("\n#[cfg(test)]\nmod tests {")
+        .map_or(text, |end| &text[..end])
+}
+
+/// module -> modules it names, for the library's top-level modules (their
+/// unit tests aside).
 fn module_graph() -> BTreeMap<String, BTreeSet<String>> {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
     let mut files = Vec::new();
@@ -74,7 +89,11 @@ fn module_graph() -> BTreeMap<String, BTreeSet<String>> {
         }
         let text = std::fs::read_to_string(&file).unwrap();
         let edges = graph.entry(top.clone()).or_default();
-        edges.extend(referenced_modules(&text).into_iter().filter(|m| *m != top));
+        edges.extend(
+            referenced_modules(library_code(&file, &text))
+                .into_iter()
+                .filter(|m| *m != top),
+        );
     }
     // Names re-exported at the root (`crate::Error`) are not modules.
     let modules: BTreeSet<String> = graph.keys().cloned().collect();

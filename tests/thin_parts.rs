@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use voltrack::fixtures::{swinging, swinging_leg, SWINGING_LEG_FRAMES};
 use voltrack::math::Real;
 use voltrack::model::Trajectories;
-use voltrack::params::{CoverageParams, DeformParams, RefineParams, TrackParams};
+use voltrack::params::{CoverageParams, DeformParams, Reference, RefineParams, TrackParams};
 use voltrack::pipeline::Conversion;
 use voltrack::voxel::{VoxelParams, VoxelSequence};
 use voltrack::Progress;
@@ -110,22 +110,39 @@ fn leg_errors(traj: &Trajectories, voxel_size: Real) -> Vec<(Real, Real)> {
 }
 
 /// The swinging-leg frames voxelised in memory, and centers placed in frame
-/// 0 as the tracker places them.
+/// 0 by the tracker: tracked through frame 0 alone, they are its Lloyd
+/// placement (seed 0, 1000 steps over-relaxed by 1.8, until no center moves
+/// 1e-6).
 fn swinging_sequence(
     resolution: usize,
     centers: usize,
 ) -> (VoxelSequence, Vec<voltrack::math::Point3>) {
     let meshes: Vec<_> = (0..SWINGING_LEG_FRAMES).map(swinging_leg).collect();
     let seq = common::voxel_sequence(&meshes, resolution);
-    let (placed, _) = voltrack::track::lloyd::seed_centers(
-        &seq.grid,
-        &seq.frames[0].indices(),
-        centers,
-        0,
-        1000,
-        1.8,
-        1e-6,
-    );
+    let first = VoxelSequence {
+        frames: seq.frames[..1].to_vec(),
+        names: seq.names[..1].to_vec(),
+        ..seq.clone()
+    };
+    let placed = voltrack::track::track(
+        &first,
+        &TrackParams {
+            centers,
+            seed: 0,
+            lloyd_iterations: 1000,
+            over_relaxation: 1.8,
+            // The threshold in the input's units.
+            threshold: 1e-6,
+            absolute_units: true,
+            reference: Reference::First,
+            ..Default::default()
+        },
+        Progress::none(),
+    )
+    .expect("placing the centers")
+    .trajectories
+    .frame(0)
+    .to_vec();
     (seq, placed)
 }
 

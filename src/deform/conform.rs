@@ -842,3 +842,7 @@ fn solve(
         }
     }
 }
+
+#[cfg(test)]
+#[path = "conform_tests.rs"]
+mod tests;

@@ -1,9 +1,10 @@
 //! The data every stage shares: triangle meshes, the common voxel grid and a
-//! frame's occupancy, center trajectories and rigid motions, and the frames
-//! of a sequence as a [`FrameSource`]. Nothing here reads an input or
-//! writes an output: [`positions`] may keep a long sequence's frames in a
-//! temporary file of its own, and [`mesh`] looks at a texture's first bytes
-//! to tell whether glTF can carry it.
+//! frame's occupancy, center trajectories and rigid motions ([`Rigid`],
+//! [`fit_rigid`]; the batched fits the tracker and the refinement run are
+//! internal), and the frames of a sequence as a [`FrameSource`]. Nothing
+//! here reads an input or writes an output: [`positions`] may keep a long
+//! sequence's frames in a temporary file of its own, and [`mesh`] looks at a
+//! texture's first bytes to tell whether glTF can carry it.
 
 pub mod dynamic;
 pub mod frames;
@@ -11,7 +12,7 @@ pub mod grid;
 pub mod mesh;
 pub mod metadata;
 pub mod positions;
-pub mod rigid;
+mod rigid;
 pub(crate) mod rng;
 pub mod trajectories;
 
@@ -21,7 +22,8 @@ pub use grid::{GridSpec, Occupancy, OccupancyRuns, GRID_MARGIN, MAX_RESOLUTION};
 pub use mesh::{Aabb, TriangleMesh};
 pub use metadata::{TrajectoryMetadata, METADATA_ATTRIBUTE};
 pub use positions::{FrameStore, PositionFrames};
-pub use rigid::{fit_rigid, rotation_from_covariance, PairTable, Rigid, RigidFits};
+pub use rigid::{fit_rigid, Rigid};
+pub(crate) use rigid::{rotation_from_covariance, PairTable, RigidFits};
 pub use trajectories::Trajectories;
 
 use crate::error::{Error, Result};

@@ -125,14 +125,9 @@ impl<'a> SequenceCells<'a> {
             });
     }
 
-    /// Each frame's cell sums for the centers in `traj` (frames in parallel).
-    pub fn update(&mut self, traj: &Trajectories, with_moments: bool) -> Vec<CellStats> {
-        self.update_frames(traj, 0, 0..self.seq.frames.len(), with_moments)
-    }
-
-    /// The cell sums of frames `range` (in parallel), the same as
-    /// [`update`](Self::update) gives for them: a long sequence is visited a
-    /// block of frames at a time, so that only a block's sums are held.
+    /// The cell sums of frames `range` (in parallel), the same as all
+    /// frames at once give for them: a long sequence is visited a block of
+    /// frames at a time, so that only a block's sums are held.
     /// `traj` holds the centers of frames `offset..`: its frame k is the
     /// sequence's frame `offset + k`.
     pub fn update_frames(

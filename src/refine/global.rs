@@ -27,11 +27,13 @@ pub struct Evaluation {
 /// One accepted or final step of the optimisation.
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct Iteration {
-    /// Ê after the step ([`Evaluation::energy`]).
+    /// Ê = Ês + β̂ Êu after the step.
     pub energy: Real,
-    /// Ês after the step ([`Evaluation::smooth`]).
+    /// Ês after the step: half the squared distances of the centers from
+    /// their forward and backward predictions, summed.
     pub smooth: Real,
-    /// Êu after the step ([`Evaluation::data`]).
+    /// Êu after the step: half the squared distances of the centers from
+    /// their cells' centroids, summed.
     pub data: Real,
     /// Step accepted (0 for the starting point).
     pub lambda: Real,
@@ -44,20 +46,9 @@ pub struct Iteration {
 /// as over all at once. The gradient is kept in memory up to `memory` bytes
 /// ([`RefineParams::memory`](crate::params::RefineParams::memory)), in a
 /// temporary file past it; errors are that file's.
-pub fn evaluate(
-    traj: &Trajectories,
-    grid: &GridSpec,
-    cells: &mut SequenceCells,
-    omega: &SparseAffinity,
-    beta_hat: Real,
-    memory: usize,
-) -> Result<Evaluation> {
-    evaluate_moved(traj, None, grid, cells, omega, beta_hat, memory)?
-        .ok_or(crate::Error::Interrupted { saved: None })
-}
-
-/// [`evaluate`] at `traj` moved by −λ `step` (`moved` = (step, λ)), as if
-/// at the trajectories `p − step · λ`, which are made a block of frames at a
+///
+/// With `moved` = (step, λ), Ê at `traj` moved by −λ `step`, as if at the
+/// trajectories `p − step · λ`, which are made a block of frames at a
 /// time: the line search then holds no second copy of all trajectories.
 /// None when `cells` were asked to stop ([`SequenceCells::cancelled`]).
 fn evaluate_moved(
@@ -185,7 +176,7 @@ fn evaluate_moved(
 /// then those of the last accepted step). Returns the energy before
 /// and after every accepted step (none when stopped before the first
 /// evaluation ended). The energy weighs the centroid term by
-/// `params.beta_hat`; the gradients are kept as [`evaluate`] says
+/// `params.beta_hat`; the gradients are kept as [`evaluate_moved`] says
 /// (`params.memory`); errors are their temporary files'.
 pub fn optimise(
     traj: &mut Trajectories,

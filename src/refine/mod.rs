@@ -1,17 +1,23 @@
 //! Stage 3: removing irregular centers in batches, each followed by the
-//! temporally global optimisation (docs/method.md §6-§7).
+//! temporally global optimisation (docs/method.md §6-§7). The API is
+//! [`refine`] and [`refine_with_checkpoints`], what they give, and
+//! [`SparseAffinity`], the global affinity ω the deformation binds a mesh
+//! with (`pipeline::sequence_affinity` makes it); the algorithm's parts
+//! (`affinity`, `cells`, `global`, `irregular`) are internal.
 
-pub mod affinity;
-pub mod cells;
+mod affinity;
+pub(crate) mod cells;
 mod checkpoint;
-pub mod global;
-pub mod irregular;
+mod global;
+mod irregular;
 
-pub use affinity::{global_affinity, SparseAffinity};
-pub use cells::SequenceCells;
+pub(crate) use affinity::global_affinity;
+pub use affinity::SparseAffinity;
+pub(crate) use cells::SequenceCells;
 use checkpoint::{Restored, Snapshot};
-pub use global::{evaluate, optimise, Iteration};
-pub use irregular::most_irregular;
+use global::optimise;
+pub use global::Iteration;
+use irregular::most_irregular;
 
 use crate::checkpoint::Checkpointing;
 use crate::error::{Error, Result, Saved};
@@ -355,3 +361,6 @@ fn optimise_batch(
 fn save(saving: Option<(&Checkpointing, u64)>, snapshot: Snapshot) -> Result<()> {
     saving.map_or(Ok(()), |(c, fp)| checkpoint::save(c, fp, &snapshot))
 }
+
+#[cfg(test)]
+mod tests;

@@ -460,6 +460,7 @@ impl CenterIndex {
     }
 
     /// Nearest center by linear scan: the reference the fast paths are tested against.
+    #[cfg(test)]
     pub fn nearest_brute_force(&self, v: &[Real; 3]) -> u32 {
         let mut best = (Real::INFINITY, 0u32);
         for i in 0..self.points.len() as u32 {
@@ -600,6 +601,7 @@ impl CenterIndex {
     }
 
     /// Nearest center (ties to the lower index), from a hint or none.
+    #[cfg(test)]
     pub fn nearest(&self, v: &[Real; 3], hint: u32) -> u32 {
         self.nearest2(v, hint).owner
     }
@@ -607,11 +609,6 @@ impl CenterIndex {
     /// Number of centers.
     pub fn len(&self) -> usize {
         self.points.len()
-    }
-
-    /// Whether there is no center.
-    pub fn is_empty(&self) -> bool {
-        self.points.is_empty()
     }
 }
 
@@ -646,7 +643,9 @@ pub struct CellStats {
 /// Mean and covariance of a cell's voxel centers, in world units.
 #[derive(Clone, Copy, Debug)]
 pub struct CellMoments {
-    /// Voxels in the cell.
+    /// Voxels in the cell. Nothing in the crate reads it (the tests build
+    /// cells with it).
+    #[allow(dead_code)]
     pub count: u32,
     /// Centroid of the voxel centers.
     pub mean: Point3,
@@ -1650,3 +1649,7 @@ mod tests {
         );
     }
 }
+
+#[cfg(test)]
+#[path = "cells_tests.rs"]
+mod scan_tests;

@@ -1,5 +1,6 @@
-//! Spatial queries shared by the stages: the nearest center of every voxel
-//! (Voronoi cells and their sums) and the closest point on a triangle mesh.
+//! Spatial queries shared by the stages, internal to the crate: the nearest
+//! center of every voxel (Voronoi cells and their sums) and the closest
+//! point on a triangle mesh.
 
-pub mod cells;
-pub mod surface;
+pub(crate) mod cells;
+pub(crate) mod surface;

@@ -1,7 +1,9 @@
 //! Closest points on a triangle surface: exact point-triangle distances and a
 //! bounding-volume hierarchy that finds a query's nearest triangle.
 
-use crate::math::{Point3, Real, Vector3};
+#[cfg(test)]
+use crate::math::Vector3;
+use crate::math::{Point3, Real};
 
 /// The point of triangle `abc` closest to `p` (Ericson, Real-Time Collision
 /// Detection §5.1.5: which vertex, edge or face region `p` projects into).
@@ -164,6 +166,7 @@ impl SurfaceIndex {
     /// The point of the surface nearest to `p` and the unit normal of the
     /// triangle it lies on (zero for a degenerate triangle); None without
     /// triangles.
+    #[cfg(test)]
     pub fn closest_point(&self, p: &Point3) -> Option<(Point3, Vector3)> {
         self.closest_point_within(p, Real::INFINITY)
     }
@@ -171,6 +174,7 @@ impl SurfaceIndex {
     /// [`SurfaceIndex::closest_point`], knowing that the surface comes within
     /// `bound` of `p` (a point found before): boxes farther away are skipped.
     /// None also when nothing is nearer than `bound`.
+    #[cfg(test)]
     pub fn closest_point_within(&self, p: &Point3, bound: Real) -> Option<(Point3, Vector3)> {
         let (t, _) = self.nearest_triangle(p, bound * bound)?;
         let [a, b, c] = &self.triangles[t];
@@ -382,3 +386,7 @@ fn build(
     nodes[index].count = 0;
     index
 }
+
+#[cfg(test)]
+#[path = "surface_tests.rs"]
+mod tests;

@@ -151,6 +151,7 @@ impl Affinity {
     }
 
     /// Center i's neighbours (itself included), ordered by index.
+    #[cfg(test)]
     pub fn neighbors(&self, i: usize) -> &[Neighbor] {
         &self.lists[i]
     }
@@ -225,4 +226,163 @@ pub(crate) fn within_reach(centers: &[Point3], sigma: Real, mu: Real) -> Vec<Vec
             found
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::{Rotation3, Vector3};
+
+    /// A small deterministic generator (tests need no rand crate).
+    struct Lcg(u64);
+    impl Lcg {
+        fn next(&mut self) -> Real {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 11) as Real / (1u64 << 53) as Real
+        }
+        fn vec(&mut self, scale: Real) -> Vector3 {
+            Vector3::new(self.next() - 0.5, self.next() - 0.5, self.next() - 0.5) * scale
+        }
+        fn rigid(&mut self) -> Rigid {
+            let rot = Rotation3::new(self.vec(1.0).normalize() * (self.next() * 3.0));
+            Rigid {
+                rotation: *rot.matrix(),
+                translation: self.vec(4.0),
+            }
+        }
+    }
+
+    #[test]
+    fn motion_dissimilarity_matches_its_definition() {
+        let mut g = Lcg(4);
+        let pts: Vec<Point3> = (0..40)
+            .map(|_| Point3::from(g.vec(2.0) + Vector3::new(5.0, 0.0, 0.0)))
+            .collect();
+        let n = pts.len() as Real;
+        let mean = Point3::from(pts.iter().map(|p| p.coords).sum::<Vector3>() / n);
+        let covariance = pts
+            .iter()
+            .map(|p| (p - mean) * (p - mean).transpose())
+            .sum::<Matrix3>()
+            / n;
+        let cell = CellMoments {
+            count: 40,
+            mean,
+            covariance,
+        };
+        for k in 0..40 {
+            let a = g.rigid();
+            // Half of them nearly alike, where the refinement's form subtracts
+            // nearly equal terms.
+            let b = if k % 2 == 0 {
+                g.rigid()
+            } else {
+                Rigid {
+                    rotation: Rotation3::new(g.vec(1e-4)).matrix() * a.rotation,
+                    translation: a.translation + g.vec(1e-4),
+                }
+            };
+            let direct: Real = pts
+                .iter()
+                .map(|p| (a.apply(p) - b.apply(p)).norm_squared())
+                .sum::<Real>()
+                / n;
+            let closed = motion_dissimilarity2(&cell, &a, &b);
+            assert!(
+                (direct - closed).abs() < 1e-9 * direct.max(1.0),
+                "{direct} vs {closed}"
+            );
+            let once = CellMotion::new(&cell, &a).dissimilarity2(&b);
+            assert!(
+                (direct - once).abs() < 1e-9 * direct.max(1.0),
+                "{direct} vs {once}"
+            );
+        }
+    }
+
+    /// Weights after a few frames, from the formulas of docs/method.md §5 evaluated
+    /// directly over the whole history.
+    #[test]
+    fn both_affinities_match_their_formulas() {
+        let mut g = Lcg(5);
+        let n = 8;
+        let (rho_p, rho_m, alpha, mu) = (1.5, 0.4, 0.3, 1e-6);
+        let (sp, sm) = (sigma_for(rho_p), sigma_for(rho_m));
+        let frames: Vec<Vec<Point3>> = (0..4)
+            .map(|_| (0..n).map(|_| Point3::from(g.vec(2.0))).collect())
+            .collect();
+        let motions: Vec<Vec<Rigid>> = (0..4)
+            .map(|_| (0..n).map(|_| g.rigid()).collect())
+            .collect();
+        let cells: Vec<Vec<Option<CellMoments>>> = (0..4)
+            .map(|_| {
+                (0..n)
+                    .map(|_| {
+                        let a = g.vec(0.3);
+                        Some(CellMoments {
+                            count: 5,
+                            mean: Point3::from(g.vec(2.0)),
+                            covariance: a * a.transpose() + Matrix3::identity() * 0.01,
+                        })
+                    })
+                    .collect()
+            })
+            .collect();
+        for kind in [AffinityKind::Max, AffinityKind::Iir] {
+            let mut aff = Affinity::initial(&frames[0], kind, rho_p, rho_m, alpha, mu);
+            for f in 1..4 {
+                aff.update(&frames[f], &motions[f], &cells[f]);
+            }
+            for i in 0..n {
+                for j in 0..n {
+                    let d2 = |f: usize| (frames[f][i] - frames[f][j]).norm_squared();
+                    let m2 = |f: usize| {
+                        motion_dissimilarity2(
+                            cells[f][i].as_ref().unwrap(),
+                            &motions[f][i],
+                            &motions[f][j],
+                        )
+                    };
+                    let expected = match kind {
+                        AffinityKind::Max => {
+                            let maxd = (0..4).map(d2).fold(0.0, Real::max);
+                            let maxm = (1..4).map(m2).fold(0.0, Real::max);
+                            (-sp * maxd).exp() * (-sm * maxm).exp()
+                        }
+                        AffinityKind::Iir => {
+                            let mut a = 1.0;
+                            for f in 1..4 {
+                                a = alpha * (-sm * m2(f)).exp() + (1.0 - alpha) * a;
+                            }
+                            (-sp * d2(3)).exp() * a
+                        }
+                    };
+                    let got = aff
+                        .neighbors(i)
+                        .iter()
+                        .find(|nb| nb.j as usize == j)
+                        .map_or(0.0, |nb| nb.w);
+                    let tol = if kind == AffinityKind::Iir {
+                        1e-6
+                    } else {
+                        1e-12
+                    };
+                    if expected >= mu * 1.01 {
+                        assert!(
+                            (got - expected).abs() < tol,
+                            "{kind:?} w({i},{j}) = {got}, expected {expected}"
+                        );
+                    } else {
+                        assert!(
+                            got < mu * 1.01 + tol,
+                            "{kind:?} w({i},{j}) = {got} should be pruned"
+                        );
+                    }
+                }
+            }
+        }
+    }
 }

@@ -9,29 +9,13 @@ use crate::spatial::cells::{Assignment, CenterIndex, NO_OWNER};
 /// Centers after at most `iterations` Lloyd steps c += ω (x̄ - c) from a
 /// seeded random choice of `n` distinct voxels (`n` <= voxels.len()),
 /// stopping once no center moves farther than `threshold`. Returns the
-/// centers and the number of steps taken.
+/// centers and the number of steps taken; None once `stop` says so (it is
+/// asked at every step: a step over a large frame takes seconds).
 ///
 /// Why converge rather than stop at the reference's 100 steps: an unconverged
 /// frame 0 keeps relaxing during tracking (each tracked frame moves centers
 /// halfway to their centroids), which shows as drift from the true motion,
 /// plainest on a rigid body, whose centers should not drift at all.
-pub fn seed_centers(
-    grid: &GridSpec,
-    voxels: &[u32],
-    n: usize,
-    seed: u64,
-    iterations: usize,
-    omega: Real,
-    threshold: Real,
-) -> (Vec<Point3>, usize) {
-    seed_centers_until(grid, voxels, n, seed, iterations, omega, threshold, &|| {
-        false
-    })
-    .expect("never stopped")
-}
-
-/// [`seed_centers`], None once `stop` says so (it is asked at every step:
-/// a step over a large frame takes seconds).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn seed_centers_until(
     grid: &GridSpec,

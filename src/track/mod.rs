@@ -1,15 +1,17 @@
 //! Stage 2: seeding centers in the first frame and tracking them forward
 //! (docs/method.md §2-§5). One file per algorithm: `lloyd` (frame 0), `affinity`
 //! (who moves with whom), `forward` (the frame loop), `claims` (starved
-//! parts turned about their joint, `--reclaim`), `checkpoint` (saving and resuming). The
-//! Voronoi cells they use are [`crate::spatial::cells`], the weighted rigid
-//! fits [`crate::model::rigid`].
+//! parts turned about their joint, `--reclaim`), `checkpoint` (saving and resuming).
+//! The Voronoi cells they use are `spatial::cells`, the weighted rigid fits
+//! `model::rigid`'s. All but [`checkpoint`] are internal: the API is
+//! [`track`], [`track_with_checkpoints`], their result and the reference
+//! frame's choice.
 
-pub mod affinity;
+pub(crate) mod affinity;
 pub mod checkpoint;
 mod claims;
 mod forward;
-pub mod lloyd;
+mod lloyd;
 mod reference;
 
 pub use checkpoint::Checkpointing;
