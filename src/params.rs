@@ -154,9 +154,7 @@ pub struct TrackParams {
     /// (docs/measurements.md). Default 1 (the paper's iteration); in (0, 2).
     pub tracking_over_relaxation: Real,
     /// Once a frame has converged, find the centers whose cells hold far
-    /// less than their frame-0 volume (starved) or whose cells of the frame
-    /// before, moved by their rigid motion, land mostly outside the frame's
-    /// volume (astray), group them into parts by
+    /// less than their frame-0 volume (starved), group them into parts by
     /// their affinity links, and turn each part as one rigid body about
     /// where it hangs from the other centers toward the frame's volume that
     /// no other cell's rigid motion carries there; iterate again, for up to

@@ -18,13 +18,6 @@
 //! body about that joint to the turn that brings its centers nearest to the
 //! uncovered volume. Turned whole, its centers keep their order along the
 //! limb, which moving each center to its own nearest volume would not.
-//!
-//! A part can also be lost with its cells full: its centers sit in the
-//! volume of the parts they were pulled into, and their cells' motion no
-//! longer fits the data. The cell of the frame before, moved by its
-//! center's rigid motion, then lands mostly outside the frame's volume,
-//! which a well-tracked cell, even one on the surface, does not; such
-//! centers are turned with the starved ones.
 
 use crate::math::{Point3, Real, Rotation3, Vector3};
 use crate::model::GridSpec;
@@ -35,11 +28,6 @@ use rayon::prelude::*;
 /// A cell is starved below this share of its frame-0 voxels (scaled by the
 /// frame's volume).
 pub(crate) const STARVED: Real = 0.3;
-
-/// A center has lost its part, as surely as a starved one, when more than
-/// this share of its cell of the frame before, moved by its rigid motion,
-/// lands outside the frame's volume.
-pub(crate) const ASTRAY: Real = 0.5;
 
 /// Links at least this strong tie starved centers into one part.
 const PART_LINK: Real = 0.5;

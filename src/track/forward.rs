@@ -633,10 +633,9 @@ impl<'a> Tracker<'a> {
         }
     }
 
-    /// Turns the lost parts of a converged run (their centers starved or
-    /// astray, [`Self::lost`]) toward the volume no kept cell carries (see
-    /// `track::claims`) and iterates again, as long as that leaves clearly
-    /// less of that volume.
+    /// Turns the starved parts of a converged run toward the volume no kept
+    /// cell carries (see `track::claims`) and iterates again, as long as
+    /// that leaves clearly less of that volume.
     fn reclaim(
         &self,
         mut run: Run,
@@ -647,16 +646,14 @@ impl<'a> Tracker<'a> {
         let Some(capacity) = &self.capacity else {
             return Some(run);
         };
-        // The lost centers (starved or astray) and the volume no kept cell
-        // carries, of the run kept so far: a kept round's are those its
-        // check measured.
+        // The starved centers and the volume no kept cell carries, of the
+        // run kept so far: a kept round's are those its check measured.
         let stats = self.refresh(&mut run);
-        let carried = self.carried(&run.cur, fits);
-        let mut starved = self.lost(capacity, &stats, &carried, &run.cells);
+        let mut starved = capacity.starved(&stats, run.cells.owners.len());
         if !starved.contains(&true) {
             return Some(run);
         }
-        let mut uncarried = self.uncarried(&carried, &starved, &run.cells);
+        let mut uncarried = self.uncarried(&run.cur, &starved, fits, &run.cells);
         for _ in 0..MAX_RECLAIMS {
             if !starved.contains(&true) {
                 break;
@@ -679,9 +676,8 @@ impl<'a> Tracker<'a> {
             trial.converged = false;
             self.iterate(&mut trial, prev, fits, self.threshold2, progress)?;
             let stats = self.refresh(&mut trial);
-            let carried = self.carried(&trial.cur, fits);
-            let starved_after = self.lost(capacity, &stats, &carried, &trial.cells);
-            let after = self.uncarried(&carried, &starved_after, &trial.cells);
+            let starved_after = capacity.starved(&stats, trial.cells.owners.len());
+            let after = self.uncarried(&trial.cur, &starved_after, fits, &trial.cells);
             log::debug!(
                 "reclaim: {} starved centers turned, uncarried voxels {} -> {}",
                 claims.len(),
@@ -701,87 +697,33 @@ impl<'a> Tracker<'a> {
         Some(run)
     }
 
-    /// Where frame f-1's voxels went: each (in `prev_voxels`' order) moved
-    /// by its cell's center's rigid motion from f-1 to `cur` to the voxel it
-    /// lands in; [`NO_OWNER`] where it has no owner or leaves the grid.
-    fn carried(&self, cur: &[Point3], fits: &RigidFits) -> Vec<u32> {
-        let motions = fits.fit(cur);
-        let grid = self.grid;
-        self.prev_voxels
-            .par_iter()
-            .zip(&self.prev_cells.owners[..])
-            .map(|(&v, &o)| {
-                if o == NO_OWNER {
-                    return NO_OWNER;
-                }
-                let p = motions[o as usize].apply(&grid.voxel_center(v as usize));
-                grid.voxel_at(&p).map_or(NO_OWNER, |q| q as u32)
-            })
-            .collect()
-    }
-
-    /// The centers that lost their part: those starved, and those whose
-    /// cell of frame f-1, `carried` by their motion, lands more than
-    /// [`ASTRAY`](super::claims::ASTRAY) outside this frame's volume (the
-    /// voxels of `cells`).
-    fn lost(
-        &self,
-        capacity: &super::claims::Capacity,
-        stats: &CellStats,
-        carried: &[u32],
-        cells: &Assignment,
-    ) -> Vec<bool> {
-        let mut lost = capacity.starved(stats, cells.owners.len());
-        let Some(coords) = cells.voxel_coords() else {
-            return lost;
-        };
-        let grid = self.grid;
-        let mut occupied = vec![0u64; grid.len().div_ceil(64)];
-        for c in coords {
-            let q = grid.linear_index(c.map(usize::from));
-            occupied[q / 64] |= 1 << (q % 64);
-        }
-        let n = lost.len();
-        let (mut total, mut outside) = (vec![0u32; n], vec![0u32; n]);
-        for (&o, &q) in self.prev_cells.owners.iter().zip(carried) {
-            if o == NO_OWNER {
-                continue;
-            }
-            let o = o as usize;
-            total[o] += 1;
-            let q = q as usize;
-            outside[o] +=
-                u32::from(q == NO_OWNER as usize || occupied[q / 64] & (1 << (q % 64)) == 0);
-        }
-        let mut astray = 0;
-        for i in 0..n {
-            if !lost[i] && outside[i] as Real > super::claims::ASTRAY * total[i] as Real {
-                lost[i] = true;
-                astray += 1;
-            }
-        }
-        if astray > 0 {
-            log::debug!("{astray} centers' cells carried mostly outside the volume");
-        }
-        lost
-    }
-
     /// The voxels of this frame (`cells`') that no kept center carries
-    /// there: frame f-1's cells of the centers not `starved`, `carried` by
-    /// their motion (and grown by a voxel each way, which a turned cell
-    /// leaves between its voxels).
-    fn uncarried(&self, carried: &[u32], starved: &[bool], cells: &Assignment) -> Vec<Point3> {
+    /// there: frame f-1's cells of the centers not `starved`, each voxel
+    /// moved by its center's rigid motion to `cur` (and grown by a voxel
+    /// each way, which a turned cell leaves between its voxels).
+    fn uncarried(
+        &self,
+        cur: &[Point3],
+        starved: &[bool],
+        fits: &RigidFits,
+        cells: &Assignment,
+    ) -> Vec<Point3> {
         let Some(coords) = cells.voxel_coords() else {
             return Vec::new();
         };
+        let motions = fits.fit(cur);
         let grid = self.grid;
-        let mut marked = vec![0u64; grid.len().div_ceil(64)];
+        let mut carried = vec![0u64; grid.len().div_ceil(64)];
         let dims = grid.dims;
-        for (&o, &q) in self.prev_cells.owners.iter().zip(carried) {
-            if o == NO_OWNER || q == NO_OWNER || starved[o as usize] {
+        for (&v, &o) in self.prev_voxels.iter().zip(&self.prev_cells.owners) {
+            if o == NO_OWNER || starved[o as usize] {
                 continue;
             }
-            let [x, y, z] = grid.voxel_coords(q as usize);
+            let p = motions[o as usize].apply(&grid.voxel_center(v as usize));
+            let Some(q) = grid.voxel_at(&p) else {
+                continue;
+            };
+            let [x, y, z] = grid.voxel_coords(q);
             for (dx, dy, dz) in [
                 (0i64, 0i64, 0i64),
                 (1, 0, 0),
@@ -794,7 +736,7 @@ impl<'a> Tracker<'a> {
                 let c = [x as i64 + dx, y as i64 + dy, z as i64 + dz];
                 if c.iter().zip(dims).all(|(&a, d)| a >= 0 && a < d as i64) {
                     let q = grid.linear_index(c.map(|a| a as usize));
-                    marked[q / 64] |= 1 << (q % 64);
+                    carried[q / 64] |= 1 << (q % 64);
                 }
             }
         }
@@ -803,7 +745,7 @@ impl<'a> Tracker<'a> {
             .map(|c| c.map(usize::from))
             .filter(|&c| {
                 let q = grid.linear_index(c);
-                marked[q / 64] & (1 << (q % 64)) == 0
+                carried[q / 64] & (1 << (q % 64)) == 0
             })
             .map(|c| grid.center_at(c))
             .collect()

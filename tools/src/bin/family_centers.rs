@@ -135,7 +135,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         .collect();
                     let counts: Vec<u32> =
                         mine.iter().map(|&i| tracked.cell_counts[f][i]).collect();
-                    println!("        {part}: ids {mine:?} errors {errors:?} cells {counts:?}");
+                    println!("        {part}: errors {errors:?} cells {counts:?}");
                 }
                 println!("  {f:4} mean {:6.2}  >10: {:4}  empty cells {empty:3}  worst {:<16} median {e:6.2}  {:?} {} it", row.iter().sum::<Real>() / row.len() as Real, row.iter().filter(|&&e| e > 10.0).count(), take.truth.parts[k], t.kept_guess, t.iterations);
             }
