@@ -90,6 +90,9 @@ pub(crate) mod spatial;
 pub mod track;
 pub mod voxel;
 
+#[cfg(test)]
+mod test_support;
+
 pub use error::{Error, Result};
 pub use model::{Aabb, DynamicMesh, TriangleMesh};
 pub use model::{Frame, FrameSource};

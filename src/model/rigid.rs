@@ -478,8 +478,8 @@ fn mean(points: &[Point3]) -> Vector3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::Rotation3;
     use crate::model::rng::SplitMix64;
+    use crate::test_support::Lcg;
 
     /// Horn's quaternion gives the SVD's rotation wherever it answers, and
     /// answers for well-spread points; reflections and near-degenerate
@@ -577,28 +577,6 @@ mod tests {
                     a.0.len(),
                     b.0.len()
                 );
-            }
-        }
-    }
-
-    /// A small deterministic generator (tests need no rand crate).
-    struct Lcg(u64);
-    impl Lcg {
-        fn next(&mut self) -> Real {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (self.0 >> 11) as Real / (1u64 << 53) as Real
-        }
-        fn vec(&mut self, scale: Real) -> Vector3 {
-            Vector3::new(self.next() - 0.5, self.next() - 0.5, self.next() - 0.5) * scale
-        }
-        fn rigid(&mut self) -> Rigid {
-            let rot = Rotation3::new(self.vec(1.0).normalize() * (self.next() * 3.0));
-            Rigid {
-                rotation: *rot.matrix(),
-                translation: self.vec(4.0),
             }
         }
     }

@@ -5,20 +5,7 @@
 use super::*;
 use crate::math::Vector3;
 
-/// A small deterministic generator (tests need no rand crate).
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> Real {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as Real / (1u64 << 53) as Real
-    }
-    fn vec(&mut self, scale: Real) -> Vector3 {
-        Vector3::new(self.next() - 0.5, self.next() - 0.5, self.next() - 0.5) * scale
-    }
-}
+use crate::test_support::Lcg;
 
 #[test]
 fn voronoi_assignment_equals_a_linear_scan_while_centers_move() {

@@ -232,28 +232,7 @@ pub(crate) fn within_reach(centers: &[Point3], sigma: Real, mu: Real) -> Vec<Vec
 mod tests {
     use super::*;
     use crate::math::{Rotation3, Vector3};
-
-    /// A small deterministic generator (tests need no rand crate).
-    struct Lcg(u64);
-    impl Lcg {
-        fn next(&mut self) -> Real {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (self.0 >> 11) as Real / (1u64 << 53) as Real
-        }
-        fn vec(&mut self, scale: Real) -> Vector3 {
-            Vector3::new(self.next() - 0.5, self.next() - 0.5, self.next() - 0.5) * scale
-        }
-        fn rigid(&mut self) -> Rigid {
-            let rot = Rotation3::new(self.vec(1.0).normalize() * (self.next() * 3.0));
-            Rigid {
-                rotation: *rot.matrix(),
-                translation: self.vec(4.0),
-            }
-        }
-    }
+    use crate::test_support::Lcg;
 
     #[test]
     fn motion_dissimilarity_matches_its_definition() {
