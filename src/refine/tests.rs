@@ -9,6 +9,18 @@ use crate::model::Rigid;
 use crate::params::TrackParams;
 use crate::track::track;
 
+/// The global optimisation's affinity Ω at `p`'s distances, as `refine`
+/// computes it.
+fn omega_of(
+    traj: &Trajectories,
+    seq: &VoxelSequence,
+    cells: &mut SequenceCells,
+    p: &RefineParams,
+) -> SparseAffinity {
+    let scale = p.length_scale(&seq.bounds);
+    global_affinity(traj, seq, cells, p.rho_gp * scale, p.rho_gm * scale, p.mu)
+}
+
 /// Two boxes, one still and one sliding away, voxelised on one grid.
 fn two_bodies(frames: usize, resolution: usize) -> VoxelSequence {
     let a = crate::fixtures::cube(Point3::new(0.0, 0.0, 0.0), 1.0);
@@ -100,16 +112,8 @@ fn accepted_iterations_lower_the_energy_monotonically() {
     let tracked = tracked(&seq, 40);
     let mut traj = tracked.clone();
     let p = RefineParams::default();
-    let scale = p.length_scale(&seq.bounds);
     let mut cells = SequenceCells::new(&seq, usize::MAX);
-    let omega = global_affinity(
-        &traj,
-        &seq,
-        &mut cells,
-        p.rho_gp * scale,
-        p.rho_gm * scale,
-        p.mu,
-    );
+    let omega = omega_of(&traj, &seq, &mut cells, &p);
     let history = optimise(
         &mut traj,
         &seq.grid,
@@ -216,7 +220,6 @@ fn kept_and_fresh_assignments_and_gradients_in_a_file_give_the_same_optimisation
     let seq = two_bodies(7, 40);
     let tracked = tracked(&seq, 40);
     let p = RefineParams::default();
-    let scale = p.length_scale(&seq.bounds);
     let run = |kept: usize, memory: usize| {
         let mut traj = tracked.clone();
         let mut cells = SequenceCells::with_cache(&seq, kept);
@@ -230,14 +233,7 @@ fn kept_and_fresh_assignments_and_gradients_in_a_file_give_the_same_optimisation
                 let survivors = traj.remove_centers(&[3, 17, 30]);
                 cells.keep_centers(&survivors);
             }
-            let w = global_affinity(
-                &traj,
-                &seq,
-                &mut cells,
-                p.rho_gp * scale,
-                p.rho_gm * scale,
-                p.mu,
-            );
+            let w = omega_of(&traj, &seq, &mut cells, &p);
             let history = optimise(
                 &mut traj,
                 &seq.grid,
@@ -290,20 +286,12 @@ fn a_stop_request_ends_the_optimisation_within_an_evaluation_and_keeps_accepted_
         max_iterations: 10,
         ..Default::default()
     };
-    let scale = p.length_scale(&seq.bounds);
     let run = |after: usize| {
         let sink = StopAfterPolls::new(after);
         let mut traj = tracked.clone();
         let mut cells =
             SequenceCells::new(&seq, usize::MAX).stopping_with(crate::Progress(Some(&sink)));
-        let omega = global_affinity(
-            &traj,
-            &seq,
-            &mut cells,
-            p.rho_gp * scale,
-            p.rho_gm * scale,
-            p.mu,
-        );
+        let omega = omega_of(&traj, &seq, &mut cells, &p);
         let mut accepted = Vec::new();
         let history = optimise(&mut traj, &seq.grid, &mut cells, &omega, &p, |_, now, _| {
             accepted = now.positions.clone();
