@@ -763,6 +763,18 @@ pub struct CoverageParams {
     /// Default 0.5; in (0, 1], where 1 carries nothing on.
     #[serde(default = "default_weak")]
     pub weak: Real,
+    /// A region of the result's surface outside the input's volume, as
+    /// large as `far_share` and past this share of `far_result` (the voxel
+    /// floor unchanged), in at least `lasting_frames` frames in a row, is
+    /// warned of in each of them: a part the tracking moved off the
+    /// input's stays off for frames, where an extremity overshoots the
+    /// input's for a frame or two (`metrics::LostParts::lasting`).
+    /// Default 0.6; in (0, 1], where 1 adds nothing.
+    #[serde(default = "default_lasting")]
+    pub lasting: Real,
+    /// See `lasting`. Default 5; in [1, 10000].
+    #[serde(default = "default_lasting_frames")]
+    pub lasting_frames: usize,
 }
 
 fn default_far() -> Real {
@@ -785,6 +797,14 @@ fn default_weak() -> Real {
     CoverageParams::default().weak
 }
 
+fn default_lasting() -> Real {
+    CoverageParams::default().lasting
+}
+
+fn default_lasting_frames() -> usize {
+    CoverageParams::default().lasting_frames
+}
+
 impl Default for CoverageParams {
     fn default() -> Self {
         CoverageParams {
@@ -798,6 +818,8 @@ impl Default for CoverageParams {
             far_voxels: 3.0,
             far_share: 0.1,
             weak: 0.5,
+            lasting: 0.6,
+            lasting_frames: 5,
         }
     }
 }
@@ -815,6 +837,9 @@ pub struct FarDistances {
     pub weak_input: Real,
     /// ... and for the result's.
     pub weak_result: Real,
+    /// The distance past which a region of the result's surface that
+    /// lasts for frames is warned of ([`CoverageParams::lasting`]).
+    pub lasting_result: Real,
 }
 
 impl FarDistances {
@@ -830,6 +855,7 @@ impl FarDistances {
             result,
             weak_input: input,
             weak_result: result,
+            lasting_result: result,
         }
     }
 }
@@ -837,8 +863,8 @@ impl FarDistances {
 impl CoverageParams {
     /// The distances past which a region is far, in percent of `diagonal`:
     /// `far` and `far_result`, or `far_voxels` voxels of `voxel_size` where
-    /// that is more; and the weaker ones, `weak` times those or the same
-    /// floor.
+    /// that is more; the weaker ones, `weak` times those or the same floor;
+    /// and `lasting` times `far_result` or that floor.
     pub fn far_distances(&self, diagonal: Real, voxel_size: Real) -> FarDistances {
         let floor = 100.0 * self.far_voxels * voxel_size / diagonal;
         FarDistances {
@@ -846,6 +872,7 @@ impl CoverageParams {
             result: self.far_result.max(floor),
             weak_input: (self.weak * self.far).max(floor),
             weak_result: (self.weak * self.far_result).max(floor),
+            lasting_result: (self.lasting * self.far_result).max(floor),
         }
     }
 
@@ -884,6 +911,16 @@ impl CoverageParams {
             "the weak share of the far distances",
             self.weak,
             Span::open_closed(0.0, 1.0),
+        )?;
+        check(
+            "the lasting share of the result's far distance",
+            self.lasting,
+            Span::open_closed(0.0, 1.0),
+        )?;
+        check_count(
+            "the frames a lasting far region needs",
+            self.lasting_frames,
+            1..=10_000,
         )?;
         Ok(())
     }

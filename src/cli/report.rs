@@ -728,6 +728,7 @@ fn coverage_html(input: &ReportInput) -> String {
             (&lost.unreached, "volume"),
             (&lost.far, "far"),
             (&lost.fit_outliers, "fit"),
+            (&lost.lasting, "lasting"),
             (&lost.continued, "next to one"),
         ]
         .iter()

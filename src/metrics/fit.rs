@@ -106,6 +106,9 @@ pub struct FrameFit {
     pub weak_input: FarRegion,
     /// The same as `far_result` past [`FarDistances::weak_result`].
     pub weak_result: FarRegion,
+    /// The same as `far_result` past [`FarDistances::lasting_result`]:
+    /// evidence when it lasts for frames.
+    pub lasting_result: FarRegion,
 }
 
 /// A connected region of one surface (vertices joined by its triangles'
@@ -266,6 +269,7 @@ pub fn surface_fit(
         far_result: result.largest_far_region(&forward_all, far.result, hidden),
         weak_input: input.largest_far_region(&backward_all, far.weak_input, &|_| false),
         weak_result: result.largest_far_region(&forward_all, far.weak_result, hidden),
+        lasting_result: result.largest_far_region(&forward_all, far.lasting_result, hidden),
     }
 }
 

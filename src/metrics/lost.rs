@@ -13,9 +13,11 @@
 //!   membrane torn between two, where the input has none.
 //!
 //! Frames whose fit is far worse than the sequence's usual
-//! ([`super::fit_outliers`]) are warned of too, and so are the frames next
-//! to a warned one where a far region passes a weaker distance
-//! ([`LostParts::continued`]).
+//! ([`super::fit_outliers`]) are warned of too, and so are the frames of a
+//! run where a region of the result's surface outside the input's volume
+//! passes a nearer distance frame after frame ([`LostParts::lasting`]),
+//! and the frames next to a warned one where a far region passes a weaker
+//! distance ([`LostParts::continued`]).
 
 use super::coverage::{runs, Coverage, FitOutliers};
 use super::fit::{FarDistances, FarRegion, SequenceFit};
@@ -42,6 +44,10 @@ pub struct FrameLoss {
     pub weak_input: Option<FarRegion>,
     /// See `weak_input`.
     pub weak_result: Option<FarRegion>,
+    /// The largest region of the result's surface past the distance of a
+    /// lasting region ([`super::FrameFit::lasting_result`]; None without a
+    /// mesh).
+    pub lasting_result: Option<FarRegion>,
     /// The frame's fit is far worse than the sequence's usual.
     pub fit_outlier: bool,
 }
@@ -58,6 +64,11 @@ pub struct LostParts {
     pub far: Vec<usize>,
     /// Frames whose fit is far worse than the usual.
     pub fit_outliers: Vec<usize>,
+    /// Frames of runs of at least `params.lasting_frames` frames, each
+    /// with a region of the result's surface as large past the nearer
+    /// distance of [`CoverageParams::lasting`]: a part moved off the
+    /// input's and left there.
+    pub lasting: Vec<usize>,
     /// Frames warned of for none of those, but next to one that is (or to
     /// another of these), with a region of either surface as large past
     /// the weaker distances ([`CoverageParams::weak`]): where a lost part
@@ -87,6 +98,7 @@ pub fn lost_parts(coverage: &Coverage, fit: Option<(&SequenceFit, &FitOutliers)>
                 far_result: frame_fit.map(|x| x.far_result),
                 weak_input: frame_fit.map(|x| x.weak_input),
                 weak_result: frame_fit.map(|x| x.weak_result),
+                lasting_result: frame_fit.map(|x| x.lasting_result),
                 fit_outlier: fit.is_some_and(|(_, o)| o.flagged.contains(&f)),
             }
         })
@@ -102,11 +114,19 @@ pub fn lost_parts(coverage: &Coverage, fit: Option<(&SequenceFit, &FitOutliers)>
         .map(|(f, _)| f)
         .collect();
     let fit_outliers: Vec<usize> = fit.map(|(_, o)| o.flagged.clone()).unwrap_or_default();
+    let marked: Vec<usize> = frames
+        .iter()
+        .enumerate()
+        .filter(|(_, x)| counts(x.lasting_result, params))
+        .map(|(f, _)| f)
+        .collect();
+    let lasting = lasting_runs(&marked, params.lasting_frames);
     let mut flagged: Vec<usize> = coverage
         .flagged
         .iter()
         .chain(&far)
         .chain(&fit_outliers)
+        .chain(&lasting)
         .copied()
         .collect();
     flagged.sort_unstable();
@@ -127,11 +147,22 @@ pub fn lost_parts(coverage: &Coverage, fit: Option<(&SequenceFit, &FitOutliers)>
         unreached: coverage.flagged.clone(),
         far,
         fit_outliers,
+        lasting,
         continued,
         flagged,
         far_distances: fit.map(|(s, _)| s.far),
         params: params.clone(),
     }
+}
+
+/// The frames of `marked` (sorted) in runs of at least `frames`
+/// consecutive ones, in order.
+fn lasting_runs(marked: &[usize], frames: usize) -> Vec<usize> {
+    runs(marked)
+        .into_iter()
+        .filter(|&(a, b)| b - a + 1 >= frames)
+        .flat_map(|(a, b)| a..=b)
+        .collect()
 }
 
 /// The frames not in `flagged` (sorted) that `weak` marks and that join
@@ -255,6 +286,27 @@ impl LostParts {
                 frames: self.unreached.clone(),
             });
         }
+        let lasting: Vec<usize> = self
+            .lasting
+            .iter()
+            .copied()
+            .filter(|&f| !counts(self.frames[f].far_result, &self.params))
+            .collect();
+        if !lasting.is_empty() {
+            let r = largest(&lasting, &|x| x.lasting_result);
+            out.push(LostPartWarning {
+                message: format!(
+                    "warning: frames {}: for {} frames or more in a row, a part of the result lies outside the input's volume \
+                     (a connected region of up to {:.2} % of its surface, up to {:.1} % of the diagonal away): \
+                     a part has likely drifted off its place in the input; check these frames",
+                    frame_runs(&lasting),
+                    self.params.lasting_frames,
+                    r.share,
+                    r.farthest
+                ),
+                frames: lasting,
+            });
+        }
         if !self.continued.is_empty() {
             let r = largest(&self.continued, &|x| {
                 let (i, r) = (
@@ -335,6 +387,7 @@ mod tests {
                 // The weak regions alternate between the surfaces.
                 weak_input: if f % 2 == 0 { weak } else { none },
                 weak_result: if f % 2 == 1 { weak } else { none },
+                lasting_result: none,
             })
             .collect();
         let n = frames.len();
@@ -382,5 +435,68 @@ mod tests {
         assert_eq!(carried_on(&[0], &[true, true, true]), [1, 2]);
         assert_eq!(carried_on(&[2], &[true, true, false]), [0, 1]);
         assert!(carried_on(&[], &[true, true]).is_empty());
+    }
+
+    /// A region of the result past the lasting distance in frames 2-6 (as
+    /// many as `lasting_frames`) is warned of there; the same in frames
+    /// 9-11, one frame short, is not, nor frame 13's tiny one.
+    #[test]
+    fn a_far_result_region_that_lasts_is_warned_of() {
+        let params = CoverageParams::default();
+        assert_eq!(params.lasting_frames, 5);
+        let (lasting, tiny, none) = (region(0.5, 3.5), region(0.01, 3.5), FarRegion::default());
+        let n = 15;
+        let frames: Vec<FrameFit> = (0..n)
+            .map(|f| FrameFit {
+                result_to_input: DistanceSummary::default(),
+                input_to_result: DistanceSummary::default(),
+                two_sided: DistanceSummary::default(),
+                far_input: none,
+                far_result: none,
+                weak_input: none,
+                weak_result: none,
+                lasting_result: match f {
+                    2..=6 | 9..=11 => lasting,
+                    13 => tiny,
+                    _ => none,
+                },
+            })
+            .collect();
+        let fit = SequenceFit {
+            frames,
+            diagonal: 1.0,
+            far: params.far_distances(1.0, 0.001),
+            seconds: 0.0,
+        };
+        let outliers = FitOutliers {
+            p95: vec![0.0; n],
+            usual: 0.0,
+            limit: 1.0,
+            flagged: Vec::new(),
+        };
+        let coverage = Coverage {
+            frames: vec![FrameCoverage::default(); n],
+            flagged: Vec::new(),
+            cell_voxels: 1.0,
+            params: params.clone(),
+        };
+        let lost = lost_parts(&coverage, Some((&fit, &outliers)));
+        assert_eq!(lost.lasting, [2, 3, 4, 5, 6]);
+        assert_eq!(lost.flagged, [2, 3, 4, 5, 6]);
+        let warnings = lost.warnings();
+        assert_eq!(warnings.len(), 1);
+        assert!(
+            warnings[0]
+                .message
+                .contains("frames 2-6: for 5 frames or more"),
+            "{}",
+            warnings[0].message
+        );
+
+        // A run length of 1 is every marked frame.
+        assert_eq!(lasting_runs(&[0, 1, 3], 2), [0, 1]);
+        assert_eq!(lasting_runs(&[1, 2, 5, 6, 7], 3), [5, 6, 7]);
+        assert_eq!(lasting_runs(&[0, 2], 1), [0, 2]);
+        assert!(lasting_runs(&[], 3).is_empty());
     }
 }
