@@ -346,6 +346,31 @@ mod tests {
     use crate::metrics::coverage::FrameCoverage;
     use crate::metrics::fit::{DistanceSummary, FrameFit};
 
+    /// [`lost_parts`] of a take with these frames' fits, nothing unreached
+    /// and no fit outlier.
+    fn lost_of(frames: Vec<FrameFit>, params: &CoverageParams) -> LostParts {
+        let n = frames.len();
+        let fit = SequenceFit {
+            frames,
+            diagonal: 1.0,
+            far: params.far_distances(1.0, 0.001),
+            seconds: 0.0,
+        };
+        let outliers = FitOutliers {
+            p95: vec![0.0; n],
+            usual: 0.0,
+            limit: 1.0,
+            flagged: Vec::new(),
+        };
+        let coverage = Coverage {
+            frames: vec![FrameCoverage::default(); n],
+            flagged: Vec::new(),
+            cell_voxels: 1.0,
+            params: params.clone(),
+        };
+        lost_parts(&coverage, Some((&fit, &outliers)))
+    }
+
     fn region(share: Real, farthest: Real) -> FarRegion {
         FarRegion {
             share,
@@ -390,26 +415,7 @@ mod tests {
                 lasting_result: none,
             })
             .collect();
-        let n = frames.len();
-        let fit = SequenceFit {
-            frames,
-            diagonal: 1.0,
-            far: params.far_distances(1.0, 0.001),
-            seconds: 0.0,
-        };
-        let outliers = FitOutliers {
-            p95: vec![0.0; n],
-            usual: 0.0,
-            limit: 1.0,
-            flagged: Vec::new(),
-        };
-        let coverage = Coverage {
-            frames: vec![FrameCoverage::default(); n],
-            flagged: Vec::new(),
-            cell_voxels: 1.0,
-            params: params.clone(),
-        };
-        let lost = lost_parts(&coverage, Some((&fit, &outliers)));
+        let lost = lost_of(frames, &params);
         assert_eq!(lost.far, [3]);
         assert_eq!(lost.continued, [1, 2, 4, 5]);
         assert_eq!(lost.flagged, [1, 2, 3, 4, 5]);
@@ -439,14 +445,13 @@ mod tests {
 
     /// A region of the result past the lasting distance in frames 2-6 (as
     /// many as `lasting_frames`) is warned of there; the same in frames
-    /// 9-11, one frame short, is not, nor frame 13's tiny one.
+    /// 9-11, two frames short, is not, nor frame 13's tiny one.
     #[test]
     fn a_far_result_region_that_lasts_is_warned_of() {
         let params = CoverageParams::default();
         assert_eq!(params.lasting_frames, 5);
         let (lasting, tiny, none) = (region(0.5, 3.5), region(0.01, 3.5), FarRegion::default());
-        let n = 15;
-        let frames: Vec<FrameFit> = (0..n)
+        let frames: Vec<FrameFit> = (0..15)
             .map(|f| FrameFit {
                 result_to_input: DistanceSummary::default(),
                 input_to_result: DistanceSummary::default(),
@@ -462,25 +467,7 @@ mod tests {
                 },
             })
             .collect();
-        let fit = SequenceFit {
-            frames,
-            diagonal: 1.0,
-            far: params.far_distances(1.0, 0.001),
-            seconds: 0.0,
-        };
-        let outliers = FitOutliers {
-            p95: vec![0.0; n],
-            usual: 0.0,
-            limit: 1.0,
-            flagged: Vec::new(),
-        };
-        let coverage = Coverage {
-            frames: vec![FrameCoverage::default(); n],
-            flagged: Vec::new(),
-            cell_voxels: 1.0,
-            params: params.clone(),
-        };
-        let lost = lost_parts(&coverage, Some((&fit, &outliers)));
+        let lost = lost_of(frames, &params);
         assert_eq!(lost.lasting, [2, 3, 4, 5, 6]);
         assert_eq!(lost.flagged, [2, 3, 4, 5, 6]);
         let warnings = lost.warnings();
