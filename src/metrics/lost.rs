@@ -286,13 +286,10 @@ impl LostParts {
                 frames: self.unreached.clone(),
             });
         }
-        let lasting: Vec<usize> = self
-            .lasting
-            .iter()
-            .copied()
-            .filter(|&f| !counts(self.frames[f].far_result, &self.params))
-            .collect();
-        if !lasting.is_empty() {
+        // Whole runs, frames the far-region warning names among them, so
+        // that every stretch listed is as long as the sentence says.
+        if !self.lasting.is_empty() {
+            let lasting = self.lasting.clone();
             let r = largest(&lasting, &|x| x.lasting_result);
             out.push(LostPartWarning {
                 message: format!(
@@ -444,7 +441,8 @@ mod tests {
     }
 
     /// A region of the result past the lasting distance in frames 2-6 (as
-    /// many as `lasting_frames`) is warned of there; the same in frames
+    /// many as `lasting_frames`) is warned of there, the whole run listed
+    /// though frame 4's is also past the far distance; the same in frames
     /// 9-11, two frames short, is not, nor frame 13's tiny one.
     #[test]
     fn a_far_result_region_that_lasts_is_warned_of() {
@@ -457,7 +455,7 @@ mod tests {
                 input_to_result: DistanceSummary::default(),
                 two_sided: DistanceSummary::default(),
                 far_input: none,
-                far_result: none,
+                far_result: if f == 4 { lasting } else { none },
                 weak_input: none,
                 weak_result: none,
                 lasting_result: match f {
@@ -471,13 +469,15 @@ mod tests {
         assert_eq!(lost.lasting, [2, 3, 4, 5, 6]);
         assert_eq!(lost.flagged, [2, 3, 4, 5, 6]);
         let warnings = lost.warnings();
-        assert_eq!(warnings.len(), 1);
+        assert_eq!(warnings.len(), 2);
+        assert_eq!(warnings[0].frames, [4]);
+        assert_eq!(warnings[1].frames, [2, 3, 4, 5, 6]);
         assert!(
-            warnings[0]
+            warnings[1]
                 .message
                 .contains("frames 2-6: for 5 frames or more"),
             "{}",
-            warnings[0].message
+            warnings[1].message
         );
 
         // A run length of 1 is every marked frame.
