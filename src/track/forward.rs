@@ -193,31 +193,15 @@ fn track_ordered(
     let grid = &seq.grid;
     progress.report(Stage::Track, done_before, total);
 
-    let resume = match checkpoint {
-        Some(c) if c.resume && c.path().exists() => Some(c),
-        Some(c) if c.resume => {
-            // So that one command line can be rerun until it completes.
-            log::warn!(
-                "no checkpoint in {} yet: tracking starts from the first frame",
-                c.dir.display()
-            );
-            None
-        }
-        _ => None,
-    };
-    let started = match (placed_already, resume) {
-        (Some(placed), _) => placed,
-        (None, Some(c)) => {
-            let r = checkpoint::load(c, fingerprint.expect("fingerprinted"), seq, params)?;
-            log::info!(
-                "resuming from {} after {} of {frames} frames",
-                c.path().display(),
-                r.frames_done
-            );
-            r
-        }
-        (None, None) => first_frame(seq, order, params, scale, checkpoint, progress)?,
-    };
+    let (started, resume) = starting_state(
+        seq,
+        order,
+        params,
+        checkpoint,
+        fingerprint,
+        progress,
+        placed_already,
+    )?;
     let Restored {
         frames_done: first,
         trajectories: mut traj,
@@ -243,30 +227,16 @@ fn track_ordered(
         prev_voxels,
     };
     // Frames held by the checkpoint file.
-    let mut saved = if resume.is_some() { first } else { 0 };
+    let mut saved = if resume { first } else { 0 };
     let save = |tracker: &Tracker,
                 traj: &Trajectories,
                 cell_counts: &[Vec<u32>],
                 timings: &[FrameTiming]|
      -> Result<()> {
-        let (Some(c), Some(fp)) = (checkpoint, fingerprint) else {
-            return Ok(());
-        };
-        let frames_done = cell_counts.len();
-        let snapshot = Snapshot {
-            frames_done,
-            trajectories: traj,
-            cell_counts,
-            timings,
-            affinity: &tracker.affinity,
-            owners: &tracker.prev_cells.owners,
-        };
-        checkpoint::save(c, fp, &snapshot)?;
-        log::debug!(
-            "checkpoint: {frames_done} frames saved in {}",
-            c.path().display()
-        );
-        Ok(())
+        match (checkpoint, fingerprint) {
+            (Some(c), Some(fp)) => save_tracking(c, fp, tracker, traj, cell_counts, timings),
+            _ => Ok(()),
+        }
     };
     for (f, &at) in order.iter().enumerate().skip(first) {
         let start = Instant::now();
@@ -316,6 +286,77 @@ fn track_ordered(
         scale,
         reference: Default::default(),
     })
+}
+
+/// Where tracking starts: `placed_already`, else the checkpoint when asked
+/// to resume from one that exists (which must match `fingerprint`), else a
+/// fresh start ([`first_frame`]); and whether it resumed.
+fn starting_state(
+    seq: &VoxelSequence,
+    order: &[usize],
+    params: &TrackParams,
+    checkpoint: Option<&Checkpointing>,
+    fingerprint: Option<u64>,
+    progress: Progress,
+    placed_already: Option<Restored>,
+) -> Result<(Restored, bool)> {
+    let resume = match checkpoint {
+        Some(c) if c.resume && c.path().exists() => Some(c),
+        Some(c) if c.resume => {
+            // So that one command line can be rerun until it completes.
+            log::warn!(
+                "no checkpoint in {} yet: tracking starts from the first frame",
+                c.dir.display()
+            );
+            None
+        }
+        _ => None,
+    };
+    let started = match (placed_already, resume) {
+        (Some(placed), _) => placed,
+        (None, Some(c)) => {
+            let r = checkpoint::load(c, fingerprint.expect("fingerprinted"), seq, params)?;
+            log::info!(
+                "resuming from {} after {} of {} frames",
+                c.path().display(),
+                r.frames_done,
+                order.len()
+            );
+            r
+        }
+        (None, None) => {
+            let scale = params.length_scale(&seq.bounds);
+            first_frame(seq, order, params, scale, checkpoint, progress)?
+        }
+    };
+    Ok((started, resume.is_some()))
+}
+
+/// Saves the tracking after its first `cell_counts.len()` frames into
+/// checkpoint `c`, fingerprinted `fingerprint`.
+fn save_tracking(
+    c: &Checkpointing,
+    fingerprint: u64,
+    tracker: &Tracker,
+    traj: &Trajectories,
+    cell_counts: &[Vec<u32>],
+    timings: &[FrameTiming],
+) -> Result<()> {
+    let frames_done = cell_counts.len();
+    let snapshot = Snapshot {
+        frames_done,
+        trajectories: traj,
+        cell_counts,
+        timings,
+        affinity: &tracker.affinity,
+        owners: &tracker.prev_cells.owners,
+    };
+    checkpoint::save(c, fingerprint, &snapshot)?;
+    log::debug!(
+        "checkpoint: {frames_done} frames saved in {}",
+        c.path().display()
+    );
+    Ok(())
 }
 
 /// A fresh start: the centers placed in frame `order[0]` (Lloyd), their
