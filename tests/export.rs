@@ -1705,7 +1705,31 @@ fn vat_mesh_carries_frame_0_and_texel_uvs() {
     )
     .unwrap();
     assert_eq!(scene, serde_json::json!({"fps": 24.0, "frames": 5}));
+
+    // Into the caller's writers, under the same names: the same bytes as the files.
+    let (mut texture, mut glb, mut sidecar) =
+        (std::io::Cursor::new(Vec::new()), Vec::new(), Vec::new());
+    let names = voltrack::export::vat::VatNames {
+        texture: "walk.exr",
+        mesh: "walk.glb",
+        sidecar: "walk.json",
+    };
+    let report = voltrack::export::vat::write_vat_to(
+        &mut texture,
+        &mut glb,
+        &mut sidecar,
+        &names,
+        &mesh,
+        &options,
+    )
+    .unwrap();
+    assert_eq!(texture.get_ref(), &std::fs::read(&path).unwrap());
+    assert_eq!(glb, bytes);
+    assert_eq!(sidecar, std::fs::read(path.with_extension("json")).unwrap());
+    assert_eq!(report.layout, layout);
+    assert_eq!(report.bytes[0], texture.get_ref().len() as u64);
 }
+
 /// Decodes one accessor of a compressed GLB as meshoptimizer and glTF say:
 /// EXT_meshopt_compression's stream decoded with the meshopt crate, then the
 /// normalized SHORT or BYTE components dequantised to [-1, 1].

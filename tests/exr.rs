@@ -143,6 +143,16 @@ fn metadata_round_trips() {
     let dir = Scratch::new("exr", "attributes");
     let path = dir.join("c.exr");
     write_trajectories_exr(&path, &trajectories(3, 4), &metadata()).unwrap();
+    // Into a writer of the caller's: the same bytes as the file.
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    voltrack::export::exr::write_trajectories_exr_to(
+        &mut bytes,
+        "c.exr",
+        &trajectories(3, 4),
+        &metadata(),
+    )
+    .unwrap();
+    assert_eq!(bytes.get_ref(), &std::fs::read(&path).unwrap());
     let (_, meta) = read_trajectories_exr(&path).unwrap();
     // Every field comes back as written, non-ASCII text (Latin-1 and beyond,
     // including outside the BMP) through EXR's Latin-1 text attributes, the

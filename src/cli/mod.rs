@@ -217,19 +217,17 @@ fn check_ignored(cli: &Cli, matches: &clap::ArgMatches) -> Result<()> {
     }
     if let Command::Convert(args) = &cli.command {
         if given("fps") {
-            if let Ok(format @ (OutputFormat::Exr | OutputFormat::ObjSequence)) = args.format() {
-                return refuse(format!("--fps times an animation, but the output is {}, which has no frame rate: drop it", format.name()));
+            if let Ok(format) = args.format() {
+                if !format.is_timed() {
+                    return refuse(format!("--fps times an animation, but the output is {}, which has no frame rate: drop it", format.name()));
+                }
             }
         }
         if given("interpolation") {
-            if let Ok(
-                format @ (OutputFormat::Exr
-                | OutputFormat::ObjSequence
-                | OutputFormat::Pc2
-                | OutputFormat::Vat),
-            ) = args.format()
-            {
-                return refuse(format!("--interpolation chooses the glTF animation's samplers, but the output is {}, which has none: drop it", format.name()));
+            if let Ok(format) = args.format() {
+                if !format.is_gltf() {
+                    return refuse(format!("--interpolation chooses the glTF animation's samplers, but the output is {}, which has none: drop it", format.name()));
+                }
             }
         }
         if given("normals") {
@@ -693,7 +691,7 @@ fn convert_plan(args: &ConvertArgs) -> Result<ConvertPlan> {
     let found = voltrack::io::discover_frames(&args.input.input)?;
     voltrack::track::check_reference(track.reference, found.len(), checkpoint.is_some())?;
     let reading = voltrack::pipeline::OutputPlan::new().reading(&args.input.input, &found);
-    let mut plan = planned_outputs(format, &args.output, reading);
+    let mut plan = reading.output(format, &args.output);
     if let Some(report) = &args.report {
         plan = plan.file(report, "the report");
     }
@@ -745,13 +743,15 @@ fn write_output(
     let mut notes = Vec::new();
     let mut glb_report = None;
     let mut vat_layout = None;
+    let listed =
+        || -> Vec<std::path::PathBuf> { format.files(out).into_iter().map(|f| f.path).collect() };
     let files = match format {
         OutputFormat::Glb | OutputFormat::Gltf => {
             let (report, gltf_notes) =
                 write_gltf(args, format, conv, &plan.source, fit, name, progress)?;
             notes.extend(gltf_notes);
             glb_report = Some(report);
-            vec![out.clone()]
+            listed()
         }
         OutputFormat::Exr => {
             let removed = conv
@@ -772,7 +772,7 @@ fn write_output(
                 refine.as_ref().map(|r| (r, removed.as_slice())),
             );
             voltrack::export::exr::write_trajectories_exr(out, &conv.trajectories, &meta)?;
-            vec![out.clone()]
+            listed()
         }
         OutputFormat::Vat => {
             let report =
@@ -783,18 +783,14 @@ fn write_output(
                 l.width,
                 l.height,
                 l.rows_per_frame,
-                out.with_extension("glb").display()
+                voltrack::export::vat::files_beside(out).0.display()
             ));
             vat_layout = Some(l);
-            vec![
-                out.clone(),
-                out.with_extension("glb"),
-                out.with_extension("json"),
-            ]
+            listed()
         }
         OutputFormat::Pc2 => {
             voltrack::export::pc2::write_pc2(out, &conv.mesh, args.fps, name)?;
-            vec![out.clone(), out.with_extension("obj")]
+            listed()
         }
         OutputFormat::ObjSequence => {
             voltrack::export::obj::write_obj_sequence(out, &conv.mesh, name)?
@@ -935,18 +931,7 @@ fn print_conversion(
     let traj = &conv.trajectories;
     let total: f64 = seconds.iter().map(|s| s.1).sum();
     // What carries the name and the frame rate, and where they are written.
-    let named = matches!(
-        format,
-        OutputFormat::Glb
-            | OutputFormat::Gltf
-            | OutputFormat::Vat
-            | OutputFormat::Pc2
-            | OutputFormat::ObjSequence
-    );
-    let timed = matches!(
-        format,
-        OutputFormat::Glb | OutputFormat::Gltf | OutputFormat::Vat | OutputFormat::Pc2
-    );
+    let (named, timed) = (format.has_mesh(), format.is_timed());
     let lost = conv.lost_parts();
     let warnings = lost.warnings();
     if args.json {
@@ -1131,35 +1116,6 @@ fn reference_json(conv: &pipeline::Conversion) -> serde_json::Value {
         "parts": r.topology.iter().map(|t| t.parts).collect::<Vec<_>>(),
         "tunnels": r.topology.iter().map(|t| t.tunnels).collect::<Vec<_>>(),
     })
-}
-
-/// Adds every path `format` writes for `out` to `plan`.
-fn planned_outputs(
-    format: OutputFormat,
-    out: &Path,
-    plan: voltrack::pipeline::OutputPlan,
-) -> voltrack::pipeline::OutputPlan {
-    match format {
-        OutputFormat::Glb | OutputFormat::Gltf | OutputFormat::Exr => plan.file(out, "the output"),
-        OutputFormat::Vat => plan
-            .file(out, "the output")
-            .sidecar(
-                &out.with_extension("glb"),
-                "its mesh",
-                voltrack::export::vat::MESH_MARK,
-            )
-            .sidecar(
-                &out.with_extension("json"),
-                "its JSON sidecar",
-                voltrack::export::vat::SIDECAR_MARK,
-            ),
-        OutputFormat::Pc2 => plan.file(out, "the output").sidecar(
-            &out.with_extension("obj"),
-            "its OBJ mesh",
-            voltrack::export::pc2::MESH_MARK,
-        ),
-        OutputFormat::ObjSequence => plan.dir(out, "the output folder"),
-    }
 }
 
 /// Bytes under `path` (a file, or a directory of files).

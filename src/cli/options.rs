@@ -6,6 +6,7 @@ use clap::{Args, ValueEnum};
 use std::path::PathBuf;
 use voltrack::export::gltf::{BasisChoice, GltfExportOptions, Interpolation};
 use voltrack::export::vat::VatOptions;
+pub use voltrack::export::OutputFormat;
 use voltrack::metrics::SequenceFit;
 use voltrack::params::{
     AffinityKind, Blending, ConformParams, DeformParams, Reference, RefineParams, TrackParams,
@@ -260,40 +261,6 @@ impl RefineArgs {
     }
 }
 
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum OutputFormat {
-    /// Binary glTF with morph targets
-    Glb,
-    /// glTF as JSON with the binary buffer embedded (the GLB's content in one text file)
-    Gltf,
-    /// Center trajectories (as `voltrack track`)
-    Exr,
-    /// Per-vertex positions as an EXR vertex-animation texture, with its mesh (.glb) and a JSON sidecar
-    Vat,
-    /// Blender point cache (.pc2) with the base mesh as OBJ beside it
-    Pc2,
-    /// A directory of OBJ files sharing one connectivity
-    ObjSequence,
-}
-
-impl OutputFormat {
-    /// glTF, binary or text: morph targets, `--basis`, `--compress`.
-    pub fn is_gltf(self) -> bool {
-        matches!(self, OutputFormat::Glb | OutputFormat::Gltf)
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            OutputFormat::Glb => "glb",
-            OutputFormat::Gltf => "gltf",
-            OutputFormat::Exr => "exr",
-            OutputFormat::Vat => "vat",
-            OutputFormat::Pc2 => "pc2",
-            OutputFormat::ObjSequence => "obj-sequence",
-        }
-    }
-}
-
 /// `--basis`: a number of components, or chosen by the result's fit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BasisArg {
@@ -446,13 +413,7 @@ impl ConvertArgs {
             .and_then(|e| e.to_str())
             .unwrap_or("")
             .to_ascii_lowercase();
-        let implied = match ext.as_str() {
-            "glb" => Some(OutputFormat::Glb),
-            "gltf" => Some(OutputFormat::Gltf),
-            "exr" => Some(OutputFormat::Exr),
-            "pc2" => Some(OutputFormat::Pc2),
-            _ => None,
-        };
+        let implied = OutputFormat::from_extension(&ext);
         let given = if self.vat {
             Some(OutputFormat::Vat)
         } else {

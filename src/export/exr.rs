@@ -23,21 +23,40 @@ pub fn write_trajectories_exr(
     traj: &Trajectories,
     metadata: &TrajectoryMetadata,
 ) -> Result<()> {
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    trajectory_image(path, traj, metadata)?.encode(&mut bytes)?;
+    write_atomic(path, |w| w.write_all(bytes.get_ref()))
+}
+
+/// [`write_trajectories_exr`] into a writer of the caller's, `name`d so in
+/// errors. What was written before an error stays written.
+pub fn write_trajectories_exr_to(
+    w: &mut (impl Write + Seek),
+    name: &str,
+    traj: &Trajectories,
+    metadata: &TrajectoryMetadata,
+) -> Result<()> {
+    trajectory_image(Path::new(name), traj, metadata)?.encode(w)
+}
+
+/// The image of `traj` with `metadata`, `path` naming it in errors.
+fn trajectory_image<'a>(
+    path: &'a Path,
+    traj: &'a Trajectories,
+    metadata: &TrajectoryMetadata,
+) -> Result<PointImage<'a, impl Fn(usize, usize) -> Point3 + Sync + 'a>> {
     let meta = match serde_json::to_value(metadata).map_err(|e| Error::write(path, e))? {
         serde_json::Value::Object(map) => map,
         _ => unreachable!("a struct serialises to an object"),
     };
-    let image = PointImage {
+    Ok(PointImage {
         path,
         name: "trajectories",
         width: traj.centers,
         height: traj.frames,
         pixel: |x: usize, y: usize| traj.get(y, x),
         meta,
-    };
-    let mut bytes = std::io::Cursor::new(Vec::new());
-    image.encode(&mut bytes)?;
-    write_atomic(path, |w| w.write_all(bytes.get_ref()))
+    })
 }
 
 /// An OpenEXR file of `width` × `height` points, `pixel(x, y)` each, with
@@ -56,7 +75,7 @@ impl<F: Fn(usize, usize) -> Point3 + Sync> PointImage<'_, F> {
     /// can seek (the format's offset tables are filled in after the blocks),
     /// through memory into one that cannot (a pipe). Returns its length in
     /// bytes.
-    pub(super) fn stream(self, w: &mut std::io::BufWriter<std::fs::File>) -> Result<u64> {
+    pub(super) fn stream(self, w: &mut (impl Write + Seek)) -> Result<u64> {
         let Ok(start) = w.stream_position() else {
             let (path, mut bytes) = (self.path, std::io::Cursor::new(Vec::new()));
             self.encode(&mut bytes)?;

@@ -10,11 +10,16 @@ use crate::model::mesh::TriangleMesh;
 use crate::model::DynamicMesh;
 use std::fs::File;
 use std::io::{BufWriter, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The first words of the mesh written beside a point cache, by which a
 /// rerun knows it may replace the file.
 pub const MESH_MARK: &str = "# Mesh Cache";
+
+/// The OBJ mesh written beside a point cache at `path`.
+pub fn mesh_beside(path: &Path) -> PathBuf {
+    path.with_extension("obj")
+}
 
 /// Writes the frames of `mesh` as a PC2 point cache at `path` and frame 0 as
 /// an OBJ at `path.with_extension("obj")`, both listing the same vertices in
@@ -35,7 +40,7 @@ pub const MESH_MARK: &str = "# Mesh Cache";
 /// others keep the mesh's order.
 pub fn write_pc2(path: &Path, mesh: &DynamicMesh, fps: f32, name: &str) -> Result<()> {
     let cache = PointCache::new(mesh, fps, name)?;
-    let obj_path = path.with_extension("obj");
+    let obj_path = mesh_beside(path);
     if obj_path == path {
         return Err(Error::write(
             path,

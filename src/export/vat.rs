@@ -18,7 +18,7 @@ use crate::math::{Point3, Real};
 use crate::model::mesh::TriangleMesh;
 use crate::model::DynamicMesh;
 use std::io::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 /// What every VAT sidecar holds near its start (its `software` field), by
@@ -251,78 +251,38 @@ pub struct VatReport {
     pub bytes: [u64; 3],
 }
 
+/// The mesh and the JSON sidecar written beside a texture at `path`.
+pub fn files_beside(path: &Path) -> (PathBuf, PathBuf) {
+    (path.with_extension("glb"), path.with_extension("json"))
+}
+
 /// Writes the frames of `mesh` as a vertex-animation texture at `path` (an
 /// RGB float32 OpenEXR, ZIP-compressed, RGB = absolute x, y, z in the
 /// input's units, laid out as [`VatLayout`] says), frame 0 as a static GLB
 /// at `path.with_extension("glb")` (normals, the UVs and texture it has as
 /// TEXCOORD_0, TEXCOORD_1 = [`VatLayout::uv`], repeated as TEXCOORD_0 when
 /// the mesh has no UVs), and [`VatInfo`] as
-/// `path.with_extension("json")`; all three or none.
+/// `path.with_extension("json")` ([`files_beside`]); all three or none.
 pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Result<VatReport> {
-    options.validate()?;
-    check_frames(mesh)?;
-    let sidecar = path.with_extension("json");
-    let mesh_path = path.with_extension("glb");
+    let (mesh_path, sidecar) = files_beside(path);
     if sidecar == path || mesh_path == path {
         return Err(Error::write(
             path,
             "the texture would overwrite its JSON sidecar or its mesh; name it .exr",
         ));
     }
-    let layout = options.layout(mesh.base.positions.len(), mesh.frames.len())?;
     let file_name = |p: &Path| {
         p.file_name()
             .unwrap_or_default()
             .to_string_lossy()
             .into_owned()
     };
-    let bounds = mesh.frames.bounds()?;
-    let info = VatInfo {
-        software: concat!("voltrack ", env!("CARGO_PKG_VERSION")).into(),
-        texture: file_name(path),
-        mesh: file_name(&mesh_path),
-        fps: options.fps,
-        frames: layout.frames,
-        vertices: layout.vertices,
-        width: layout.width,
-        height: layout.height,
-        rows_per_frame: layout.rows_per_frame,
-        power_of_two: options.power_of_two,
-        layout: "vertex v (the mesh's order) of frame f at column v mod width, row f × rows_per_frame + v div width; \
-                 RGB = its absolute x, y, z (float32); texels no vertex uses are 0"
-            .into(),
-        row_order: "top to bottom: row 0 is the image's first (top) row, frame 0's first vertices; frames follow downward".into(),
-        uv_set: "TEXCOORD_1".into(),
-        uv: "TEXCOORD_1 of vertex v is the center of its frame-0 texel, ((column + 0.5) / width, (row + 0.5) / height), \
-             origin at the image's top-left corner as in glTF; frame f is at (u, v + f × frame_v_step) \
-             (a mesh without UVs of its own has the same in TEXCOORD_0). \
-             Where v = 0 is the bottom row (OpenGL, Unity, Unreal after a glTF import flips v to 1 − v), frame f is at 1 − v − f × frame_v_step"
-            .into(),
-        frame_v_step: layout.frame_v_step(),
-        bounds_min: [bounds.min.x, bounds.min.y, bounds.min.z],
-        bounds_max: [bounds.max.x, bounds.max.y, bounds.max.z],
+    let names = VatNames {
+        texture: &file_name(path),
+        mesh: &file_name(&mesh_path),
+        sidecar: &file_name(&sidecar),
     };
-    let mut attrs = serde_json::Map::new();
-    attrs.insert(
-        "vat".into(),
-        serde_json::to_value(&info).map_err(|e| Error::write(&sidecar, e))?,
-    );
-    let glb = mesh_bytes(mesh, &layout, options, &info.texture, &file_name(&sidecar))?;
-    let text = serde_json::to_string_pretty(&info).map_err(|e| Error::write(&sidecar, e))?;
-    // The texture is encoded into its file as the rows are asked for, frame
-    // after frame, each read once: no frame but the current one is held.
-    let current = Mutex::new(Frame {
-        index: usize::MAX,
-        positions: Vec::new(),
-        failed: None,
-    });
-    let pixel = |x: usize, y: usize| match layout.vertex_at(x, y) {
-        Some((v, f)) => current
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .position(mesh, f, v),
-        None => Point3::origin(),
-    };
+    let vat = PreparedVat::new(mesh, options, &names, &sidecar)?;
     let mut texture_bytes = 0;
     let mut failed = None;
     // All or none: the texture cannot be decoded without the other two.
@@ -330,43 +290,168 @@ pub fn write_vat(path: &Path, mesh: &DynamicMesh, options: &VatOptions) -> Resul
         (
             path,
             Box::new(|w: &mut _| {
-                let image = PointImage {
-                    path,
-                    name: "vertex animation",
-                    width: layout.width,
-                    height: layout.height,
-                    pixel,
-                    meta: attrs,
-                };
-                let streamed = image.stream(w);
-                let unread = current
-                    .lock()
-                    .unwrap_or_else(|e| e.into_inner())
-                    .failed
-                    .take();
-                let outcome = match unread {
-                    Some(e) => Err(e),
-                    None => streamed.map(|n| texture_bytes = n),
-                };
-                outcome.map_err(|e| {
-                    let io = std::io::Error::other(e.to_string());
-                    failed = Some(e);
-                    io
-                })
+                vat.texture(w, path)
+                    .map(|n| texture_bytes = n)
+                    .map_err(|e| {
+                        let io = std::io::Error::other(e.to_string());
+                        failed = Some(e);
+                        io
+                    })
             }),
         ),
-        (&mesh_path, Box::new(|w: &mut _| w.write_all(&glb))),
-        (&sidecar, Box::new(|w: &mut _| w.write_all(text.as_bytes()))),
+        (&mesh_path, Box::new(|w: &mut _| w.write_all(&vat.glb))),
+        (
+            &sidecar,
+            Box::new(|w: &mut _| w.write_all(vat.text.as_bytes())),
+        ),
     ]);
     // A frame that could not be read is that error, not a failure to write.
     if let Some(e) = failed {
         return Err(e);
     }
     written?;
-    Ok(VatReport {
-        layout,
-        bytes: [texture_bytes, glb.len() as u64, text.len() as u64],
-    })
+    Ok(vat.report(texture_bytes))
+}
+
+/// The file names a VAT's three files go by: each names the others inside
+/// (the sidecar its texture and mesh, the mesh its sidecar).
+#[derive(Clone, Copy, Debug)]
+pub struct VatNames<'a> {
+    /// The texture's file name.
+    pub texture: &'a str,
+    /// The mesh's file name.
+    pub mesh: &'a str,
+    /// The JSON sidecar's file name.
+    pub sidecar: &'a str,
+}
+
+/// [`write_vat`] into three writers of the caller's, whose files go by
+/// `names`: the texture into `texture`, the mesh into `glb`, the sidecar
+/// into `sidecar`. What was written before an error stays written.
+pub fn write_vat_to(
+    texture: &mut (impl std::io::Write + std::io::Seek),
+    glb: &mut impl std::io::Write,
+    sidecar: &mut impl std::io::Write,
+    names: &VatNames,
+    mesh: &DynamicMesh,
+    options: &VatOptions,
+) -> Result<VatReport> {
+    let vat = PreparedVat::new(mesh, options, names, Path::new(names.sidecar))?;
+    let texture_bytes = vat.texture(texture, Path::new(names.texture))?;
+    glb.write_all(&vat.glb).map_err(Error::WriteStream)?;
+    sidecar
+        .write_all(vat.text.as_bytes())
+        .map_err(Error::WriteStream)?;
+    Ok(vat.report(texture_bytes))
+}
+
+/// A VAT ready to write: its layout, the texture's metadata, the mesh and
+/// the sidecar; the texture itself is encoded as it is written.
+struct PreparedVat<'a> {
+    mesh: &'a DynamicMesh,
+    layout: VatLayout,
+    attrs: serde_json::Map<String, serde_json::Value>,
+    glb: Vec<u8>,
+    text: String,
+}
+
+impl<'a> PreparedVat<'a> {
+    /// `sidecar` names the sidecar in errors.
+    fn new(
+        mesh: &'a DynamicMesh,
+        options: &VatOptions,
+        names: &VatNames,
+        sidecar: &Path,
+    ) -> Result<Self> {
+        options.validate()?;
+        check_frames(mesh)?;
+        let layout = options.layout(mesh.base.positions.len(), mesh.frames.len())?;
+        let bounds = mesh.frames.bounds()?;
+        let info = VatInfo {
+            software: concat!("voltrack ", env!("CARGO_PKG_VERSION")).into(),
+            texture: names.texture.into(),
+            mesh: names.mesh.into(),
+            fps: options.fps,
+            frames: layout.frames,
+            vertices: layout.vertices,
+            width: layout.width,
+            height: layout.height,
+            rows_per_frame: layout.rows_per_frame,
+            power_of_two: options.power_of_two,
+            layout: "vertex v (the mesh's order) of frame f at column v mod width, row f × rows_per_frame + v div width; \
+                     RGB = its absolute x, y, z (float32); texels no vertex uses are 0"
+                .into(),
+            row_order: "top to bottom: row 0 is the image's first (top) row, frame 0's first vertices; frames follow downward".into(),
+            uv_set: "TEXCOORD_1".into(),
+            uv: "TEXCOORD_1 of vertex v is the center of its frame-0 texel, ((column + 0.5) / width, (row + 0.5) / height), \
+                 origin at the image's top-left corner as in glTF; frame f is at (u, v + f × frame_v_step) \
+                 (a mesh without UVs of its own has the same in TEXCOORD_0). \
+                 Where v = 0 is the bottom row (OpenGL, Unity, Unreal after a glTF import flips v to 1 − v), frame f is at 1 − v − f × frame_v_step"
+                .into(),
+            frame_v_step: layout.frame_v_step(),
+            bounds_min: [bounds.min.x, bounds.min.y, bounds.min.z],
+            bounds_max: [bounds.max.x, bounds.max.y, bounds.max.z],
+        };
+        let mut attrs = serde_json::Map::new();
+        attrs.insert(
+            "vat".into(),
+            serde_json::to_value(&info).map_err(|e| Error::write(sidecar, e))?,
+        );
+        let glb = mesh_bytes(mesh, &layout, options, &info.texture, names.sidecar)?;
+        let text = serde_json::to_string_pretty(&info).map_err(|e| Error::write(sidecar, e))?;
+        Ok(PreparedVat {
+            mesh,
+            layout,
+            attrs,
+            glb,
+            text,
+        })
+    }
+
+    /// The texture into `w` (`path` names it in errors); its length in bytes.
+    /// It is encoded as the rows are asked for, frame after frame, each read
+    /// once: no frame but the current one is held. A frame that cannot be
+    /// read is that error.
+    fn texture(&self, w: &mut (impl std::io::Write + std::io::Seek), path: &Path) -> Result<u64> {
+        let (mesh, layout) = (self.mesh, &self.layout);
+        let current = Mutex::new(Frame {
+            index: usize::MAX,
+            positions: Vec::new(),
+            failed: None,
+        });
+        let pixel = |x: usize, y: usize| match layout.vertex_at(x, y) {
+            Some((v, f)) => current
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .position(mesh, f, v),
+            None => Point3::origin(),
+        };
+        let image = PointImage {
+            path,
+            name: "vertex animation",
+            width: layout.width,
+            height: layout.height,
+            pixel,
+            meta: self.attrs.clone(),
+        };
+        let streamed = image.stream(w);
+        let unread = current
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .failed
+            .take();
+        match unread {
+            Some(e) => Err(e),
+            None => streamed,
+        }
+    }
+
+    fn report(&self, texture_bytes: u64) -> VatReport {
+        VatReport {
+            layout: self.layout,
+            bytes: [texture_bytes, self.glb.len() as u64, self.text.len() as u64],
+        }
+    }
 }
 
 /// The frame whose texels are being written, read when its first is asked for.

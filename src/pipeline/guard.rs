@@ -95,6 +95,20 @@ impl OutputPlan {
         self
     }
 
+    /// Every file `format` writes for output path `out`
+    /// ([`OutputFormat::files`](crate::export::OutputFormat::files)).
+    pub fn output(self, format: crate::export::OutputFormat, out: &Path) -> Self {
+        use crate::export::format::OutputKind;
+        format
+            .files(out)
+            .into_iter()
+            .fold(self, |plan, f| match f.kind {
+                OutputKind::File => plan.file(&f.path, f.what),
+                OutputKind::Sidecar(mark) => plan.sidecar(&f.path, f.what, mark),
+                OutputKind::Folder => plan.dir(&f.path, f.what),
+            })
+    }
+
     /// The checkpoint folder of `checkpointing` (created if missing): its
     /// files may replace only earlier checkpoints, or links.
     pub fn checkpoints(mut self, checkpointing: &crate::checkpoint::Checkpointing) -> Self {
