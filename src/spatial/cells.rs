@@ -1290,38 +1290,16 @@ fn reassign(
             |(pending, settled, unsettled),
              (chunk, (((((own, up), low), runner), third), coords))| {
                 let n = loosen_all(own, up, low, third, &loosening32, pending);
-                // First the distance to the owner, whose new bounds settle
-                // about half of the voxels measured: without a branch on
-                // that outcome, which no predictor guesses, the voxels are
-                // listed on one side or the other. The others follow in
-                // their order, so the scan's hint below sees the same voxels.
-                let (mut n_settled, mut n_unsettled) = (0, 0);
-                for &Pending {
-                    element: k,
-                    lower: lo,
-                } in &pending[..n]
-                {
-                    let o = own[k as usize];
-                    let (own2, done) = match loosening.get(o as usize) {
-                        Some(b) => {
-                            let pos = position(chunk * CHUNK + k as usize, coords[k as usize]);
-                            let u2 = index.dist2(o, &pos);
-                            let u = u2.sqrt();
-                            let l = b.lowered(lo as Real, u);
-                            let done = u + eps < l;
-                            settled[n_settled] = Settled {
-                                element: k,
-                                upper: u as f32,
-                                lower: l as f32,
-                            };
-                            n_settled += done as usize;
-                            (u2, done)
-                        }
-                        None => (Real::NAN, false),
-                    };
-                    unsettled[n_unsettled] = Unsettled { element: k, own2 };
-                    n_unsettled += !done as usize;
-                }
+                let pass = ChunkPass {
+                    base: chunk * CHUNK,
+                    coords,
+                    eps,
+                    index,
+                    loosening,
+                    position: &position,
+                };
+                let (n_settled, n_unsettled) =
+                    pass.measure_owners(own, &pending[..n], settled, unsettled);
                 for &Settled {
                     element: k,
                     upper,
@@ -1331,83 +1309,164 @@ fn reassign(
                     up[k as usize] = upper.next_up();
                     low[k as usize] = lower.next_down();
                 }
-                let mut changed = Vec::new();
-                // The owner last found in this chunk: a voxel without
-                // one (assigned afresh) starts from its neighbour's in
-                // the scan, which is nearly always its own or close, so
-                // that the candidate lists settle it instead of the k-d
-                // tree. The owner found is the same either way.
-                let mut last = NO_OWNER;
-                for &Unsettled { element: k, own2 } in &unsettled[..n_unsettled] {
-                    let k = k as usize;
-                    let o = own[k];
-                    let at = chunk * CHUNK + k;
-                    let pos = position(at, coords[k]);
-                    // The squared distance to the voxel's last owner, or to
-                    // its hint when assigned afresh (another frame's owner,
-                    // say); infinite without either.
-                    let own2 = match loosening.get(o as usize) {
-                        Some(_) => {
-                            let (u2, u) = (own2, own2.sqrt());
-                            // Between the owner and the runner-up, when every
-                            // other center is farther than both.
-                            let (r, others) = if pairs {
-                                (runner[k], third[k] as Real)
-                            } else {
-                                (NO_OWNER, Real::NEG_INFINITY)
-                            };
-                            if r != NO_OWNER && u + eps < others {
-                                let r2 = index.dist2(r, &pos);
-                                let takes = r2 < u2 || (r2 == u2 && r < o);
-                                let (near, far) = if takes {
-                                    (r2.sqrt(), u)
-                                } else {
-                                    (u, r2.sqrt())
-                                };
-                                if near + eps < others {
-                                    if takes {
-                                        own[k] = r;
-                                        runner[k] = o;
-                                        changed.push((at as u32, o));
-                                    }
-                                    up[k] = (near as f32).next_up();
-                                    low[k] = (far.min(others) as f32).next_down();
-                                    last = own[k];
-                                    continue;
-                                }
-                            }
-                            u2
-                        }
-                        None if (o as usize) < index.len() => index.dist2(o, &pos),
-                        None => Real::INFINITY,
-                    };
-                    // Where the centers moved far (a frame's first
-                    // iterations, or another frame's owners as hints), the
-                    // owner the scan just found is often nearer than the
-                    // voxel's own, and its candidate list the one that
-                    // settles the voxel.
-                    let hint = if last != NO_OWNER && last != o && index.dist2(last, &pos) < own2 {
-                        last
-                    } else {
-                        o
-                    };
-                    let found = index.nearest2(&pos, hint);
-                    last = found.owner;
-                    if found.owner != o {
-                        changed.push((at as u32, o));
-                    }
-                    own[k] = found.owner;
-                    up[k] = (found.distance as f32).next_up();
-                    low[k] = (found.second as f32).next_down();
-                    if pairs {
-                        runner[k] = found.runner_up;
-                        third[k] = (found.third as f32).next_down();
-                    }
-                }
-                changed
+                let mut chunk_bounds = Bounds {
+                    owners: own,
+                    upper: up,
+                    lower: low,
+                    runner_up: runner,
+                    third,
+                };
+                pass.settle(&mut chunk_bounds, pairs, &unsettled[..n_unsettled])
             },
         )
         .collect()
+}
+
+/// What [`reassign`] knows of one chunk of elements: the first's index,
+/// their coordinates, and the centers' index and moves.
+struct ChunkPass<'a, P> {
+    base: usize,
+    coords: &'a [[u16; 3]],
+    eps: Real,
+    index: &'a CenterIndex,
+    loosening: &'a [Loosening],
+    position: &'a P,
+}
+
+impl<P: Fn(usize, [u16; 3]) -> [Real; 3]> ChunkPass<'_, P> {
+    /// The distance of each `pending` element (with its lower bound before
+    /// the pass) to its owner in `own`, whose new bounds settle about half of
+    /// them: those are listed in `settled`, the others in `unsettled` (with
+    /// the squared distance), in their order, so the scan's hint in
+    /// [`Self::settle`] sees the same elements. Without a branch on that
+    /// outcome, which no predictor guesses, each element is written on both
+    /// sides and counted on one. Returns how many of each.
+    #[inline(always)]
+    fn measure_owners(
+        &self,
+        own: &[u32],
+        pending: &[Pending],
+        settled: &mut [Settled],
+        unsettled: &mut [Unsettled],
+    ) -> (usize, usize) {
+        let (mut n_settled, mut n_unsettled) = (0, 0);
+        for &Pending {
+            element: k,
+            lower: lo,
+        } in pending
+        {
+            let o = own[k as usize];
+            let (own2, done) = match self.loosening.get(o as usize) {
+                Some(b) => {
+                    let pos = (self.position)(self.base + k as usize, self.coords[k as usize]);
+                    let u2 = self.index.dist2(o, &pos);
+                    let u = u2.sqrt();
+                    let l = b.lowered(lo as Real, u);
+                    let done = u + self.eps < l;
+                    settled[n_settled] = Settled {
+                        element: k,
+                        upper: u as f32,
+                        lower: l as f32,
+                    };
+                    n_settled += done as usize;
+                    (u2, done)
+                }
+                None => (Real::NAN, false),
+            };
+            unsettled[n_unsettled] = Unsettled { element: k, own2 };
+            n_unsettled += !done as usize;
+        }
+        (n_settled, n_unsettled)
+    }
+
+    /// Finds the owner of each `unsettled` element and its bounds in `b`
+    /// (this chunk's slices; runner-ups kept where `pairs`); returns
+    /// (element, old owner) for every element whose owner changed.
+    #[inline(always)]
+    fn settle(&self, b: &mut Bounds, pairs: bool, unsettled: &[Unsettled]) -> Vec<(u32, u32)> {
+        let (index, eps) = (self.index, self.eps);
+        let Bounds {
+            owners: own,
+            upper: up,
+            lower: low,
+            runner_up: runner,
+            third,
+        } = b;
+        let mut changed = Vec::new();
+        // The owner last found in this chunk: a voxel without
+        // one (assigned afresh) starts from its neighbour's in
+        // the scan, which is nearly always its own or close, so
+        // that the candidate lists settle it instead of the k-d
+        // tree. The owner found is the same either way.
+        let mut last = NO_OWNER;
+        for &Unsettled { element: k, own2 } in unsettled {
+            let k = k as usize;
+            let o = own[k];
+            let at = self.base + k;
+            let pos = (self.position)(at, self.coords[k]);
+            // The squared distance to the voxel's last owner, or to
+            // its hint when assigned afresh (another frame's owner,
+            // say); infinite without either.
+            let own2 = match self.loosening.get(o as usize) {
+                Some(_) => {
+                    let (u2, u) = (own2, own2.sqrt());
+                    // Between the owner and the runner-up, when every
+                    // other center is farther than both.
+                    let (r, others) = if pairs {
+                        (runner[k], third[k] as Real)
+                    } else {
+                        (NO_OWNER, Real::NEG_INFINITY)
+                    };
+                    if r != NO_OWNER && u + eps < others {
+                        let r2 = index.dist2(r, &pos);
+                        let takes = r2 < u2 || (r2 == u2 && r < o);
+                        let (near, far) = if takes {
+                            (r2.sqrt(), u)
+                        } else {
+                            (u, r2.sqrt())
+                        };
+                        if near + eps < others {
+                            if takes {
+                                own[k] = r;
+                                runner[k] = o;
+                                changed.push((at as u32, o));
+                            }
+                            up[k] = (near as f32).next_up();
+                            low[k] = (far.min(others) as f32).next_down();
+                            last = own[k];
+                            continue;
+                        }
+                    }
+                    u2
+                }
+                None if (o as usize) < index.len() => index.dist2(o, &pos),
+                None => Real::INFINITY,
+            };
+            // Where the centers moved far (a frame's first
+            // iterations, or another frame's owners as hints), the
+            // owner the scan just found is often nearer than the
+            // voxel's own, and its candidate list the one that
+            // settles the voxel.
+            let hint = if last != NO_OWNER && last != o && index.dist2(last, &pos) < own2 {
+                last
+            } else {
+                o
+            };
+            let found = index.nearest2(&pos, hint);
+            last = found.owner;
+            if found.owner != o {
+                changed.push((at as u32, o));
+            }
+            own[k] = found.owner;
+            up[k] = (found.distance as f32).next_up();
+            low[k] = (found.second as f32).next_down();
+            if pairs {
+                runner[k] = found.runner_up;
+                third[k] = (found.third as f32).next_down();
+            }
+        }
+        changed
+    }
 }
 
 /// Assigns every occupied voxel to its nearest center in one go. `owners`
