@@ -15,7 +15,9 @@
 //!    optimisation run;
 //! 4. [`deform::deform`] and [`deform::conform`]: the first frame's mesh
 //!    moved by the centers, then fitted to every frame's input;
-//! 5. [`export`]: glTF with morph targets, OpenEXR, PC2, OBJ sequences.
+//! 5. [`export`]: glTF with morph targets, OpenEXR trajectories,
+//!    vertex-animation textures, PC2, OBJ sequences
+//!    ([`export::OutputFormat`]), each to a path or into writers.
 //!
 //! [`pipeline::convert`] runs stages 1-4 with [`pipeline::ConvertOptions`].
 //! Frames come from a [`FrameSource`]: [`io::FrameFiles`] reads files (OBJ,
