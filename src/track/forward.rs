@@ -188,7 +188,8 @@ fn track_ordered(
     let placed = order[0];
     room_for_centers(seq, placed, params)?;
     debug_assert!(checkpoint.is_none() || order.iter().enumerate().all(|(k, &f)| k == f));
-    let fingerprint = checkpoint.map(|_| checkpoint::fingerprint(seq, params));
+    // The checkpoint with the fingerprint its files carry.
+    let fingerprinted = checkpoint.map(|c| (c, checkpoint::fingerprint(seq, params)));
     let scale = params.length_scale(&seq.bounds);
     let grid = &seq.grid;
     progress.report(Stage::Track, done_before, total);
@@ -197,8 +198,8 @@ fn track_ordered(
         seq,
         order,
         params,
-        checkpoint,
-        fingerprint,
+        scale,
+        fingerprinted,
         progress,
         placed_already,
     )?;
@@ -233,9 +234,9 @@ fn track_ordered(
                 cell_counts: &[Vec<u32>],
                 timings: &[FrameTiming]|
      -> Result<()> {
-        match (checkpoint, fingerprint) {
-            (Some(c), Some(fp)) => save_tracking(c, fp, tracker, traj, cell_counts, timings),
-            _ => Ok(()),
+        match fingerprinted {
+            Some((c, fp)) => save_tracking(c, fp, tracker, traj, cell_counts, timings),
+            None => Ok(()),
         }
     };
     for (f, &at) in order.iter().enumerate().skip(first) {
@@ -289,20 +290,21 @@ fn track_ordered(
 }
 
 /// Where tracking starts: `placed_already`, else the checkpoint when asked
-/// to resume from one that exists (which must match `fingerprint`), else a
-/// fresh start ([`first_frame`]); and whether it resumed.
+/// to resume from one that exists (which must match the fingerprint beside
+/// it), else a fresh start ([`first_frame`]); and whether it resumed.
 fn starting_state(
     seq: &VoxelSequence,
     order: &[usize],
     params: &TrackParams,
-    checkpoint: Option<&Checkpointing>,
-    fingerprint: Option<u64>,
+    scale: Real,
+    fingerprinted: Option<(&Checkpointing, u64)>,
     progress: Progress,
     placed_already: Option<Restored>,
 ) -> Result<(Restored, bool)> {
-    let resume = match checkpoint {
-        Some(c) if c.resume && c.path().exists() => Some(c),
-        Some(c) if c.resume => {
+    let checkpoint = fingerprinted.map(|(c, _)| c);
+    let resume = match fingerprinted {
+        Some((c, fp)) if c.resume && c.path().exists() => Some((c, fp)),
+        Some((c, _)) if c.resume => {
             // So that one command line can be rerun until it completes.
             log::warn!(
                 "no checkpoint in {} yet: tracking starts from the first frame",
@@ -314,8 +316,8 @@ fn starting_state(
     };
     let started = match (placed_already, resume) {
         (Some(placed), _) => placed,
-        (None, Some(c)) => {
-            let r = checkpoint::load(c, fingerprint.expect("fingerprinted"), seq, params)?;
+        (None, Some((c, fingerprint))) => {
+            let r = checkpoint::load(c, fingerprint, seq, params)?;
             log::info!(
                 "resuming from {} after {} of {} frames",
                 c.path().display(),
@@ -324,10 +326,7 @@ fn starting_state(
             );
             r
         }
-        (None, None) => {
-            let scale = params.length_scale(&seq.bounds);
-            first_frame(seq, order, params, scale, checkpoint, progress)?
-        }
+        (None, None) => first_frame(seq, order, params, scale, checkpoint, progress)?,
     };
     Ok((started, resume.is_some()))
 }
